@@ -1,0 +1,6 @@
+"""graph_slam: per-stride factor-graph SLAM for a thigh-mounted RGB-D camera on a prosthesis."""
+
+from graph_slam._version import __version__
+from graph_slam.errors import GraphSlamError
+
+__all__ = ["GraphSlamError", "__version__"]

@@ -1,0 +1,73 @@
+"""Typed configuration: pydantic models with defaults in code, partial YAML overrides.
+
+Every configurable part of graph_slam has a sub-model here or next to its code, deriving from
+:class:`ConfigModel` (frozen, unknown keys rejected). Load a YAML file of partial overrides
+with :func:`load_config`; write the fully resolved config next to a run's results with
+:func:`write_config`. Errors name the file and the field.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from graph_slam.errors import ConfigError
+
+C = TypeVar("C", bound="ConfigModel")
+
+
+class ConfigModel(BaseModel):
+    """Base of every config: immutable, and a misspelt key is an error, not a silent default."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+def _format_validation_error(err: ValidationError, source: str) -> str:
+    parts = []
+    for item in err.errors():
+        field = ".".join(str(p) for p in item["loc"]) or "<root>"
+        parts.append(f"field '{field}': {item['msg']}")
+    return f"{source}: " + "; ".join(parts)
+
+
+def config_from_dict(cls: type[C], data: dict[str, Any] | None, source: str = "<dict>") -> C:
+    """Build ``cls`` from a (partial) mapping; missing fields take their defaults."""
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: the top level must be a mapping, got {type(data).__name__}")
+    try:
+        return cls.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(_format_validation_error(err, source)) from None
+
+
+def load_config(cls: type[C], path: str | Path | None) -> C:
+    """Read a YAML file of partial overrides (``yaml.safe_load``) into ``cls``.
+
+    ``path=None`` gives the defaults.
+    """
+    if path is None:
+        return cls()
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read config file ({err.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{path}: not valid YAML ({err})") from None
+    return config_from_dict(cls, data, source=str(path))
+
+
+def write_config(config: ConfigModel, path: str | Path) -> Path:
+    """Write the fully resolved config as YAML (every field, defaults included)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = config.model_dump(mode="json")
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return path

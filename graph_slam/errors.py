@@ -1,0 +1,74 @@
+"""Typed exceptions of graph_slam.
+
+Every error the library raises on purpose is a :class:`GraphSlamError`. Messages name the
+file, the row or field, and the rule that was broken, so that a user can fix the input
+without reading code. The CLI turns these into a one-line message and exit code 2.
+
+The ``kinematics`` package never imports ``graph_slam``; its errors derive from
+``kinematics.KinematicsError``. Catch :data:`LIBRARY_ERRORS` to catch both.
+"""
+
+from __future__ import annotations
+
+
+class GraphSlamError(Exception):
+    """Base class of every error graph_slam raises on purpose."""
+
+
+class ConfigError(GraphSlamError):
+    """A configuration value or combination is invalid (names the field)."""
+
+
+class RecordError(GraphSlamError):
+    """An in-memory record (frame, IMU series, ...) has a wrong shape, dtype or value."""
+
+
+class SessionError(GraphSlamError):
+    """A recorded session on disk is missing, malformed or inconsistent."""
+
+
+class ManifestError(SessionError):
+    """The session manifest is missing, unreadable or has a bad field."""
+
+
+class SchemaVersionError(ManifestError):
+    """The manifest's schema version is not one this reader understands."""
+
+
+class PathEscapeError(SessionError):
+    """A path in a manifest or index points outside the session folder."""
+
+
+class StreamError(SessionError):
+    """A CSV stream (frames, imu, joints, events, ground truth) breaks a rule."""
+
+
+class TimestampError(StreamError):
+    """Timestamps are non-monotonic, duplicated or not finite."""
+
+
+class NonFiniteError(StreamError):
+    """A numeric sample is NaN or infinite."""
+
+
+class ImageError(SessionError):
+    """An image file is missing, corrupt, truncated or has the wrong size or type."""
+
+
+class DepthScaleError(SessionError):
+    """The stated depth scale makes the depth values implausible."""
+
+
+class ConversionError(GraphSlamError):
+    """A foreign recording (bag, TUM folder, EuRoC, log) cannot be converted."""
+
+
+class EstimationError(GraphSlamError):
+    """The estimator cannot go on (an input it cannot use, not a numerical hiccup)."""
+
+
+def library_errors() -> tuple[type[Exception], ...]:
+    """The exception types a caller should treat as 'bad input', not as a bug."""
+    from kinematics import KinematicsError
+
+    return (GraphSlamError, KinematicsError)
