@@ -131,7 +131,7 @@ def plot_failure(
 
     pts_prev, pts_curr = prev.points_xy_m(), curr.points_xy_m()
     top_right.scatter(*pts_prev.T, s=4, color="tab:blue", label=f"scan {k - 1}")
-    for est, colour in ((thesis, COLOURS["thesis"]), (graph, COLOURS["graph"])):
+    for est, colour in ((graph, COLOURS["graph"]), (thesis, COLOURS["thesis"])):
         if not (
             np.isfinite(est.world_T_sensor[k]).all()
             and np.isfinite(est.world_T_sensor[k - 1]).all()
