@@ -68,17 +68,11 @@ def register(app: typer.Typer) -> None:
         ] = False,
     ) -> None:
         """Check a session completely (manifest, streams, every frame); exit 2 on any problem."""
-        from rich.progress import Progress
-
+        from graph_slam.commands._common import progress_bar
         from graph_slam.session import validate_session
 
-        with Progress(transient=True) as progress:
-            task = progress.add_task("decoding frames", total=None)
-            report = validate_session(
-                session,
-                every_frame=not quick,
-                progress=lambda done, total: progress.update(task, completed=done, total=total),
-            )
+        with progress_bar("decoding frames") as update:
+            report = validate_session(session, every_frame=not quick, progress=update)
         if report.ok:
             counts = ", ".join(f"{k} {v}" for k, v in report.counts.items())
             typer.echo(f"valid: {session} ({counts}; {report.frames_checked} frames decoded)")
@@ -97,8 +91,7 @@ def register(app: typer.Typer) -> None:
         (The simulated thesis box course and comparison report replace this as the later
         issues land.)
         """
-        from rich.progress import Progress
-
+        from graph_slam.commands._common import progress_bar
         from graph_slam.config import write_config
         from graph_slam.session import open_session, session_info, validate_session
         from graph_slam.session.synthetic import SyntheticConfig, write_synthetic_session
@@ -106,14 +99,8 @@ def register(app: typer.Typer) -> None:
         cfg = SyntheticConfig()
         out.mkdir(parents=True, exist_ok=True)
         write_config(cfg, out / "config.yaml")
-        with Progress(transient=True) as progress:
-            task = progress.add_task("writing synthetic session", total=None)
-            path = write_synthetic_session(
-                out / "session",
-                cfg,
-                overwrite=True,
-                progress=lambda done, total: progress.update(task, completed=done, total=total),
-            )
+        with progress_bar("writing synthetic session") as update:
+            path = write_synthetic_session(out / "session", cfg, overwrite=True, progress=update)
         validate_session(path).raise_if_failed()
         print_info(session_info(open_session(path)))
         typer.echo(f"session written and validated: {path} (config: {out / 'config.yaml'})")

@@ -639,8 +639,9 @@ def validate_session(
                 check_depth_scale(depth_path, frame.depth_m, session.depth_unit_m)
             report.frames_checked += 1
         except DepthScaleError as err:
-            report.problems.append(err)
-            scale_sample.clear()  # one report of a wrong scale is enough
+            # One report of a wrong scale is enough (the reader refuses every frame with it).
+            if not any(isinstance(p, DepthScaleError) for p in report.problems):
+                report.problems.append(err)
         except SessionError as err:
             report.problems.append(err)
         if callable(progress):

@@ -165,7 +165,7 @@ def check_times(path: Path, t_s: np.ndarray, column: str = "t_s") -> None:
         raise TimestampError(
             f"{path}: column {column!r} must be strictly increasing; {bad.size} offending row(s) "
             f"({dup} duplicate, {bad.size - dup} going back), first at data row {first} "
-            f"(line {_line_of(first)}): {t_s[first - 1]!r} then {t_s[first]!r}"
+            f"(line {_line_of(first)}): {float(t_s[first - 1])!r} then {float(t_s[first])!r}"
         )
 
 

@@ -61,7 +61,7 @@ def check_increasing(record: str, t_s: np.ndarray) -> None:
         kind = "duplicate" if t_s[first] == t_s[first - 1] else "decreasing"
         raise RecordError(
             f"{record}.t_s: {bad.size} timestamp(s) not strictly increasing, first at row {first} "
-            f"({kind}: {t_s[first - 1]!r} then {t_s[first]!r})"
+            f"({kind}: {float(t_s[first - 1])!r} then {float(t_s[first])!r})"
         )
 
 
