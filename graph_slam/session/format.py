@@ -52,6 +52,7 @@ from graph_slam.session.manifest import (
     Manifest,
     Provenance,
     SensorsSpec,
+    check_relative,
     load_manifest,
     resolve_inside,
 )
@@ -134,7 +135,7 @@ def _read_frame_index(session_dir: Path, rel: str) -> FrameIndex:
                 )
             for name, value in (("depth", depth_rel), ("color", color_rel)):
                 if value:
-                    resolve_inside(session_dir, value, what=f"{rel} row {row} column {name!r}")
+                    check_relative(session_dir, value, what=f"{rel} row {row} column {name!r}")
             if not depth_rel:
                 raise StreamError(f"{path}: data row {row} (line {line}), column 'depth' is empty")
             times.append(t)

@@ -5,6 +5,7 @@ See docs/session_format.md for the layout of a session folder.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -149,16 +150,24 @@ def load_manifest(session_dir: Path) -> Manifest:
     return manifest
 
 
-def resolve_inside(session_dir: Path, relative: str, *, what: str) -> Path:
-    """Resolve ``relative`` against the session folder; refuse absolute paths and escapes."""
-    rel = Path(relative)
-    root = session_dir.resolve()
-    if rel.is_absolute():
+def check_relative(session_dir: Path, relative: str, *, what: str) -> None:
+    """Lexical check (no file-system access): ``relative`` must stay inside the session folder."""
+    if Path(relative).is_absolute() or relative.startswith(("/", "\\")):
         raise PathEscapeError(
             f"{session_dir}: {what} = {relative!r} is absolute; "
             "paths must be relative to the session folder"
         )
-    full = (root / rel).resolve()
+    normal = os.path.normpath(relative)
+    if normal == ".." or normal.startswith(("../", "..\\")):
+        raise PathEscapeError(f"{session_dir}: {what} = {relative!r} escapes the session folder")
+
+
+def resolve_inside(session_dir: Path, relative: str, *, what: str) -> Path:
+    """Resolve ``relative`` against the session folder; refuse absolute paths and escapes
+    (also through symbolic links)."""
+    check_relative(session_dir, relative, what=what)
+    root = session_dir.resolve()
+    full = (root / relative).resolve()
     if not full.is_relative_to(root):
         raise PathEscapeError(f"{session_dir}: {what} = {relative!r} escapes the session folder")
     return full
