@@ -51,11 +51,21 @@ class ContactNoise:
     """
 
     heel_strike: tuple[float, float, float, float, float, float] = (
-        np.radians(2.0), np.radians(5.0), np.radians(2.0), 0.010, 0.005, 0.003,
-    )  # fmt: skip
+        np.radians(2.0),
+        np.radians(5.0),
+        np.radians(2.0),
+        0.010,
+        0.005,
+        0.003,
+    )
     foot_flat: tuple[float, float, float, float, float, float] = (
-        np.radians(1.0), np.radians(1.0), np.radians(1.0), 0.004, 0.004, 0.002,
-    )  # fmt: skip
+        np.radians(1.0),
+        np.radians(1.0),
+        np.radians(1.0),
+        0.004,
+        0.004,
+        0.002,
+    )
 
     def covariance(self, contact: Contact) -> np.ndarray:
         """6x6 diagonal covariance of the foot pose for ``contact``."""
@@ -75,8 +85,13 @@ class LegModel:
     names (``knee``, ``ankle``; frames thigh, camera_optical, imu, heel, toe).
     """
 
-    def __init__(self, params: LegParams | None = None, *, urdf_xml: str | None = None,
-                 source: str = "<generated>") -> None:  # fmt: skip
+    def __init__(
+        self,
+        params: LegParams | None = None,
+        *,
+        urdf_xml: str | None = None,
+        source: str = "<generated>",
+    ) -> None:
         import pinocchio as pin
 
         self.params = params if urdf_xml is None else None
@@ -155,8 +170,9 @@ class LegModel:
 
         pin.framesForwardKinematics(self.model, self.data, q)
 
-    def frame_T_frame(self, a: str, b: str, q: Sequence[float] | np.ndarray,
-                      check_limits: bool = True) -> np.ndarray:  # fmt: skip
+    def frame_T_frame(
+        self, a: str, b: str, q: Sequence[float] | np.ndarray, check_limits: bool = True
+    ) -> np.ndarray:
         """``a_T_b`` (4x4) between two URDF frames at joint angles ``q``."""
         q_arr = self.check_q(q, check_limits)
         ia, ib = self._frame_id(a), self._frame_id(b)
@@ -178,9 +194,14 @@ class LegModel:
         return self.frame_T_frame("thigh", frame, np.zeros(2), check_limits=False)
 
     # --- Jacobians -----------------------------------------------------------------------
-    def jacobian(self, a: str, b: str, q: Sequence[float] | np.ndarray,
-                 perturbation: Perturbation = "right",
-                 check_limits: bool = True) -> np.ndarray:  # fmt: skip
+    def jacobian(
+        self,
+        a: str,
+        b: str,
+        q: Sequence[float] | np.ndarray,
+        perturbation: Perturbation = "right",
+        check_limits: bool = True,
+    ) -> np.ndarray:
         """6x2 Jacobian of ``a_T_b`` w.r.t. q, rows [rotation; translation] (GTSAM order).
 
         ``right``: ``a_T_b(q+δ) ≈ a_T_b(q) Exp(J δ)`` (twist in frame b, the default);

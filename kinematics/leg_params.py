@@ -81,15 +81,24 @@ class LegParams:
 
     def __post_init__(self) -> None:
         lengths = (
-            "thigh_length_m", "shank_length_m", "ankle_height_m", "foot_length_m",
-            "mount_height_above_knee_m", "knee_velocity_limit_rad_s", "ankle_velocity_limit_rad_s",
-        )  # fmt: skip
+            "thigh_length_m",
+            "shank_length_m",
+            "ankle_height_m",
+            "foot_length_m",
+            "mount_height_above_knee_m",
+            "knee_velocity_limit_rad_s",
+            "ankle_velocity_limit_rad_s",
+        )
         for name in lengths:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise LegModelError(f"LegParams.{name}={value!r}: must be a finite number > 0")
-        for name in ("heel_behind_ankle_m", "mount_forward_m", "imu_height_above_knee_m",
-                     "imu_lateral_m"):  # fmt: skip
+        for name in (
+            "heel_behind_ankle_m",
+            "mount_forward_m",
+            "imu_height_above_knee_m",
+            "imu_lateral_m",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value)):
                 raise LegModelError(f"LegParams.{name}={value!r}: must be a finite number")
@@ -193,8 +202,9 @@ def leg_urdf(params: LegParams | None = None, name: str = "transfemoral_leg") ->
             f'izz="{mass * 0.003:.6g}"/>\n    </inertial>\n'
         )
 
-    def fixed(link: str, parent: str, xyz: tuple[float, ...] | np.ndarray,
-              rpy: tuple[float, ...]) -> str:  # fmt: skip
+    def fixed(
+        link: str, parent: str, xyz: tuple[float, ...] | np.ndarray, rpy: tuple[float, ...]
+    ) -> str:
         return (
             f'  <link name="{link}"/>\n'
             f'  <joint name="{link}_joint" type="fixed">\n'

@@ -111,8 +111,12 @@ def test_jacobian_rotation_rows_are_the_planar_rates(model: LegModel) -> None:
 def test_covariance_matches_monte_carlo(model: LegModel) -> None:
     rng = np.random.default_rng(42)
     q0 = np.array([0.35, 0.05])
-    cov_q = np.array([[np.radians(0.8) ** 2, 0.3 * np.radians(0.8) * np.radians(0.5)],
-                      [0.3 * np.radians(0.8) * np.radians(0.5), np.radians(0.5) ** 2]])  # fmt: skip
+    cov_q = np.array(
+        [
+            [np.radians(0.8) ** 2, 0.3 * np.radians(0.8) * np.radians(0.5)],
+            [0.3 * np.radians(0.8) * np.radians(0.5), np.radians(0.5) ** 2],
+        ]
+    )
     contact_cov = ContactNoise().covariance("heel_strike")
     predicted = model.camera_covariance(q0, cov_q, contact="heel_strike")
     t0 = model.foot_T_camera(q0)
@@ -151,8 +155,12 @@ def test_params_override_without_xml_and_shipped_urdf() -> None:
         from_file.foot_T_camera([0.5, 0.1]), LegModel().foot_T_camera([0.5, 0.1])
     )
 
-    p = LegParams(mount_pitch_down_rad=math.radians(42.0), thigh_length_m=0.47,
-                  shank_length_m=0.41, mount_height_above_knee_m=0.25)  # fmt: skip
+    p = LegParams(
+        mount_pitch_down_rad=math.radians(42.0),
+        thigh_length_m=0.47,
+        shank_length_m=0.41,
+        mount_height_above_knee_m=0.25,
+    )
     m = LegModel(p)
     np.testing.assert_allclose(
         m.foot_T_camera([0.7, -0.2]), planar_foot_T_camera(0.7, -0.2, p), atol=1e-9
