@@ -1,8 +1,37 @@
 """Prosthetic-leg kinematics, gait events and gait reference curves (numpy in, numpy out).
 
-This package never imports ``graph_slam``.
+This package never imports ``graph_slam``. Modules (import what you need; pinocchio and gtsam
+are only imported by the modules that use them):
+
+- :mod:`kinematics.gait_curves` - hip/knee/ankle reference curves vs phase and speed
+- :mod:`kinematics.leg_params` - the typed leg parameters and the URDF they generate
+- :mod:`kinematics.leg_model` - :class:`~kinematics.leg_model.LegModel` (Pinocchio FK,
+  Jacobians, camera-pose covariance)
+- :mod:`kinematics.stride_frame` - ``stride_T_camera`` at foot strike
+- :mod:`kinematics.encoders` - joint-encoder validation (limits, NaN, jumps)
+- :mod:`kinematics.gait_events` - foot strike / toe-off from a load cell or a thigh IMU,
+  gait phase
+- :mod:`kinematics.conversions` - pin.SE3 <-> gtsam.Pose3 <-> 4x4 arrays
 """
 
-from kinematics.errors import KinematicsError
+import logging
 
-__all__ = ["KinematicsError"]
+from kinematics.errors import (
+    EncoderError,
+    GaitCurveError,
+    GaitDetectionError,
+    GaitInputError,
+    KinematicsError,
+    LegModelError,
+)
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+__all__ = [
+    "EncoderError",
+    "GaitCurveError",
+    "GaitDetectionError",
+    "GaitInputError",
+    "KinematicsError",
+    "LegModelError",
+]
