@@ -58,8 +58,13 @@ def test_peak_knee_flexion_grows_with_speed_as_in_source() -> None:
 def test_curves_reproduce_the_shipped_mean_table() -> None:
     from graph_slam_models import model_path
 
-    table = np.genfromtxt(model_path("gait/schwartz2008_sagittal.csv"), delimiter=",", names=True,
-                          dtype=None, encoding="utf-8")  # fmt: skip
+    table = np.genfromtxt(
+        model_path("gait/schwartz2008_sagittal.csv"),
+        delimiter=",",
+        names=True,
+        dtype=None,
+        encoding="utf-8",
+    )
     for name, speed in zip(SPEED_BINS, BIN_SPEEDS_M_S, strict=True):
         rows = table[table["speed_bin"] == name]
         q = gc.joint_angles(rows["cycle_pct"] / 100.0, speed)

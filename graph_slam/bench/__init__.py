@@ -1,0 +1,1 @@
+"""Benchmarks: commands that print figures (recorded in docs/benchmarks.md), never timed tests."""

@@ -1,0 +1,47 @@
+"""``graph-slam bench ...``: benchmarks that print the figures recorded in docs/benchmarks.md."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+bench_app = typer.Typer(
+    help="Benchmarks (figures recorded in docs/benchmarks.md).", no_args_is_help=True
+)
+
+
+@bench_app.command("session-io")
+def session_io(
+    minutes: Annotated[float, typer.Option(help="Session length.")] = 10.0,
+    rate_hz: Annotated[float, typer.Option(help="Frame rate.")] = 90.0,
+    unique_frames: Annotated[
+        int, typer.Option(help="Distinct PNG pairs the index cycles through.")
+    ] = 900,
+) -> None:
+    """Peak resident memory and throughput of the lazy reader on a long D455-sized session."""
+    from graph_slam.bench.session_io import run_session_io
+    from graph_slam.commands._common import progress_bar
+
+    with tempfile.TemporaryDirectory() as tmp, progress_bar("reading frames") as update:
+        result = run_session_io(
+            Path(tmp) / "session",
+            minutes=minutes,
+            rate_hz=rate_hz,
+            unique_frames=unique_frames,
+            progress=update,
+        )
+    for line in result.lines():
+        typer.echo(line)
+
+
+@bench_app.command("all")
+def run_all() -> None:
+    """Every benchmark with its default settings."""
+    session_io()
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(bench_app, name="bench")

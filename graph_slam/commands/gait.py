@@ -1,0 +1,53 @@
+"""Gait commands: ``gait-events`` (foot strikes and toe-offs from a thigh IMU CSV)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("gait-events")
+    def gait_events(
+        imu_csv: Annotated[
+            Path,
+            typer.Argument(
+                help="IMU CSV with columns t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z "
+                "(s, rad/s, m/s²; 50-1000 Hz), from a thigh IMU in any orientation."
+            ),
+        ],
+        out: Annotated[
+            Path | None,
+            typer.Option("--out", help="Write t_s,kind rows here (default: standard output)."),
+        ] = None,
+    ) -> None:
+        """Detect foot strikes and toe-offs from a thigh IMU alone (kinematics.gait_events)."""
+        import logging
+
+        from kinematics.gait_events import (
+            detect_from_thigh_imu,
+            read_imu_csv,
+            write_events_csv,
+        )
+
+        if not logging.getLogger().handlers:
+            logging.basicConfig(level=logging.WARNING, format="warning: %(message)s")
+        imu = read_imu_csv(imu_csv)
+        events = detect_from_thigh_imu(imu)
+        if out is not None:
+            write_events_csv(out, events)
+        else:
+            typer.echo("t_s,kind")
+            for t, kind in events.rows():
+                typer.echo(f"{t:.6f},{kind}")
+        axis = events.sagittal_axis
+        axis_text = "–" if axis is None else "[" + ", ".join(f"{a:+.3f}" for a in axis) + "]"
+        typer.echo(
+            f"{imu_csv}: {events.foot_strikes_s.size} foot strikes, {events.toe_offs_s.size} "
+            f"toe-offs; {events.merged_strikes} foot strikes merged (closer than the minimum "
+            f"stride time), {events.rejected} candidates rejected; sagittal axis (sensor "
+            f"frame, flexion +) {axis_text}" + (f"; wrote {out}" if out is not None else ""),
+            err=True,
+        )

@@ -1,0 +1,386 @@
+"""Records: the typed, immutable in-memory form of everything a session holds.
+
+Names carry units and frames (``t_s``, ``gyro_rad_s``, ``world_T_camera``). Arrays are stored
+read-only and checked on construction: a record that exists is well-formed (shapes, dtypes,
+finite values, strictly increasing time). Construction errors are :class:`RecordError` with
+the record, the field and the rule.
+
+Poses are ``a_T_b`` 4×4 homogeneous matrices that map points from frame ``b`` to frame ``a``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from graph_slam.errors import RecordError
+
+GaitEventKind = Literal["foot_strike", "toe_off"]
+GAIT_EVENT_KINDS: tuple[str, ...] = ("foot_strike", "toe_off")
+
+
+# --------------------------------------------------------------------------- helpers
+def _frozen(array: np.ndarray) -> np.ndarray:
+    array = np.ascontiguousarray(array)
+    array.setflags(write=False)
+    return array
+
+
+def _float_array(
+    record: str, name: str, value: object, shape: tuple[int | None, ...]
+) -> np.ndarray:
+    """Convert to float64 and check shape (``None`` = any length) and finiteness."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise RecordError(f"{record}.{name}: not numeric ({err})") from None
+    if array.ndim != len(shape) or any(
+        want is not None and got != want for got, want in zip(array.shape, shape, strict=True)
+    ):
+        want_txt = "×".join("N" if s is None else str(s) for s in shape)
+        raise RecordError(f"{record}.{name}: shape {array.shape} does not match {want_txt}")
+    bad = ~np.isfinite(array)
+    if bad.any():
+        bad_rows = np.flatnonzero(bad.reshape(bad.shape[0], -1).any(axis=1)) if array.ndim else [0]
+        raise RecordError(
+            f"{record}.{name}: {len(bad_rows)} row(s) hold NaN or inf, first at row {bad_rows[0]}"
+        )
+    return _frozen(array)
+
+
+def check_increasing(record: str, t_s: np.ndarray) -> None:
+    """Timestamps must strictly increase; report the count and the first offending row."""
+    if t_s.size < 2:
+        return
+    bad = np.flatnonzero(np.diff(t_s) <= 0.0) + 1
+    if bad.size:
+        first = int(bad[0])
+        kind = "duplicate" if t_s[first] == t_s[first - 1] else "decreasing"
+        raise RecordError(
+            f"{record}.t_s: {bad.size} timestamp(s) not strictly increasing, first at row {first} "
+            f"({kind}: {float(t_s[first - 1])!r} then {float(t_s[first])!r})"
+        )
+
+
+def check_pose(record: str, name: str, pose: np.ndarray, tol: float = 1e-6) -> None:
+    """A 4×4 (or N×4×4) homogeneous rigid transform: orthonormal rotation, last row 0 0 0 1."""
+    poses = pose.reshape(-1, 4, 4)
+    rot = poses[:, :3, :3]
+    ortho_err = np.abs(np.einsum("nij,nkj->nik", rot, rot) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(rot)
+    bottom_err = np.abs(poses[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1)
+    bad = np.flatnonzero((ortho_err > tol) | (np.abs(det - 1.0) > tol) | (bottom_err > tol))
+    if bad.size:
+        raise RecordError(
+            f"{record}.{name}: {bad.size} transform(s) are not rigid (rotation not orthonormal "
+            f"with det +1, or last row not 0 0 0 1), first at index {int(bad[0])}"
+        )
+
+
+# --------------------------------------------------------------------------- camera
+@dataclass(frozen=True, slots=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics of the (rectified) depth image, in pixels.
+
+    The depth and colour images are aligned: they share these intrinsics.
+    """
+
+    width_px: int
+    height_px: int
+    fx_px: float
+    fy_px: float
+    cx_px: float
+    cy_px: float
+
+    def __post_init__(self) -> None:
+        for name in ("width_px", "height_px"):
+            value = getattr(self, name)
+            if not isinstance(value, int | np.integer) or value <= 0:
+                raise RecordError(
+                    f"CameraIntrinsics.{name}: must be a positive integer, got {value!r}"
+                )
+        for name in ("fx_px", "fy_px"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value <= 0:
+                raise RecordError(f"CameraIntrinsics.{name}: must be finite and > 0, got {value!r}")
+        for name in ("cx_px", "cy_px"):
+            if not np.isfinite(getattr(self, name)):
+                raise RecordError(f"CameraIntrinsics.{name}: must be finite")
+
+    @property
+    def K(self) -> np.ndarray:
+        """The 3×3 camera matrix."""
+        return np.array(
+            [[self.fx_px, 0.0, self.cx_px], [0.0, self.fy_px, self.cy_px], [0.0, 0.0, 1.0]]
+        )
+
+    @property
+    def shape_hw(self) -> tuple[int, int]:
+        """Image shape as (height, width), numpy's order."""
+        return (self.height_px, self.width_px)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class RgbdFrame:
+    """One depth frame (metres, float32 H×W, 0 = invalid) with optional aligned colour."""
+
+    t_s: float
+    depth_m: np.ndarray
+    color_rgb: np.ndarray | None = None
+    index: int = 0
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.t_s):
+            raise RecordError(f"RgbdFrame[{self.index}].t_s: not finite ({self.t_s!r})")
+        depth = np.asarray(self.depth_m)
+        if depth.ndim != 2:
+            raise RecordError(
+                f"RgbdFrame[{self.index}].depth_m: must be H×W, got shape {depth.shape}"
+            )
+        if depth.dtype != np.float32:
+            raise RecordError(
+                f"RgbdFrame[{self.index}].depth_m: dtype must be float32, got {depth.dtype}"
+            )
+        if not np.isfinite(depth).all() or (depth < 0).any():
+            raise RecordError(
+                f"RgbdFrame[{self.index}].depth_m: values must be finite and >= 0 (0 = invalid)"
+            )
+        object.__setattr__(self, "depth_m", _frozen(depth))
+        if self.color_rgb is not None:
+            color = np.asarray(self.color_rgb)
+            if color.dtype != np.uint8 or color.shape != (*depth.shape, 3):
+                raise RecordError(
+                    f"RgbdFrame[{self.index}].color_rgb: must be uint8 {depth.shape[0]}×"
+                    f"{depth.shape[1]}×3 like the depth, got {color.dtype} {color.shape}"
+                )
+            object.__setattr__(self, "color_rgb", _frozen(color))
+
+    @property
+    def valid_fraction(self) -> float:
+        """Fraction of pixels with a depth reading."""
+        return float(np.count_nonzero(self.depth_m)) / self.depth_m.size
+
+
+# --------------------------------------------------------------------------- streams
+@dataclass(frozen=True, slots=True, eq=False)
+class ImuSeries:
+    """IMU samples in the IMU frame: angular rate (rad/s) and specific force (m/s²)."""
+
+    t_s: np.ndarray
+    gyro_rad_s: np.ndarray
+    accel_m_s2: np.ndarray
+
+    def __post_init__(self) -> None:
+        t = _float_array("ImuSeries", "t_s", self.t_s, (None,))
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(
+            self,
+            "gyro_rad_s",
+            _float_array("ImuSeries", "gyro_rad_s", self.gyro_rad_s, (t.size, 3)),
+        )
+        object.__setattr__(
+            self,
+            "accel_m_s2",
+            _float_array("ImuSeries", "accel_m_s2", self.accel_m_s2, (t.size, 3)),
+        )
+        check_increasing("ImuSeries", t)
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+    def slice_time(self, t0_s: float, t1_s: float) -> ImuSeries:
+        """Samples with ``t0_s <= t_s < t1_s``."""
+        mask = (self.t_s >= t0_s) & (self.t_s < t1_s)
+        return ImuSeries(self.t_s[mask], self.gyro_rad_s[mask], self.accel_m_s2[mask])
+
+
+JOINT_NAMES: tuple[str, ...] = ("knee", "ankle")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class JointSeries:
+    """Prosthesis joint encoders: knee flexion (+) and ankle dorsiflexion (+), radians."""
+
+    t_s: np.ndarray
+    knee_rad: np.ndarray
+    ankle_rad: np.ndarray
+
+    def __post_init__(self) -> None:
+        t = _float_array("JointSeries", "t_s", self.t_s, (None,))
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(
+            self, "knee_rad", _float_array("JointSeries", "knee_rad", self.knee_rad, (t.size,))
+        )
+        object.__setattr__(
+            self, "ankle_rad", _float_array("JointSeries", "ankle_rad", self.ankle_rad, (t.size,))
+        )
+        check_increasing("JointSeries", t)
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+    @property
+    def q_rad(self) -> np.ndarray:
+        """N×2 joint vector in :data:`JOINT_NAMES` order (knee, ankle)."""
+        return np.column_stack([self.knee_rad, self.ankle_rad])
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class GaitEvents:
+    """Foot strikes and toe-offs of the prosthetic leg, in time order.
+
+    ``source`` says where each event came from (e.g. ``load_cell``, ``thigh_imu``, ``truth``).
+    """
+
+    t_s: np.ndarray
+    kind: tuple[str, ...]
+    source: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        t = _float_array("GaitEvents", "t_s", self.t_s, (None,))
+        object.__setattr__(self, "t_s", t)
+        kinds = tuple(str(k) for k in self.kind)
+        sources = tuple(str(s) for s in self.source)
+        if len(kinds) != t.size or len(sources) != t.size:
+            raise RecordError(
+                f"GaitEvents: t_s, kind and source must have the same length "
+                f"({t.size}, {len(kinds)}, {len(sources)})"
+            )
+        for i, k in enumerate(kinds):
+            if k not in GAIT_EVENT_KINDS:
+                raise RecordError(f"GaitEvents.kind[{i}]: {k!r} is not one of {GAIT_EVENT_KINDS}")
+        object.__setattr__(self, "kind", kinds)
+        object.__setattr__(self, "source", sources)
+        check_increasing("GaitEvents", t)
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+    @property
+    def foot_strikes_s(self) -> np.ndarray:
+        """Times of the foot strikes."""
+        return self.t_s[np.array([k == "foot_strike" for k in self.kind], dtype=bool)]
+
+    @property
+    def toe_offs_s(self) -> np.ndarray:
+        """Times of the toe-offs."""
+        return self.t_s[np.array([k == "toe_off" for k in self.kind], dtype=bool)]
+
+    @classmethod
+    def empty(cls) -> GaitEvents:
+        return cls(np.zeros(0), (), ())
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PoseTrajectory:
+    """Timed poses ``parent_T_child`` (e.g. ``world_T_camera``), N×4×4."""
+
+    t_s: np.ndarray
+    parent_T_child: np.ndarray
+    parent: str = "world"
+    child: str = "camera"
+
+    def __post_init__(self) -> None:
+        t = _float_array("PoseTrajectory", "t_s", self.t_s, (None,))
+        poses = _float_array(
+            "PoseTrajectory", f"{self.parent}_T_{self.child}", self.parent_T_child, (t.size, 4, 4)
+        )
+        check_pose("PoseTrajectory", f"{self.parent}_T_{self.child}", poses)
+        check_increasing("PoseTrajectory", t)
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "parent_T_child", poses)
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+    @property
+    def positions_m(self) -> np.ndarray:
+        """N×3 positions of the child origin in the parent frame."""
+        return self.parent_T_child[:, :3, 3]
+
+    @property
+    def name(self) -> str:
+        return f"{self.parent}_T_{self.child}"
+
+
+# --------------------------------------------------------------------------- calibration, scene
+def _pose_field(record: str, name: str, value: object) -> np.ndarray:
+    pose = _float_array(record, name, value, (4, 4))
+    check_pose(record, name, pose)
+    return pose
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Calibration:
+    """Extrinsics and time offsets.
+
+    Time offsets: a sensor sample stamped ``t_sensor`` happened at camera time
+    ``t_sensor + offset_s``. The reader does not apply them; the pipelines do.
+    """
+
+    thigh_T_camera: np.ndarray = field(default_factory=lambda: np.eye(4))
+    camera_T_imu: np.ndarray = field(default_factory=lambda: np.eye(4))
+    imu_time_offset_s: float = 0.0
+    joints_time_offset_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self,
+            "thigh_T_camera",
+            _pose_field("Calibration", "thigh_T_camera", self.thigh_T_camera),
+        )
+        object.__setattr__(
+            self, "camera_T_imu", _pose_field("Calibration", "camera_T_imu", self.camera_T_imu)
+        )
+        for name in ("imu_time_offset_s", "joints_time_offset_s"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or abs(value) > 1.0:
+                raise RecordError(
+                    f"Calibration.{name}: must be finite and within ±1 s, got {value!r}"
+                )
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class SceneObject:
+    """A box in the scene: ``world_T_object`` at its centre; size along the object's axes.
+
+    ``size_m`` is (depth along x, width along y, height along z), the thesis's Table 3.1 order.
+    """
+
+    name: str
+    world_T_object: np.ndarray
+    size_m: np.ndarray
+    kind: str = "box"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self,
+            "world_T_object",
+            _pose_field(f"SceneObject[{self.name}]", "world_T_object", self.world_T_object),
+        )
+        size = _float_array(f"SceneObject[{self.name}]", "size_m", self.size_m, (3,))
+        if (size <= 0).any():
+            raise RecordError(f"SceneObject[{self.name}].size_m: every dimension must be > 0")
+        object.__setattr__(self, "size_m", size)
+
+
+@dataclass(frozen=True, slots=True)
+class SceneTruth:
+    """Ground truth of the scene: its name and objects (boxes) in the world frame."""
+
+    name: str
+    objects: tuple[SceneObject, ...] = ()
+
+    def object(self, name: str) -> SceneObject:
+        for obj in self.objects:
+            if obj.name == name:
+                return obj
+        raise RecordError(f"SceneTruth[{self.name}]: no object named {name!r}")
+
+
+def stack_poses(poses: Sequence[np.ndarray]) -> np.ndarray:
+    """Stack 4×4 poses into N×4×4 (an empty sequence gives 0×4×4)."""
+    return np.stack(poses) if len(poses) else np.zeros((0, 4, 4))
