@@ -63,6 +63,10 @@ class ConversionError(GraphSlamError):
     """A foreign recording (bag, TUM folder, EuRoC, log) cannot be converted."""
 
 
+class PlanarError(GraphSlamError):
+    """The 2D study (graph_slam.planar) got input it cannot use."""
+
+
 class EstimationError(GraphSlamError):
     """The estimator cannot go on (an input it cannot use, not a numerical hiccup)."""
 
