@@ -185,17 +185,21 @@ class TumRgbdAdapter:
             report.notes.append("no rgb.txt: frames without colour")
         report.add(StreamReport("frames", "depth.txt", depth.t_s.size, i_depth.size, dropped))
 
-        depth_paths = [
-            resolve_in_folder(folder, depth.files[i], what=f"{depth.path} entry {i}")
-            for i in i_depth
+        # Every listed path must stay inside the folder (checked for all, used or not).
+        all_depth = [
+            resolve_in_folder(folder, name, what=f"{depth.path} entry {i}")
+            for i, name in enumerate(depth.files)
         ]
-        rgb_paths = (
-            None
-            if i_rgb is None or rgb is None
+        all_rgb = (
+            []
+            if rgb is None
             else [
-                resolve_in_folder(folder, rgb.files[j], what=f"{rgb.path} entry {j}") for j in i_rgb
+                resolve_in_folder(folder, name, what=f"{rgb.path} entry {j}")
+                for j, name in enumerate(rgb.files)
             ]
         )
+        depth_paths = [all_depth[i] for i in i_depth]
+        rgb_paths = None if i_rgb is None else [all_rgb[j] for j in i_rgb]
         unit_m = 1.0 / config.tum.depth_units_per_m
         hw = intrinsics.shape_hw
         if depth_paths:
