@@ -325,3 +325,30 @@ def test_cli_bag_error_is_one_line_exit_2(tmp_path: Path, capsys) -> None:
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and "empty.bag" in err[0]
+
+
+# --------------------------------------------------------------------------- image decoding
+def test_image_array_handles_row_padding_byte_order_and_bgr() -> None:
+    from types import SimpleNamespace
+
+    from graph_slam.session.adapters.rosbag import image_array
+
+    depth = (np.arange(12, dtype=np.uint16) * 1000 + 7).reshape(3, 4)
+    padded = np.zeros((3, 10), dtype=np.uint8)  # step 10 bytes for 8 bytes of data per row
+    padded[:, :8] = np.frombuffer(depth.astype(">u2").tobytes(), np.uint8).reshape(3, 8)
+    msg = SimpleNamespace(encoding="mono16", is_bigendian=1, height=3, width=4, step=10,
+                          data=padded.ravel())  # fmt: skip
+    np.testing.assert_array_equal(image_array(msg, "/d", 0), depth)
+    bgr = np.arange(2 * 2 * 3, dtype=np.uint8).reshape(2, 2, 3)
+    msg = SimpleNamespace(encoding="bgr8", is_bigendian=0, height=2, width=2, step=6,
+                          data=bgr.ravel())  # fmt: skip
+    np.testing.assert_array_equal(image_array(msg, "/c", 0), bgr[:, :, ::-1])
+    msg = SimpleNamespace(encoding="16UC1", is_bigendian=0, height=3, width=4, step=8,
+                          data=np.zeros(20, np.uint8))  # fmt: skip
+    with pytest.raises(
+        ConversionError, match=r"/d, message 5: 4×3 16UC1 image with step 8 needs 24"
+    ):
+        image_array(msg, "/d", 5)
+    msg = SimpleNamespace(encoding="yuv422", is_bigendian=0, height=1, width=1, step=2, data=b"ab")
+    with pytest.raises(ConversionError, match=r"encoding 'yuv422' is not supported"):
+        image_array(msg, "/c", 0)

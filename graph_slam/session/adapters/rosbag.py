@@ -476,9 +476,19 @@ class _Collected:
 
 
 def _check_format(
-    previous: tuple[str, int, int] | None, msg: Any, topic: str, index: int
+    previous: tuple[str, int, int] | None,
+    msg: Any,
+    topic: str,
+    index: int,
+    encodings: tuple[str, ...],
 ) -> tuple[str, int, int]:
+    """Encoding and size: supported, and the same in every message of the topic."""
     current = (str(msg.encoding), int(msg.width), int(msg.height))
+    if current[0] not in encodings:
+        raise ConversionError(
+            f"topic {topic}, message {index}: image encoding {current[0]!r} is not supported "
+            f"here (supported: {', '.join(encodings)})"
+        )
     if previous is not None and current != previous:
         raise ConversionError(
             f"topic {topic}, message {index}: {current[0]} {current[1]}×{current[2]} differs "
@@ -506,28 +516,27 @@ def _first_pass(bag: _Bag, choice: TopicChoice, cfg: BagConfig, counts: Mapping[
         i = index[topic] = index.get(topic, -1) + 1
         for role in role_of[topic]:
             if role == "depth":
-                out.depth_format = _check_format(out.depth_format, msg, topic, i)
-                if out.depth_format[0] not in DEPTH_ENCODINGS:
-                    image_array(msg, topic, i)  # raises: unsupported encoding
+                out.depth_format = _check_format(out.depth_format, msg, topic, i, DEPTH_ENCODINGS)
                 out.depth_ns.append(_stamp_ns(msg, bag_ns, use_header))
                 if i in sample_at:
                     out.depth_samples.append(image_array(msg, topic, i))
             elif role == "color":
-                out.color_format = _check_format(out.color_format, msg, topic, i)
-                if out.color_format[0] not in COLOR_ENCODINGS:
-                    image_array(msg, topic, i)  # raises: unsupported encoding
+                out.color_format = _check_format(out.color_format, msg, topic, i, COLOR_ENCODINGS)
                 out.color_ns.append(_stamp_ns(msg, bag_ns, use_header))
             elif role == "camera_info":
                 out.camera_info_count += 1
                 if out.camera_info is None:
                     out.camera_info = msg
             elif role == "depth_units":
-                if out.depth_units is None:
-                    out.depth_units = float(msg.data)
+                if out.depth_units is None:  # a float32: keep its 7 significant digits
+                    out.depth_units = float(f"{float(msg.data):.7g}")
             elif role == "imu":
-                if i == 0:
-                    for name in ("angular_velocity", "linear_acceleration"):
-                        if float(getattr(msg, f"{name}_covariance")[0]) == -1.0:
+                if i == 0:  # covariance[0] = -1 marks a field the sensor does not provide
+                    for name, cov in (
+                        ("angular_velocity", msg.angular_velocity_covariance),
+                        ("linear_acceleration", msg.linear_acceleration_covariance),
+                    ):
+                        if float(cov[0]) == -1.0:
                             raise ConversionError(
                                 f"topic {topic}: {name}_covariance[0] = -1 (the message has no "
                                 f"{name}); give separate bag.accel_topic and bag.gyro_topic"
@@ -603,12 +612,11 @@ def _intrinsics_from_info(msg: Any, is_ros2: bool, topic: str) -> tuple[CameraIn
 
 
 def _ordered(
-    items: list[tuple], stream: str, source: str
+    items: list[tuple], width: int, stream: str, source: str
 ) -> tuple[np.ndarray, np.ndarray, StreamReport]:
-    """``items`` = (stamp ns, value, ...) tuples → (int64 stamps, N×K values) with finite values,
-    in stamp order, duplicate stamps dropped; the report counts both."""
+    """``items`` = (stamp ns, ``width`` values) tuples → (int64 stamps, N×width values) with
+    finite values, in stamp order, duplicate stamps dropped; the report counts both."""
     stamps = np.asarray([it[0] for it in items], dtype=np.int64)
-    width = len(items[0]) - 1 if items else 0
     values = np.asarray([it[1:] for it in items], dtype=np.float64).reshape(-1, width)
     finite = np.isfinite(values).all(axis=1)
     order = order_stamps(stamps[finite])
@@ -741,8 +749,11 @@ class RosbagAdapter:
                     )
                 c_order = order_stamps(color_ns)
                 max_dt = config.association.max_color_dt_s
+                ns0 = int(depth_ns.min())
                 i_d, i_c = associate(
-                    depth_ns[depth_kept] * 1e-9, color_ns[c_order.keep] * 1e-9, max_dt
+                    (depth_ns[depth_kept] - ns0) * 1e-9,
+                    (color_ns[c_order.keep] - ns0) * 1e-9,
+                    max_dt,
                 )
                 frames_dropped[f"no colour image within {max_dt} s"] = depth_kept.size - i_d.size
                 depth_kept = depth_kept[i_d]
@@ -767,13 +778,13 @@ class RosbagAdapter:
         # ---- IMU
         imu = None
         if choice.imu is not None:
-            ns, values, imu_report = _ordered(got.imu, "imu", choice.imu)
+            ns, values, imu_report = _ordered(got.imu, 6, "imu", choice.imu)
             report.add(imu_report)
             _zero_stamps(ns, choice.imu, cfg)
-            imu = ImuSeries(ns * 1e-9, values[:, 0:3], values[:, 3:6])
+            imu = ImuSeries(ns * 1e-9, values[:, 0:3], values[:, 3:6]) if ns.size else None
         elif choice.accel is not None and choice.gyro is not None:
-            g_ns, gyro, g_report = _ordered(got.gyro, "gyro", choice.gyro)
-            a_ns, accel, a_report = _ordered(got.accel, "accel", choice.accel)
+            g_ns, gyro, g_report = _ordered(got.gyro, 3, "gyro", choice.gyro)
+            a_ns, accel, a_report = _ordered(got.accel, 3, "accel", choice.accel)
             _zero_stamps(g_ns, choice.gyro, cfg)
             _zero_stamps(a_ns, choice.accel, cfg)
             # Interpolate on times relative to the first stamp: exact weights (absolute float
@@ -819,7 +830,7 @@ class RosbagAdapter:
         # ---- joints and events
         joints = None
         if choice.joint_states is not None:
-            ns, values, j_report = _ordered(got.joints, "joints", choice.joint_states)
+            ns, values, j_report = _ordered(got.joints, 2, "joints", choice.joint_states)
             report.add(j_report)
             _zero_stamps(ns, choice.joint_states, cfg)
             if ns.size:
