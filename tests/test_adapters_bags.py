@@ -262,6 +262,19 @@ def test_unindexed_ros1_bag_is_a_clear_error_with_hint(sdk_bag, tmp_path: Path) 
     unindexed.write_bytes(bytes(data))
     with pytest.raises(BagError, match=r"no index .*rosbag reindex unindexed\.bag"):
         convert(unindexed, tmp_path / "s")
+    active = tmp_path / "walk.bag.active"
+    active.write_bytes(bytes(data))
+    with pytest.raises(BagError, match=r"unfinished recording .*rosbag reindex walk\.bag\.active"):
+        convert(active, tmp_path / "s")
+
+
+def test_truncated_db3_is_a_clear_error_with_hint(tmp_path: Path) -> None:
+    bag = tmp_path / "d"
+    write_bag(bag, BagSpec(ros2=True, layout="ros", n_frames=2, imu="none"))
+    data = (bag / "d.db3").read_bytes()
+    (bag / "d.db3").write_bytes(data[: len(data) // 2])
+    with pytest.raises(BagError, match=r"database disk image is malformed.*\.recover"):
+        convert(bag, tmp_path / "s")
 
 
 def test_truncated_mcap_and_missing_metadata(tmp_path: Path) -> None:
