@@ -97,7 +97,7 @@ def write_ply(cloud: PointCloud, dest: str | Path | BinaryIO, *, binary: bool = 
     rec = np.empty(n, dtype=np.dtype(fields))
     for i, axis in enumerate("xyz"):
         rec[axis] = cloud.points_m[:, i]
-    if has_color:
+    if cloud.colors_rgb is not None:
         for i, ch in enumerate(("red", "green", "blue")):
             rec[ch] = cloud.colors_rgb[:, i]
     with _binary(dest, "wb") as (handle, _):

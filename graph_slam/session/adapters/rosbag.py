@@ -419,6 +419,7 @@ class _Bag:
 def image_array(msg: Any, topic: str, index: int) -> np.ndarray:
     """A sensor_msgs/Image as an array: uint16 / float32 H×W, or uint8 H×W×3 in RGB order."""
     enc = str(msg.encoding)
+    base: np.dtype
     if enc in ("16UC1", "mono16"):
         base, channels = np.dtype(np.uint16), 1
     elif enc == "32FC1":
@@ -935,9 +936,11 @@ def _frame_reader(
         depth_ready: dict[int, np.ndarray] = {}
         color_ready: dict[int, np.ndarray] = {}
         next_frame = 0
-        position = {choice.depth: -1, choice.color: -1}
+        topics = {choice.depth}
+        if color_pos is not None and choice.color is not None:
+            topics.add(choice.color)
+        position = dict.fromkeys(topics, -1)
         non_finite = 0
-        topics = {choice.depth} | ({choice.color} if color_pos is not None else set())
         scale = np.float32(unit_m)
         with _Bag(path) as bag:
             for topic, _, msg in bag.messages(topics):

@@ -226,8 +226,8 @@ def check_depth_units(
     plausible.
     """
     valid = [np.asarray(s, dtype=np.float64) for s in raw_samples]
-    values = np.concatenate([v[np.isfinite(v) & (v > 0)].ravel() for v in valid]) if valid else []
-    if len(values) == 0:
+    values = np.concatenate([np.zeros(0)] + [v[np.isfinite(v) & (v > 0)].ravel() for v in valid])
+    if values.size == 0:
         return None
     median_raw = float(np.median(values))
     median_m = median_raw * unit_m
