@@ -67,6 +67,18 @@ class PlanarError(GraphSlamError):
     """The 2D study (graph_slam.planar) got input it cannot use."""
 
 
+class MissingStreamError(ConversionError):
+    """A topic, file or column the conversion needs is absent (the message lists those found)."""
+
+
+class BagError(ConversionError):
+    """A bag cannot be read (truncated, unindexed, damaged); the message carries a hint."""
+
+
+class DepthUnitsError(ConversionError):
+    """The depth values are implausible in the stated units (detected from the data)."""
+
+
 class EstimationError(GraphSlamError):
     """The estimator cannot go on (an input it cannot use, not a numerical hiccup)."""
 

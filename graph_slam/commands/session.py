@@ -20,10 +20,15 @@ def print_info(info) -> None:
     from rich.table import Table
 
     console = Console(width=max(100, Console().width))
+    if info.image_size is None:
+        camera = "no camera"
+    else:
+        camera = (
+            f"camera '{info.camera_profile}' {info.image_size[0]}×{info.image_size[1]}"
+            f"{' + colour' if info.has_color else ''}, depth unit {info.depth_unit_m * 1e3:g} mm"
+        )
     console.print(
-        f"[bold]{info.name}[/bold]  ({info.path})  schema v{info.schema_version}, camera "
-        f"'{info.camera_profile}' {info.image_size[0]}×{info.image_size[1]}"
-        f"{' + colour' if info.has_color else ''}, depth unit {info.depth_unit_m * 1e3:g} mm"
+        f"[bold]{info.name}[/bold]  ({info.path})  schema v{info.schema_version}, {camera}"
     )
     table = Table(
         "stream", "samples", "start s", "span s", "mean Hz", "median Hz", "gaps", "max gap s"

@@ -232,9 +232,18 @@ class Session:
         self.path = Path(path)
         self.manifest: Manifest = load_manifest(self.path)
         cam = self.manifest.sensors.camera
-        self.intrinsics = CameraIntrinsics(**cam.intrinsics.model_dump())
-        self.depth_unit_m: float = cam.depth_unit_m
+        # A session without a camera (sensors.camera: null) has no frames and no intrinsics.
+        self.intrinsics: CameraIntrinsics | None = (
+            None if cam is None else CameraIntrinsics(**cam.intrinsics.model_dump())
+        )
+        self.depth_unit_m: float | None = None if cam is None else cam.depth_unit_m
         self._index = _read_frame_index(self.path, self.manifest.files.frames)
+        if cam is None and self._index.t_s.size:
+            raise SessionError(
+                f"{self.path / MANIFEST_NAME}: field 'sensors.camera' is null but "
+                f"{self.manifest.files.frames} lists {self._index.t_s.size} frame(s); "
+                "a session without a camera has no frames"
+            )
         self._depth_scale_checked = False
 
     # ---------------------------------------------------------------- metadata
@@ -326,6 +335,8 @@ class Session:
         """Decode frame ``index`` (strict PNG decoding, size checked against the intrinsics)."""
         if not 0 <= index < self.n_frames:
             raise IndexError(f"frame index {index} out of range 0..{self.n_frames - 1}")
+        if self.intrinsics is None or self.depth_unit_m is None:  # pragma: no cover - see __init__
+            raise SessionError(f"{self.path}: a session without a camera has no frames")
         hw = self.intrinsics.shape_hw
         depth_path = resolve_inside(self.path, self._index.depth[index], what="frames.csv depth")
         raw = io.read_png(depth_path, expect_mode="depth16", expect_hw=hw)
@@ -369,6 +380,9 @@ class SessionWriter:
             for frame in frames:
                 writer.add_frame(frame)
             writer.write_imu(imu)
+
+    ``intrinsics=None`` writes a session without a camera (``sensors.camera: null``, zero
+    frames), e.g. IMU and ground truth only.
     """
 
     def __init__(
@@ -376,7 +390,7 @@ class SessionWriter:
         path: str | Path,
         *,
         name: str,
-        intrinsics: CameraIntrinsics,
+        intrinsics: CameraIntrinsics | None,
         depth_unit_m: float = 2e-4,
         camera_profile: str = "unknown",
         camera_rate_hz: float | None = None,
@@ -399,7 +413,9 @@ class SessionWriter:
                     f"{self.path}: exists, is not empty and is not a session; refusing to overwrite"
                 )
             shutil.rmtree(self.path)
-        (self.path / "depth").mkdir(parents=True)
+        self.path.mkdir(parents=True)
+        if intrinsics is not None:
+            (self.path / "depth").mkdir()
         self.intrinsics = intrinsics
         self.depth_unit_m = float(depth_unit_m)
         self._camera = dict(profile=camera_profile, nominal_rate_hz=camera_rate_hz)
@@ -418,6 +434,10 @@ class SessionWriter:
     # ---------------------------------------------------------------- frames
     def add_frame(self, frame: RgbdFrame) -> None:
         """Quantise the depth to the 16-bit unit and write the frame's PNGs and index row."""
+        if self.intrinsics is None:
+            raise SessionError(
+                f"{self.path}: this session has no camera (intrinsics=None); no frames"
+            )
         hw = self.intrinsics.shape_hw
         if frame.depth_m.shape != hw:
             raise SessionError(
@@ -504,7 +524,9 @@ class SessionWriter:
             schema_version=SCHEMA_VERSION,
             name=self._name,
             sensors=SensorsSpec(
-                camera=CameraSpec(
+                camera=None
+                if self.intrinsics is None
+                else CameraSpec(
                     intrinsics=IntrinsicsSpec(**_intrinsics_dict(self.intrinsics)),
                     depth_unit_m=self.depth_unit_m,
                     has_color=bool(self._has_color),
@@ -630,7 +652,10 @@ def validate_session(
         if value is not None and hasattr(value, "__len__"):
             report.counts[stream] = len(value)
     n = session.n_frames
-    indices = list(range(n)) if every_frame else sorted({0, n // 2, n - 1} - {-1})
+    if n == 0:
+        indices: list[int] = []
+    else:
+        indices = list(range(n)) if every_frame else sorted({0, n // 2, n - 1})
     scale_sample = {int(i) for i in np.linspace(0, n - 1, min(n, 10))} if n else set()
     for done, index in enumerate(indices, start=1):
         try:

@@ -66,10 +66,10 @@ class SessionInfo:
     name: str
     path: str
     schema_version: int
-    camera_profile: str
-    image_size: tuple[int, int]
+    camera_profile: str | None  # None: a session without a camera
+    image_size: tuple[int, int] | None
     has_color: bool
-    depth_unit_m: float
+    depth_unit_m: float | None
     streams: tuple[StreamInfo, ...]
     strides: StrideInfo | None
     provenance: dict[str, object] = field(default_factory=dict)
@@ -102,10 +102,10 @@ def session_info(session: Session) -> SessionInfo:
         name=session.name,
         path=str(session.path),
         schema_version=session.manifest.schema_version,
-        camera_profile=cam.profile,
-        image_size=(cam.intrinsics.width_px, cam.intrinsics.height_px),
-        has_color=cam.has_color,
-        depth_unit_m=cam.depth_unit_m,
+        camera_profile=None if cam is None else cam.profile,
+        image_size=None if cam is None else (cam.intrinsics.width_px, cam.intrinsics.height_px),
+        has_color=False if cam is None else cam.has_color,
+        depth_unit_m=None if cam is None else cam.depth_unit_m,
         streams=tuple(streams),
         strides=strides,
         provenance=session.manifest.provenance.model_dump(exclude_none=True),

@@ -11,6 +11,7 @@ import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
@@ -186,27 +187,49 @@ def _quat_xyzw_from_matrix(rot: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(rot).as_quat()  # x, y, z, w
 
 
-def write_tum(path: Path, t_s: np.ndarray, parent_T_child: np.ndarray) -> None:
-    """TUM trajectory format: ``t tx ty tz qx qy qz qw`` per line, ``#`` comment header."""
+def write_tum(path: Path | TextIO, t_s: np.ndarray, parent_T_child: np.ndarray) -> None:
+    """TUM trajectory format: ``t tx ty tz qx qy qz qw`` per line, ``#`` comment header.
+
+    ``path`` is a file path or an open text file.
+    """
     quats = _quat_xyzw_from_matrix(parent_T_child[:, :3, :3]) if len(t_s) else np.zeros((0, 4))
-    with path.open("w", encoding="utf-8", newline="\n") as handle:
-        handle.write("# timestamp tx ty tz qx qy qz qw\n")
-        for t, pose, q in zip(t_s, parent_T_child, quats, strict=True):
-            x, y, z = pose[:3, 3]
-            handle.write(
-                f"{t:.9f} {x:.9f} {y:.9f} {z:.9f} {q[0]:.9f} {q[1]:.9f} {q[2]:.9f} {q[3]:.9f}\n"
-            )
+    if not isinstance(path, Path | str):
+        _write_tum_rows(path, t_s, parent_T_child, quats)
+        return
+    with Path(path).open("w", encoding="utf-8", newline="\n") as handle:
+        _write_tum_rows(handle, t_s, parent_T_child, quats)
 
 
-def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _write_tum_rows(
+    handle: TextIO, t_s: np.ndarray, parent_T_child: np.ndarray, quats: np.ndarray
+) -> None:
+    handle.write("# timestamp tx ty tz qx qy qz qw\n")
+    for t, pose, q in zip(t_s, parent_T_child, quats, strict=True):
+        x, y, z = pose[:3, 3]
+        handle.write(
+            f"{t:.9f} {x:.9f} {y:.9f} {z:.9f} {q[0]:.9f} {q[1]:.9f} {q[2]:.9f} {q[3]:.9f}\n"
+        )
+
+
+def read_tum(path: Path | TextIO) -> tuple[np.ndarray, np.ndarray]:
     """Read a TUM trajectory file → (t_s, N×4×4). Quaternions are normalised only if their
-    norm is within 1e-3 of one; otherwise the row is an error (nothing silently repaired)."""
+    norm is within 1e-3 of one; otherwise the row is an error (nothing silently repaired).
+
+    ``path`` is a file path or an open text file (named in errors by its ``name``).
+    """
     from scipy.spatial.transform import Rotation
 
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise StreamError(f"{path}: file is missing") from None
+    if isinstance(path, Path | str):
+        path = Path(path)
+        try:
+            lines = path.read_text(encoding="utf-8").splitlines()
+        except FileNotFoundError:
+            raise StreamError(f"{path}: file is missing") from None
+        except (OSError, UnicodeDecodeError) as err:
+            raise StreamError(f"{path}: cannot read ({err})") from None
+    else:
+        lines = path.read().splitlines()
+        path = Path(str(getattr(path, "name", "<stream>")))
     rows: list[list[float]] = []
     for line_no, line in enumerate(lines, start=1):
         text = line.strip()

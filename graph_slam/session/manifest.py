@@ -52,7 +52,9 @@ class JointsSpec(_Strict):
 
 
 class SensorsSpec(_Strict):
-    camera: CameraSpec
+    #: Required key; ``null`` for a session without a camera (IMU-only, joints-only), which then
+    #: has zero frames.
+    camera: CameraSpec | None
     imu: ImuSpec | None = None
     joints: JointsSpec | None = None
 
