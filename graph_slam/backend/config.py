@@ -86,6 +86,12 @@ class KinematicFactorConfig(ConfigModel):
     robust_kernel: RobustKernel = "huber"
     robust_k: float = Field(2.0, gt=0)
     gravity_window_s: float = Field(0.1, gt=0, description="accel averaging before a strike")
+    max_mahalanobis: float = Field(
+        10.0,
+        gt=0,
+        description="a stance factor farther than this (in its sigmas) from the IMU prediction "
+        "is inconsistent (e.g. a missed foot strike: the foot is elsewhere) and is not added",
+    )
 
 
 class PriorConfig(ConfigModel):

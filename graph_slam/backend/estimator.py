@@ -240,6 +240,19 @@ class StrideSLAM:
             if foot_loaded and use["kin"]:
                 if kinematics is None:
                     kinematics = self._kinematics_from_joints(t_s, anchor=False)
+                if kinematics is not None and self._stride_start in (
+                    "missed_foot_strike",
+                    "no_anchor",
+                ):
+                    flags.append("kin_unanchored")  # the foothold of this stride is unknown
+                    kinematics = None
+                elif kinematics is not None:
+                    d = self._kin_mahalanobis(kinematics, pred.pose())
+                    if d > self.cfg.kinematics.max_mahalanobis:
+                        log.info("frame %d: stance factor %.1f sigmas off: not added", index, d)
+                        flags.append("kin_inconsistent")
+                        g.flags.add("kin_inconsistent")
+                        kinematics = None
                 if kinematics is not None:
                     kc = self.cfg.kinematics
                     tagged.append(
@@ -255,7 +268,7 @@ class StrideSLAM:
                             ),
                         )
                     )
-                else:
+                elif not any(f.startswith("kin_") for f in flags):
                     flags.append("no_kinematics")
             values = gtsam.Values()
             values.insert(X(k), pred.pose())
@@ -299,6 +312,13 @@ class StrideSLAM:
         self._last_frame_t = t_s
         self.imu.drop_before(t_s - 1.0)
         return est
+
+    def _kin_mahalanobis(self, kin: KinematicMeasurement, stride_T_imu_pred: gtsam.Pose3) -> float:
+        """Distance (in sigmas of the measurement) of a stance measurement from the prediction."""
+        pred_camera = gtsam.Pose3(stride_T_imu_pred.matrix() @ np.linalg.inv(self.camera_T_imu))
+        e = gtsam.Pose3.Logmap(gtsam.Pose3(kin.stride_T_camera).between(pred_camera))
+        cov = kin.covariance * self.cfg.kinematics.sigma_scale**2
+        return float(np.sqrt(e @ np.linalg.solve(cov, e)))
 
     def _icp_factor(self, icp: IcpMeasurement, index: int, k: int):
         if icp.source_index != index:

@@ -73,7 +73,8 @@ def simulate_measurements(
             world_T_stride = np.eye(4)
             world_T_stride[:2, 3] = w_T_c[:2, 3]
         t0 = strikes[s] if s >= 0 else t_s[0]
-        t1 = strikes[s + 1] if s + 1 < strikes.size else t0 + (strikes[1] - strikes[0])
+        period = strikes[1] - strikes[0] if strikes.size > 1 else t_s[-1] - t_s[0] + 1e-3
+        t1 = strikes[s + 1] if s + 1 < strikes.size else t0 + period
         phase = float((t - t0) / (t1 - t0))
         loaded = phase < stance_fraction
         s_T_c = np.linalg.inv(world_T_stride) @ w_T_c
