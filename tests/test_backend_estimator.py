@@ -223,3 +223,26 @@ def test_isam2_gets_only_new_factors():
     assert g.isam.getFactorsUnsafe().size() == g.graph.size()
     p = g.estimate.atPose3(gtsam.symbol_shorthand.X(2))
     assert np.linalg.norm(p.translation()) < 1e-3  # static: stays put
+
+
+def test_anchor_from_leg_model_and_joints():
+    """With a LegModel, the first frame's pose is the kinematics' stride_T_camera computed
+    with gravity from the IMU (camera_T_imu taken from the same model)."""
+    from kinematics.leg_model import LegModel
+    from kinematics.stride_frame import stride_T_camera
+
+    model = LegModel()
+    camera_T_imu = np.linalg.inv(model.thigh_T_frame("camera_optical")) @ model.thigh_T_frame("imu")
+    q = np.array([0.3, 0.05])
+    anchor = stride_T_camera(model, q, foot_pitch_rad=0.0, contact="foot_flat")
+    stride_R_imu = (anchor.stride_T_camera @ camera_T_imu)[:3, :3]
+    t = np.arange(0.0, 0.3, 0.005)
+    up_imu = stride_R_imu.T @ np.array([0.0, 0.0, 9.81])  # static, foot flat on level ground
+    slam = StrideSLAM(camera_T_imu=camera_T_imu, leg_model=model)
+    slam.add_imu(t, np.zeros((t.size, 3)), np.tile(up_imu, (t.size, 1)))
+    slam.add_joints(t, np.full(t.size, q[0]), np.full(t.size, q[1]))
+    est = slam.add_frame(0.2)
+    np.testing.assert_allclose(est.stride_T_camera, anchor.stride_T_camera, atol=1e-6)
+    est = slam.add_frame(0.25, foot_loaded=True)
+    assert est.kinematic_factor
+    np.testing.assert_allclose(est.stride_T_camera, anchor.stride_T_camera, atol=1e-4)

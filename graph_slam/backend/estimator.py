@@ -138,7 +138,9 @@ class StrideSLAM:
                 return KinematicMeasurement(a.stride_T_camera, a.covariance)
             if self._strike_foot_R is None:
                 return None
-            cov = self.leg_model.camera_covariance(q, contact="foot_flat")
+            from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2
+
+            cov = self.leg_model.camera_covariance(q, DEFAULT_ENCODER_VAR_RAD2, contact="foot_flat")
             return KinematicMeasurement(self._strike_foot_R @ self.leg_model.foot_T_camera(q), cov)
         except KinematicsError as err:
             log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
@@ -148,7 +150,10 @@ class StrideSLAM:
         """The session IMU's up vector in the leg model's ``imu`` frame (via the camera)."""
         if up_in_imu is None:
             return None
-        model_camera_R_imu = self.leg_model.frame_T_frame("camera_optical", "imu")[:3, :3]
+        m = self.leg_model
+        model_camera_R_imu = (
+            np.linalg.inv(m.thigh_T_frame("camera_optical")) @ m.thigh_T_frame("imu")
+        )[:3, :3]
         return model_camera_R_imu.T @ self.camera_T_imu[:3, :3] @ up_in_imu
 
     # ------------------------------------------------------------------ frames
