@@ -1,0 +1,141 @@
+"""Typed configuration of the back end (one sub-model per concern)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Literal
+
+from pydantic import Field, model_validator
+
+from graph_slam.config import ConfigModel
+
+RobustKernel = Literal["none", "huber", "cauchy", "tukey"]
+Variant = Literal["icp+imu+kin", "icp+imu", "imu+kin", "icp"]
+
+#: Which factor families each variant uses. ``icp`` (the thesis baseline: ICP accumulation
+#: and trilateration, no graph) is run by the pipelines layer, not by this back end.
+VARIANT_FACTORS: dict[str, dict[str, bool]] = {
+    "icp+imu+kin": {"icp": True, "imu": True, "kin": True},
+    "icp+imu": {"icp": True, "imu": True, "kin": False},
+    "imu+kin": {"icp": False, "imu": True, "kin": True},
+}
+
+
+class ImuNoiseConfig(ConfigModel):
+    """Continuous-time IMU noise (a sensor profile's ``imu`` section) and sample checks."""
+
+    gyro_noise_density_rad_s_sqrt_hz: float = Field(1.7e-4, gt=0)
+    accel_noise_density_m_s2_sqrt_hz: float = Field(2.0e-3, gt=0)
+    gyro_random_walk_rad_s2_sqrt_hz: float = Field(1.9e-5, gt=0)
+    accel_random_walk_m_s3_sqrt_hz: float = Field(3.0e-3, gt=0)
+    noise_inflation: float = Field(
+        3.0, ge=1, description="multiplies the white-noise densities (datasheets are optimistic)"
+    )
+    integration_sigma: float = Field(1e-4, gt=0, description="integration noise (GTSAM)")
+    gravity_m_s2: float = Field(9.81, gt=9.7, lt=9.9)
+    max_gap_s: float = Field(
+        0.05, gt=0, description="a hole longer than this splits preintegration"
+    )
+    max_gyro_rad_s: float = Field(35.0, gt=0)
+    max_accel_m_s2: float = Field(16 * 9.81, gt=0)
+
+    @classmethod
+    def from_sensor_profile(
+        cls, imu_section: Mapping[str, Any], **overrides: Any
+    ) -> ImuNoiseConfig:
+        """Build from a sensor profile's ``imu:`` mapping (``models/sensors/*.yaml``)."""
+        keys = (
+            "gyro_noise_density_rad_s_sqrt_hz",
+            "accel_noise_density_m_s2_sqrt_hz",
+            "gyro_random_walk_rad_s2_sqrt_hz",
+            "accel_random_walk_m_s3_sqrt_hz",
+        )
+        data = {k: imu_section[k] for k in keys if k in imu_section}
+        data.update(overrides)
+        return cls(**data)
+
+
+class GateConfig(ConfigModel):
+    """When an ICP registration becomes a factor, and how much it is trusted."""
+
+    min_fitness: float = Field(0.3, ge=0, le=1)
+    max_inlier_rmse_m: float = Field(0.02, gt=0)
+    min_correspondences: int = Field(200, ge=0)
+    degenerate_eigenvalue_ratio: float = Field(
+        1e-3, ge=0, lt=1, description="a direction with λ < ratio·λmax carries no information"
+    )
+    min_eigenvalue: float = Field(
+        1.0, ge=0, description="a direction with λ below this (info units) carries none"
+    )
+    min_rank: int = Field(1, ge=1, le=6, description="fewer kept directions: rejected")
+    max_step_m: float = Field(0.3, gt=0, description="larger frame-to-frame motion: rejected")
+    max_step_rad: float = Field(0.5, gt=0)
+    information_scale: float = Field(
+        1.0, gt=0, description="multiplies the registration's information (<1: less trust)"
+    )
+    robust_kernel: RobustKernel = "huber"
+    robust_k: float = Field(1.5, gt=0)
+
+
+class KinematicFactorConfig(ConfigModel):
+    """Leg-kinematic anchor at foot strike and stance factors."""
+
+    sigma_scale: float = Field(
+        1.0, gt=0, description="multiplies the kinematics' sigmas of stance factors"
+    )
+    robust_kernel: RobustKernel = "huber"
+    robust_k: float = Field(2.0, gt=0)
+    gravity_window_s: float = Field(0.1, gt=0, description="accel averaging before a strike")
+    max_mahalanobis: float = Field(
+        10.0,
+        gt=0,
+        description="a stance factor farther than this (in its sigmas) from the IMU prediction "
+        "is inconsistent (e.g. a missed foot strike: the foot is elsewhere) and is not added",
+    )
+
+
+class PriorConfig(ConfigModel):
+    """Priors of the first state of a session and carry-over between strides."""
+
+    first_velocity_sigma_m_s: float = Field(1.0, gt=0)
+    first_accel_bias_sigma_m_s2: float = Field(0.2, gt=0)
+    first_gyro_bias_sigma_rad_s: float = Field(0.05, gt=0)
+    first_roll_pitch_sigma_rad: float = Field(0.05, gt=0)
+    first_yaw_sigma_rad: float = Field(1e-3, gt=0, description="the frame's yaw is defined")
+    first_position_sigma_m: float = Field(1e-3, gt=0, description="the frame's origin is defined")
+    carry_inflation: float = Field(1.0, ge=1, description="multiplies carried covariances")
+    missed_strike_inflation: float = Field(
+        4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"
+    )
+    max_stride_s: float = Field(2.5, gt=0, description="longer: a missed foot strike")
+
+
+class BackendConfig(ConfigModel):
+    """The per-stride graph back end."""
+
+    variant: Variant = "icp+imu+kin"
+    imu: ImuNoiseConfig = ImuNoiseConfig()
+    gate: GateConfig = GateConfig()
+    kinematics: KinematicFactorConfig = KinematicFactorConfig()
+    priors: PriorConfig = PriorConfig()
+    smoothing: bool = Field(True, description="batch LM over the stride at its end")
+    covariances: bool = Field(False, description="per-frame marginal covariances (slower)")
+    isam2_relinearize_threshold: float = Field(0.01, gt=0)
+    gap_bridge_rot_sigma_rad: float = Field(0.3, gt=0)
+    gap_bridge_trans_sigma_m: float = Field(0.2, gt=0)
+
+    @model_validator(mode="after")
+    def _variant_supported(self) -> BackendConfig:
+        from graph_slam.errors import ConfigError
+
+        if self.variant not in VARIANT_FACTORS:
+            raise ConfigError(
+                f"field 'variant': {self.variant!r} is the thesis baseline (no factor graph); "
+                "run it through the pipelines layer (graph_slam.pipelines), not StrideSLAM"
+            )
+        return self
+
+    @property
+    def factors(self) -> dict[str, bool]:
+        """Which factor families this variant uses (``icp``, ``imu``, ``kin``)."""
+        return VARIANT_FACTORS[self.variant]

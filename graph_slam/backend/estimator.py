@@ -1,0 +1,498 @@
+"""The streaming estimator: one factor graph per stride, re-solved at every frame.
+
+    slam = StrideSLAM(BackendConfig(), camera_T_imu=calib.camera_T_imu)
+    slam.add_imu(t_s, gyro_rad_s, accel_m_s2)          # any time, any chunk size
+    est = slam.add_frame(t_s, icp=..., foot_loaded=..., kinematics=...)   # online pose
+    summary = slam.foot_strike(t_s)                     # closes the stride: smoothed poses
+    results = slam.finish()
+
+Kinematic measurements (``KinematicMeasurement``: ``stride_T_camera`` from FK with its
+covariance) are given per frame by the caller, or computed from ``add_joints`` samples when a
+``kinematics.leg_model.LegModel`` is given (foot strike: :func:`kinematics.stride_frame.
+stride_T_camera` with gravity from the IMU; stance: the struck foot's ``stride_T_foot`` held,
+``foot_T_camera(q)`` from the encoders). The first frame of a stride takes the kinematic
+measurement as its **anchor** (the prior that defines the stride frame) in every variant.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import gtsam
+import numpy as np
+
+from graph_slam.backend import factors
+from graph_slam.backend.config import BackendConfig
+from graph_slam.backend.gating import GateDecision, gate_icp
+from graph_slam.backend.imu import ImuBuffer, ImuCheck
+from graph_slam.backend.keys import B, V, X
+from graph_slam.backend.measurements import IcpMeasurement, KinematicMeasurement
+from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
+from graph_slam.backend.stride_graph import StrideGraph
+from graph_slam.errors import EstimationError
+
+log = logging.getLogger(__name__)
+
+
+def gravity_aligned_rotation(up_in_imu: np.ndarray) -> np.ndarray:
+    """``nav_R_imu`` with z along ``up_in_imu`` and zero yaw of the IMU's x axis (if possible)."""
+    z = up_in_imu / np.linalg.norm(up_in_imu)  # nav z expressed in the IMU frame
+    x_imu = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = x_imu - (x_imu @ z) * z
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.vstack([x, y, z])  # rows: nav axes in IMU coordinates -> nav_R_imu
+
+
+class StrideSLAM:
+    """Per-stride factor-graph estimator (see the module docstring)."""
+
+    def __init__(
+        self,
+        config: BackendConfig | None = None,
+        camera_T_imu: np.ndarray | None = None,
+        leg_model=None,
+    ):
+        self.cfg = config or BackendConfig()
+        self.camera_T_imu = np.eye(4) if camera_T_imu is None else np.asarray(camera_T_imu, float)
+        self.leg_model = leg_model
+        self.imu = ImuBuffer(self.cfg.imu)
+        self._joints: list[np.ndarray] = []
+        self._graph: StrideGraph | None = None
+        self._stride_start = "first_stride"
+        self._pending_start: str | None = None
+        self._world_T_stride = np.eye(4)
+        self._stride_t0 = np.nan
+        self._frame_to_k: dict[int, int] = {}
+        self._frames_in_stride: list[FrameEstimate] = []
+        self._stride_counts = {"icp_ok": 0, "icp_rej": 0, "kin": 0, "gap": 0}
+        self._strike_foot_R: np.ndarray | None = None
+        self._last_nav = None  # (t_s, NavEstimate, cov_pose, cov_vel, cov_bias) at stride end
+        self.results = Results()
+        self._frame_count = 0
+        self._last_frame_t = -np.inf
+
+    # ------------------------------------------------------------------ inputs
+    def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> ImuCheck:
+        """Add IMU samples (IMU frame); bad samples are rejected and counted, never used."""
+        return self.imu.add(t_s, gyro_rad_s, accel_m_s2)
+
+    def add_joints(self, t_s, knee_rad, ankle_rad) -> int:
+        """Add encoder samples (used only with a leg model); returns how many were kept."""
+        block = np.column_stack([np.ravel(t_s), np.ravel(knee_rad), np.ravel(ankle_rad)])
+        good = np.isfinite(block).all(axis=1)
+        last = self._joints[-1][-1, 0] if self._joints else -np.inf
+        for i in np.flatnonzero(good):
+            if block[i, 0] <= last:
+                good[i] = False
+            else:
+                last = block[i, 0]
+        if (~good).any():
+            log.warning(
+                "joints: %d of %d samples rejected (NaN or not increasing)",
+                (~good).sum(),
+                good.size,
+            )
+        if good.any():
+            self._joints.append(block[good])
+        return int(good.sum())
+
+    def foot_strike(self, t_s: float) -> StrideSummary | None:
+        """A foot strike: close the current stride (smoothing); the next frame starts a new one."""
+        summary = self._close_stride() if self._graph is not None else None
+        self._pending_start = "foot_strike"
+        return summary
+
+    def finish(self) -> Results:
+        """Close the open stride and return every result."""
+        if self._graph is not None:
+            self._close_stride()
+        self.results.imu_counts = dict(self.imu.counts)
+        return self.results
+
+    # ------------------------------------------------------------------ kinematics
+    def _q_at(self, t_s: float) -> np.ndarray | None:
+        if not self._joints:
+            return None
+        j = np.concatenate(self._joints)
+        if t_s < j[0, 0] or t_s > j[-1, 0]:
+            return None
+        return np.array([np.interp(t_s, j[:, 0], j[:, 1]), np.interp(t_s, j[:, 0], j[:, 2])])
+
+    def _kinematics_from_joints(self, t_s: float, anchor: bool) -> KinematicMeasurement | None:
+        if self.leg_model is None:
+            return None
+        q = self._q_at(t_s)
+        if q is None:
+            return None
+        from kinematics.errors import KinematicsError
+        from kinematics.stride_frame import stride_T_camera
+
+        try:
+            if anchor:
+                w = self.cfg.kinematics.gravity_window_s
+                up = self.imu.mean_accel(t_s - w, t_s)
+                a = stride_T_camera(self.leg_model, q, up_in_imu=self._imu_up_to_model(up))
+                self._strike_foot_R = a.stride_T_foot
+                return KinematicMeasurement(a.stride_T_camera, a.covariance)
+            if self._strike_foot_R is None:
+                return None
+            from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2
+
+            cov = self.leg_model.camera_covariance(q, DEFAULT_ENCODER_VAR_RAD2, contact="foot_flat")
+            return KinematicMeasurement(self._strike_foot_R @ self.leg_model.foot_T_camera(q), cov)
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
+            return None
+
+    def _imu_up_to_model(self, up_in_imu: np.ndarray | None) -> np.ndarray | None:
+        """The session IMU's up vector in the leg model's ``imu`` frame (via the camera)."""
+        if up_in_imu is None:
+            return None
+        m = self.leg_model
+        model_camera_R_imu = (
+            np.linalg.inv(m.thigh_T_frame("camera_optical")) @ m.thigh_T_frame("imu")
+        )[:3, :3]
+        return model_camera_R_imu.T @ self.camera_T_imu[:3, :3] @ up_in_imu
+
+    # ------------------------------------------------------------------ frames
+    def add_frame(
+        self,
+        t_s: float,
+        icp: IcpMeasurement | None = None,
+        foot_loaded: bool = False,
+        kinematics: KinematicMeasurement | None = None,
+    ) -> FrameEstimate:
+        """Add one camera frame; returns its online estimate (iSAM2)."""
+        if not np.isfinite(t_s) or t_s <= self._last_frame_t:
+            raise EstimationError(
+                f"add_frame: t_s={t_s!r} must be finite and after the previous frame "
+                f"({self._last_frame_t!r})"
+            )
+        use = self.cfg.factors
+        if (
+            self._graph is not None
+            and self._pending_start is None
+            and t_s - self._stride_t0 > self.cfg.priors.max_stride_s
+        ):
+            log.warning(
+                "t=%.3f s: stride longer than %.2f s: a missed foot strike",
+                t_s,
+                self.cfg.priors.max_stride_s,
+            )
+            self._close_stride()
+            self._pending_start = "missed_foot_strike"
+        index = self._frame_count
+        t_start = time.perf_counter()
+        flags: list[str] = []
+        gate: GateDecision | None = None
+        kin_used = imu_used = False
+        if self._graph is None:
+            if kinematics is None:
+                kinematics = self._kinematics_from_joints(t_s, anchor=True)
+            flags += self._start_stride(t_s, kinematics)
+            k = 0
+            if icp is not None:
+                gate = GateDecision(False, "previous_stride (ICP across a foot strike not used)")
+        else:
+            g = self._graph
+            k = g.n_states
+            prev = g.nav(k - 1)
+            t_prev = g.t_s[-1]
+            tagged: list[tuple[str, object]] = []
+            seg = self.imu.integrate(t_prev, t_s, prev.bias)
+            nav_prev = gtsam.NavState(prev.stride_T_imu, prev.velocity_m_s)
+            if seg.ok:
+                pred = seg.pim.predict(nav_prev, prev.bias)
+                tagged.append(("imu", factors.imu_factor(k - 1, k, seg.pim)))
+            else:
+                flags.append(seg.reason)
+                self._stride_counts["gap"] += 1
+                g.flags.add(seg.reason)
+                dt = t_s - t_prev
+                pred = gtsam.NavState(
+                    prev.stride_T_imu.compose(
+                        gtsam.Pose3(
+                            gtsam.Rot3(),
+                            prev.stride_T_imu.rotation().unrotate(prev.velocity_m_s) * dt,
+                        )
+                    ),
+                    prev.velocity_m_s,
+                )
+            v_body = prev.stride_T_imu.rotation().unrotate(prev.velocity_m_s)
+            imu_cfg = self.cfg.imu
+
+            def bridge(k=k, dt=t_s - t_prev, v_body=v_body):
+                return factors.gap_bridge_factors(
+                    k - 1,
+                    k,
+                    dt,
+                    v_body,
+                    self.cfg.gap_bridge_rot_sigma_rad,
+                    self.cfg.gap_bridge_trans_sigma_m,
+                    imu_cfg.gravity_m_s2,
+                    imu_cfg.accel_random_walk_m_s3_sqrt_hz,
+                    imu_cfg.gyro_random_walk_rad_s2_sqrt_hz,
+                )
+
+            if not seg.ok:
+                tagged.extend(("bridge", f) for f in bridge())
+            if icp is not None and use["icp"]:
+                gate, f = self._icp_factor(icp, index, k)
+                if f is not None:
+                    tagged.append(("icp", f))
+            if foot_loaded and use["kin"]:
+                if kinematics is None:
+                    kinematics = self._kinematics_from_joints(t_s, anchor=False)
+                if kinematics is not None and self._stride_start in (
+                    "missed_foot_strike",
+                    "no_anchor",
+                ):
+                    flags.append("kin_unanchored")  # the foothold of this stride is unknown
+                    kinematics = None
+                elif kinematics is not None:
+                    d = self._kin_mahalanobis(kinematics, pred.pose())
+                    if d > self.cfg.kinematics.max_mahalanobis:
+                        log.info("frame %d: stance factor %.1f sigmas off: not added", index, d)
+                        flags.append("kin_inconsistent")
+                        g.flags.add("kin_inconsistent")
+                        kinematics = None
+                if kinematics is not None:
+                    kc = self.cfg.kinematics
+                    tagged.append(
+                        (
+                            "kin",
+                            factors.kinematic_prior_factor(
+                                k,
+                                kinematics.stride_T_camera,
+                                kinematics.covariance * kc.sigma_scale**2,
+                                self.camera_T_imu,
+                                kc.robust_kernel,
+                                kc.robust_k,
+                            ),
+                        )
+                    )
+                elif not any(f.startswith("kin_") for f in flags):
+                    flags.append("no_kinematics")
+            values = gtsam.Values()
+            values.insert(X(k), pred.pose())
+            values.insert(V(k), pred.velocity())
+            values.insert(B(k), prev.bias)
+            kept, extra = g.add_state(t_s, tagged, values, bridge)
+            flags += extra
+            imu_used = "imu" in kept
+            kin_used = "kin" in kept
+            if "icp" in kept:
+                self._stride_counts["icp_ok"] += 1
+            elif gate is not None:
+                self._stride_counts["icp_rej"] += 1
+                flags.append("icp_rejected" if not gate.accepted else "icp_dropped")
+            if kin_used:
+                self._stride_counts["kin"] += 1
+        g = self._graph
+        self._frame_to_k[index] = k
+        stride_T_imu = g.estimate.atPose3(X(k)).matrix()
+        stride_T_camera = stride_T_imu @ np.linalg.inv(self.camera_T_imu)
+        cov = None
+        if self.cfg.covariances:
+            cov = factors.imu_cov_to_camera(g.marginal_covariance(X(k)), self.camera_T_imu)
+        est = FrameEstimate(
+            frame_index=index,
+            stride_index=len(self.results.strides),
+            k=k,
+            t_s=float(t_s),
+            stride_T_camera=stride_T_camera,
+            world_T_camera=self._world_T_stride @ stride_T_camera,
+            flags=tuple(flags),
+            gate=gate,
+            kinematic_factor=kin_used,
+            imu_factor=imu_used,
+            update_s=time.perf_counter() - t_start,
+            covariance=cov,
+        )
+        self.results.frames.append(est)
+        self._frames_in_stride.append(est)
+        self._frame_count += 1
+        self._last_frame_t = t_s
+        self.imu.drop_before(t_s - 1.0)
+        return est
+
+    def _kin_mahalanobis(self, kin: KinematicMeasurement, stride_T_imu_pred: gtsam.Pose3) -> float:
+        """Distance (in sigmas of the measurement) of a stance measurement from the prediction."""
+        pred_camera = gtsam.Pose3(stride_T_imu_pred.matrix() @ np.linalg.inv(self.camera_T_imu))
+        e = gtsam.Pose3.Logmap(gtsam.Pose3(kin.stride_T_camera).between(pred_camera))
+        cov = kin.covariance * self.cfg.kinematics.sigma_scale**2
+        return float(np.sqrt(e @ np.linalg.solve(cov, e)))
+
+    def _icp_factor(self, icp: IcpMeasurement, index: int, k: int):
+        if icp.source_index != index:
+            return GateDecision(
+                False, f"source_index {icp.source_index} is not this frame ({index})"
+            ), None
+        if icp.target_index not in self._frame_to_k or icp.target_index >= index:
+            return GateDecision(False, "target frame not in this stride"), None
+        decision = gate_icp(icp, self.cfg.gate)
+        if not decision.accepted:
+            log.info("frame %d: ICP rejected (%s)", index, decision.reason)
+            return decision, None
+        gc = self.cfg.gate
+        f = factors.icp_between_factor(
+            self._frame_to_k[icp.target_index],
+            k,
+            icp.target_T_source,
+            decision.sqrt_information,
+            self.camera_T_imu,
+            gc.robust_kernel,
+            gc.robust_k,
+        )
+        return decision, f
+
+    # ------------------------------------------------------------------ strides
+    def _start_stride(self, t_s: float, anchor: KinematicMeasurement | None) -> list[str]:
+        pc = self.cfg.priors
+        reason = self._pending_start or "first_stride"
+        if self._last_nav is None and reason != "first_stride":
+            reason = "first_stride"
+        flags = [reason] if reason != "foot_strike" else []
+        g = StrideGraph(self.cfg.isam2_relinearize_threshold)
+        tagged: list[tuple[str, object]] = []
+        if self._last_nav is None:  # first stride of the session: gravity-aligned, weak priors
+            if anchor is not None:
+                pose, cov_pose = factors.camera_pose_to_imu(
+                    anchor.stride_T_camera, anchor.covariance, self.camera_T_imu
+                )
+            else:
+                up = self.imu.mean_accel(t_s - self.cfg.kinematics.gravity_window_s, t_s)
+                rot = np.eye(3) if up is None else gravity_aligned_rotation(up)
+                pose = gtsam.Pose3(gtsam.Rot3(rot), np.zeros(3))
+                s = np.r_[
+                    pc.first_roll_pitch_sigma_rad,
+                    pc.first_roll_pitch_sigma_rad,
+                    pc.first_yaw_sigma_rad,
+                    np.full(3, pc.first_position_sigma_m),
+                ]
+                # roll/pitch sigmas are about the nav axes: rotate into the body (local) frame
+                ad = np.zeros((6, 6))
+                ad[:3, :3] = ad[3:, 3:] = rot.T
+                cov_pose = ad @ np.diag(s**2) @ ad.T
+                flags.append("no_anchor" if up is not None else "no_anchor_no_gravity")
+            vel = np.zeros(3)
+            cov_vel = np.eye(3) * pc.first_velocity_sigma_m_s**2
+            bias = gtsam.imuBias.ConstantBias()
+            cov_bias = np.diag(
+                np.r_[
+                    np.full(3, pc.first_accel_bias_sigma_m_s2**2),
+                    np.full(3, pc.first_gyro_bias_sigma_rad_s**2),
+                ]
+            )
+        else:
+            t_last, nav, cov_x, cov_v, cov_b = self._last_nav
+            seg = self.imu.integrate(t_last, t_s, nav.bias) if t_s > t_last else None
+            if seg is not None and seg.ok:
+                pred = seg.pim.predict(gtsam.NavState(nav.stride_T_imu, nav.velocity_m_s), nav.bias)
+                pcov = np.asarray(seg.pim.preintMeasCov())
+                cov_x = cov_x + pcov[:6, :6]
+                cov_v = cov_v + pcov[6:9, 6:9]
+            else:
+                if seg is not None:
+                    flags.append(seg.reason)
+                dt = max(t_s - t_last, 0.0)
+                pred = gtsam.NavState(
+                    gtsam.Pose3(
+                        nav.stride_T_imu.rotation(),
+                        nav.stride_T_imu.translation() + nav.velocity_m_s * dt,
+                    ),
+                    nav.velocity_m_s,
+                )
+                cov_x = cov_x + np.diag(np.r_[np.full(3, 0.05**2), np.full(3, (2.0 * dt) ** 2)])
+                cov_v = cov_v + np.eye(3) * (self.cfg.imu.gravity_m_s2 * dt) ** 2
+            infl = pc.carry_inflation if reason == "foot_strike" else pc.missed_strike_inflation
+            bias, cov_bias = nav.bias, cov_b * infl
+            if anchor is not None and reason == "foot_strike":
+                pose, cov_pose = factors.camera_pose_to_imu(
+                    anchor.stride_T_camera, anchor.covariance, self.camera_T_imu
+                )
+                new_R_old = pose.rotation().matrix() @ pred.pose().rotation().matrix().T
+                vel = new_R_old @ np.asarray(pred.velocity())
+                cov_vel = new_R_old @ cov_v @ new_R_old.T * infl
+                self._world_T_stride = (
+                    self._world_T_stride @ pred.pose().matrix() @ np.linalg.inv(pose.matrix())
+                )
+            else:  # no new stride frame: continue in the previous one, inflated
+                if reason == "foot_strike":
+                    flags.append("no_anchor")
+                    infl = pc.missed_strike_inflation
+                pose, vel = pred.pose(), np.asarray(pred.velocity())
+                cov_pose, cov_vel = cov_x * infl, cov_v * infl
+                cov_bias = cov_b * infl
+        tagged.append(("prior", factors.pose_prior(0, pose, cov_pose)))
+        tagged.append(("prior", factors.velocity_prior(0, vel, cov_vel)))
+        tagged.append(("prior", factors.bias_prior(0, bias, cov_bias)))
+        values = gtsam.Values()
+        values.insert(X(0), pose)
+        values.insert(V(0), vel)
+        values.insert(B(0), bias)
+        g.add_state(t_s, tagged, values, None)
+        g.flags.update(f for f in flags if f != "first_stride")
+        self._graph = g
+        self._stride_start = reason
+        self._pending_start = None
+        self._stride_t0 = t_s
+        self._frame_to_k = {}
+        self._frames_in_stride = []
+        self._stride_counts = {"icp_ok": 0, "icp_rej": 0, "kin": 0, "gap": 0}
+        return flags
+
+    def _close_stride(self) -> StrideSummary:
+        g = self._graph
+        result, marginals, smoothing_s = g.smooth(self.cfg.smoothing)
+        n = g.n_states
+        inv_ext = np.linalg.inv(self.camera_T_imu)
+        smoothed = np.array([result.atPose3(X(k)).matrix() @ inv_ext for k in range(n)])
+        online = np.array([f.stride_T_camera for f in self._frames_in_stride])
+        covs = None
+        last = g.nav(n - 1, result)
+        if marginals is not None:
+            cov_x = np.asarray(marginals.marginalCovariance(X(n - 1)))
+            cov_v = np.asarray(marginals.marginalCovariance(V(n - 1)))
+            cov_b = np.asarray(marginals.marginalCovariance(B(n - 1)))
+            if self.cfg.covariances:
+                covs = np.array(
+                    [
+                        factors.imu_cov_to_camera(
+                            np.asarray(marginals.marginalCovariance(X(k))), self.camera_T_imu
+                        )
+                        for k in range(n)
+                    ]
+                )
+        else:
+            cov_x = g.marginal_covariance(X(n - 1))
+            cov_v = g.marginal_covariance(V(n - 1))
+            cov_b = g.marginal_covariance(B(n - 1))
+        self._last_nav = (g.t_s[-1], last, cov_x, cov_v, cov_b)
+        c = self._stride_counts
+        summary = StrideSummary(
+            index=len(self.results.strides),
+            t_start_s=g.t_s[0],
+            t_end_s=g.t_s[-1],
+            start=self._stride_start,
+            world_T_stride=self._world_T_stride.copy(),
+            frame_indices=[f.frame_index for f in self._frames_in_stride],
+            t_s=np.array(g.t_s),
+            online_stride_T_camera=online,
+            smoothed_stride_T_camera=smoothed,
+            smoothed_covariances=covs,
+            flags=tuple(sorted(g.flags)),
+            n_icp_accepted=c["icp_ok"],
+            n_icp_rejected=c["icp_rej"],
+            n_kinematic=c["kin"],
+            n_imu_gaps=c["gap"],
+            dropped_factors=list(g.dropped),
+            smoothing_s=smoothing_s,
+            velocity_end_m_s=last.velocity_m_s,
+            bias_end=np.asarray(last.bias.vector()),
+        )
+        self.results.strides.append(summary)
+        self._graph = None
+        return summary

@@ -1,0 +1,91 @@
+"""Gate ICP registrations before they become factors, and project away degenerate directions.
+
+Rules, checked in this order (the first that fails is the recorded reason):
+
+1. ``registration_failed`` — the front end said ``ok=False`` (its reason is appended);
+2. ``nonfinite`` — NaN/inf in the transform or the information;
+3. ``low_fitness`` / ``high_rmse`` / ``few_correspondences`` — against :class:`GateConfig`;
+4. ``implausible_step`` — a frame-to-frame motion larger than ``max_step_m``/``max_step_rad``;
+5. degeneracy: eigen-directions of the registration's Hessian with
+   ``λ < max(min_eigenvalue, degenerate_eigenvalue_ratio·λmax)`` get **zero** information: the
+   information is projected onto the well-constrained subspace (``P I P``). If fewer than
+   ``min_rank`` directions are left: ``degenerate``. Otherwise accepted (``ok`` or
+   ``ok_projected``) with the number of dropped directions recorded.
+
+Fitness alone is never trusted (a flat floor slid sideways registers with fitness 1.0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from graph_slam.backend.config import GateConfig
+from graph_slam.backend.measurements import IcpMeasurement
+from graph_slam.backend.noise import sqrt_of_information
+
+
+@dataclass(frozen=True, eq=False)
+class GateDecision:
+    """The gate's verdict on one registration."""
+
+    accepted: bool
+    reason: str
+    rank: int = 0
+    dropped_directions: np.ndarray | None = None
+    """6×m eigenvectors (rotation first) that got zero information."""
+    information: np.ndarray | None = None
+    """The (projected, scaled) 6×6 information used for the factor; None if rejected."""
+    sqrt_information: np.ndarray | None = None
+    """Square R with RᵀR = information (zero rows for dropped directions)."""
+
+
+def _log_so3_angle(r: np.ndarray) -> float:
+    return float(np.arccos(np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def gate_icp(meas: IcpMeasurement, cfg: GateConfig) -> GateDecision:
+    """Apply the rules of the module docstring; return the decision with its reason."""
+    if not meas.ok:
+        return GateDecision(False, f"registration_failed: {meas.reason or 'no reason given'}")
+    info = np.asarray(meas.information, float)
+    if not (np.all(np.isfinite(info)) and np.all(np.isfinite(meas.target_T_source))):
+        return GateDecision(False, "nonfinite")
+    if not np.isfinite(meas.fitness) or meas.fitness < cfg.min_fitness:
+        return GateDecision(False, f"low_fitness ({meas.fitness:.3g} < {cfg.min_fitness})")
+    if not np.isfinite(meas.inlier_rmse_m) or meas.inlier_rmse_m > cfg.max_inlier_rmse_m:
+        return GateDecision(
+            False, f"high_rmse ({meas.inlier_rmse_m:.3g} m > {cfg.max_inlier_rmse_m} m)"
+        )
+    if meas.correspondences < cfg.min_correspondences:
+        return GateDecision(
+            False,
+            f"few_correspondences ({meas.correspondences} < {cfg.min_correspondences})",
+        )
+    step_m = float(np.linalg.norm(meas.target_T_source[:3, 3]))
+    step_rad = _log_so3_angle(meas.target_T_source[:3, :3])
+    if step_m > cfg.max_step_m or step_rad > cfg.max_step_rad:
+        return GateDecision(False, f"implausible_step ({step_m:.3f} m, {step_rad:.3f} rad)")
+
+    info = 0.5 * (info + info.T)
+    if meas.eigenvalues is not None and meas.eigenvectors is not None:
+        lam = np.asarray(meas.eigenvalues, float).reshape(6)
+        vec = np.asarray(meas.eigenvectors, float).reshape(6, 6)
+        if not (np.all(np.isfinite(lam)) and np.all(np.isfinite(vec))):
+            return GateDecision(False, "nonfinite")
+    else:
+        lam, vec = np.linalg.eigh(info)
+    threshold = max(cfg.min_eigenvalue, cfg.degenerate_eigenvalue_ratio * float(lam.max()))
+    keep = lam >= threshold
+    rank = int(keep.sum())
+    dropped = vec[:, ~keep]
+    if rank < cfg.min_rank:
+        return GateDecision(False, f"degenerate (rank {rank} < {cfg.min_rank})", rank, dropped)
+    if rank < 6:
+        basis, _ = np.linalg.qr(vec[:, keep])
+        proj = basis @ basis.T
+        info = proj @ info @ proj
+    info = cfg.information_scale * 0.5 * (info + info.T)
+    reason = "ok" if rank == 6 else f"ok_projected ({6 - rank} degenerate direction(s) dropped)"
+    return GateDecision(True, reason, rank, dropped, info, sqrt_of_information(info))

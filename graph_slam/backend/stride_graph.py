@@ -1,0 +1,182 @@
+"""The graph of one stride: iSAM2 every frame (online), batch Levenberg–Marquardt at the end
+(smoothed), with failure handling that never ends the run.
+
+At each frame the estimator hands over the new state's tagged factors (``imu``, ``icp``,
+``kin``, ``bridge``, ``prior``) and initial values; only these go to iSAM2 (passing the
+whole graph again would duplicate factors). If GTSAM raises (a bare ``RuntimeError``, e.g.
+an indeterminant linear system) or the estimate is not finite, the offending factor is
+dropped — ICP first, then the kinematic factor, then the IMU factor (replaced by weak
+bridge factors) — iSAM2 is rebuilt from the accepted factors, the reason is logged and the
+stride is flagged.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graph_slam.backend.keys import B, V, X
+from graph_slam.errors import EstimationError
+
+log = logging.getLogger(__name__)
+
+#: Drop order when an update fails.
+DROP_ORDER = ("icp", "kin", "imu")
+
+
+@dataclass
+class NavEstimate:
+    """Pose, velocity and bias of one state (IMU body, stride frame)."""
+
+    stride_T_imu: gtsam.Pose3
+    velocity_m_s: np.ndarray
+    bias: gtsam.imuBias.ConstantBias
+
+
+def _finite_state(values: gtsam.Values, k: int) -> bool:
+    return bool(
+        np.all(np.isfinite(values.atPose3(X(k)).matrix()))
+        and np.all(np.isfinite(values.atVector(V(k))))
+        and np.all(np.isfinite(values.atConstantBias(B(k)).vector()))
+    )
+
+
+class StrideGraph:
+    """Factors and estimates of one stride; keys ``X(k)``, ``V(k)``, ``B(k)``, ``k`` from 0."""
+
+    def __init__(self, relinearize_threshold: float = 0.01, extra_updates: int = 1):
+        params = gtsam.ISAM2Params()
+        params.setRelinearizeThreshold(relinearize_threshold)
+        params.relinearizeSkip = 1
+        # QR, not Cholesky: the bias random walk between consecutive frames is ~1e10 times
+        # more informative than the bias prior, and GTSAM's Cholesky calls that system
+        # indeterminant (measured here on the very first CombinedImuFactor).
+        params.setFactorization("QR")
+        self._isam_params = params
+        self.isam = gtsam.ISAM2(params)
+        self.graph = gtsam.NonlinearFactorGraph()
+        self.factor_tags: list[str] = []
+        self.estimate = gtsam.Values()
+        self.t_s: list[float] = []
+        self.flags: set[str] = set()
+        self.dropped: list[str] = []
+        self.extra_updates = extra_updates
+
+    @property
+    def n_states(self) -> int:
+        return len(self.t_s)
+
+    def nav(self, k: int, values: gtsam.Values | None = None) -> NavEstimate:
+        values = self.estimate if values is None else values
+        return NavEstimate(
+            values.atPose3(X(k)), np.asarray(values.atVector(V(k))), values.atConstantBias(B(k))
+        )
+
+    def _try(
+        self, tagged: list[tuple[str, object]], new_values: gtsam.Values, k: int, rebuild: bool
+    ):
+        new_graph = gtsam.NonlinearFactorGraph()
+        for _, factor in tagged:
+            new_graph.add(factor)
+        try:
+            if rebuild:
+                isam = gtsam.ISAM2(self._isam_params)
+                full = gtsam.NonlinearFactorGraph(self.graph)
+                full.push_back(new_graph)
+                init = gtsam.Values(self.estimate)
+                init.insert(new_values)
+                isam.update(full, init)
+            else:
+                isam = self.isam
+                isam.update(new_graph, new_values)
+            for _ in range(self.extra_updates):
+                isam.update()
+            est = isam.calculateEstimate()
+            if not _finite_state(est, k):
+                return None, "nonfinite estimate"
+            return (isam, est), ""
+        except RuntimeError as err:  # GTSAM's exceptions arrive as bare RuntimeError
+            lines = [ln.strip() for ln in str(err).splitlines() if ln.strip()]
+            return None, " ".join(lines[:2]) if lines else type(err).__name__
+
+    def add_state(
+        self,
+        t_s: float,
+        tagged: list[tuple[str, object]],
+        new_values: gtsam.Values,
+        make_bridge: Callable[[], list] | None,
+    ) -> tuple[list[str], list[str]]:
+        """Add state ``k = n_states`` with its factors; return (kept tags, frame flags)."""
+        k = self.n_states
+        attempt = list(tagged)
+        flags: list[str] = []
+        rebuild = False
+        while True:
+            result, why = self._try(attempt, new_values, k, rebuild)
+            if result is not None:
+                break
+            rebuild = True  # iSAM2 may be half-updated after an exception: never reuse it
+            tags = [t for t, _ in attempt]
+            victim = next((t for t in DROP_ORDER if t in tags), None)
+            if victim is None:
+                if "bridge" in tags or make_bridge is None:
+                    raise EstimationError(
+                        f"stride graph: cannot add state {k} even with bridge factors: {why}"
+                    )
+                attempt = [*attempt, *(("bridge", f) for f in make_bridge())]
+                flags.append("bridged")
+                continue
+            log.warning("state %d: dropping the %s factor (%s)", k, victim, why)
+            i = tags.index(victim)
+            attempt.pop(i)
+            self.dropped.append(f"{victim}@{k}: {why}")
+            flags.append(f"factor_dropped:{victim}")
+            self.flags.add("factor_dropped")
+            if victim == "imu" and make_bridge is not None and "bridge" not in tags:
+                attempt.extend(("bridge", f) for f in make_bridge())
+        self.isam, self.estimate = result
+        for tag, factor in attempt:
+            self.graph.add(factor)
+            self.factor_tags.append(tag)
+        self.t_s.append(float(t_s))
+        return [t for t, _ in attempt], flags
+
+    def marginal_covariance(self, key: int) -> np.ndarray:
+        return np.asarray(self.isam.marginalCovariance(key))
+
+    def smooth(self, enabled: bool = True) -> tuple[gtsam.Values, gtsam.ISAM2 | None, float]:
+        """Batch LM over the stride from the iSAM2 estimate; falls back to iSAM2 on failure.
+
+        Returns the estimate, an iSAM2 linearised at it (``marginalCovariance`` by QR;
+        ``gtsam.Marginals`` uses Cholesky and fails on these graphs) and the time taken.
+        """
+        t0 = time.perf_counter()
+        result = self.estimate
+        if enabled:
+            try:
+                params = gtsam.LevenbergMarquardtParams()
+                params.setMaxIterations(50)
+                params.setLinearSolverType("MULTIFRONTAL_QR")
+                opt = gtsam.LevenbergMarquardtOptimizer(self.graph, self.estimate, params)
+                cand = opt.optimize()
+                if all(_finite_state(cand, k) for k in range(self.n_states)):
+                    result = cand
+                else:
+                    self.flags.add("smoothing_failed")
+            except RuntimeError as err:
+                log.warning("stride smoothing failed (%s); keeping the iSAM2 estimate", err)
+                self.flags.add("smoothing_failed")
+        marginals = None
+        try:
+            marginals = gtsam.ISAM2(self._isam_params)
+            marginals.update(self.graph, result)
+        except RuntimeError as err:
+            marginals = None
+            log.warning("stride marginals failed (%s)", err)
+            self.flags.add("marginals_failed")
+        return result, marginals, time.perf_counter() - t0
