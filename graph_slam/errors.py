@@ -67,6 +67,10 @@ class PlanarError(GraphSlamError):
     """The 2D study (graph_slam.planar) got input it cannot use."""
 
 
+class SimulationError(GraphSlamError):
+    """The simulator (graph_slam.sim) got a scene, profile or setting it cannot use."""
+
+
 class EstimationError(GraphSlamError):
     """The estimator cannot go on (an input it cannot use, not a numerical hiccup)."""
 
