@@ -27,7 +27,7 @@ app = typer.Typer(
 )
 
 # Modules under graph_slam/commands/ that add commands to the app (each: register(app)).
-COMMAND_MODULES: tuple[str, ...] = ("session", "gait", "bench", "planar")
+COMMAND_MODULES: tuple[str, ...] = ("session", "gait", "bench", "planar", "simulate")
 
 
 def _version_callback(value: bool) -> None:
