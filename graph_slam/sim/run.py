@@ -17,7 +17,9 @@ import logging
 import math
 import os
 import time
+from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -198,12 +200,20 @@ def simulate(
     )
     clock = time.perf_counter()
     rng_depth = np.random.default_rng([cfg.seed, _DEPTH])
-    with writer:
+    with writer, ThreadPoolExecutor(max_workers=1) as png_worker:
+        # PNG encoding (zlib releases the GIL) overlaps the rendering of the next frame; one
+        # worker keeps the frames in order.
+        pending: deque[Future] = deque()
         for i, t in enumerate(t_frames):
             depth, color = renderer.render(world_T_camera[i], rng_depth, gyro_camera[i])
-            writer.add_frame(RgbdFrame(float(t), depth, color, index=i))
+            frame = RgbdFrame(float(t), depth, color, index=i)
+            pending.append(png_worker.submit(writer.add_frame, frame))
+            while len(pending) > 2:
+                pending.popleft().result()
             if progress is not None:
                 progress(i + 1, t_frames.size)
+        while pending:
+            pending.popleft().result()
         timings["render+write frames"] = time.perf_counter() - clock
         clock = time.perf_counter()
         imu, _ = simulate_imu(

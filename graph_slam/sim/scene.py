@@ -237,25 +237,36 @@ class Scene:
     def colors_at(
         self, points: np.ndarray, normals: np.ndarray, geometry_ids: np.ndarray
     ) -> np.ndarray:
-        """Shaded RGB (float 0..255) of hit points: object colour × texture × Lambert light."""
+        """Shaded RGB (float32 0..255) of hit points: object colour × texture × Lambert light."""
         n_solids = len(self.solids)
-        base = np.array([s.color_rgb for s in self.solids] + [[0, 0, 0]], np.float32)
-        offsets = np.array([s.texture_offset_m for s in self.solids] + [[0, 0]], np.float32)
-        gid = np.where(geometry_ids < n_solids, geometry_ids, n_solids)
-        color = base[gid]
+        looks = self._looks
+        gid = np.minimum(geometry_ids, n_solids).astype(np.intp)
+        color = looks["base"][gid]
         tile = self.texture_tile
         if tile.shape[0] > 1:
+            n = tile.shape[0]  # a power of two: wrap with a bit mask
             axis = np.abs(normals).argmax(axis=1)
             u = np.where(axis == 0, points[:, 1], points[:, 0])
             v = np.where(axis == 2, points[:, 1], points[:, 2])
-            off = offsets[gid]
-            iu = ((u + off[:, 0]) / TEXTURE_TEXEL_M).astype(np.int64) % tile.shape[0]
-            iv = ((v + off[:, 1]) / TEXTURE_TEXEL_M).astype(np.int64) % tile.shape[1]
-            color = color * tile[iu, iv]
+            off = looks["offset_px"][gid]
+            iu = (u * np.float32(1.0 / TEXTURE_TEXEL_M)).astype(np.int32) + off[:, 0]
+            iv = (v * np.float32(1.0 / TEXTURE_TEXEL_M)).astype(np.int32) + off[:, 1]
+            flat = ((iu & (n - 1)) * n + (iv & (n - 1))).astype(np.intp)
+            color *= tile.reshape(-1, 3)[flat]
+        shade = np.float32(0.55) + np.float32(0.45) * np.abs(normals @ looks["light"])
+        color *= shade[:, None]
+        return color
+
+    @cached_property
+    def _looks(self) -> dict[str, np.ndarray]:
+        base = np.array([s.color_rgb for s in self.solids] + [[0, 0, 0]], np.float32)
+        offsets = np.array([s.texture_offset_m for s in self.solids] + [[0, 0]])
         light = np.array([0.35, 0.25, 0.90], np.float32)
-        light /= np.linalg.norm(light)
-        shade = 0.55 + 0.45 * np.abs(normals @ light)
-        return color * shade[:, None]
+        return {
+            "base": base,
+            "offset_px": (offsets / TEXTURE_TEXEL_M).astype(np.int32),
+            "light": light / np.linalg.norm(light),
+        }
 
 
 def _pose(center: np.ndarray, yaw: float) -> np.ndarray:
