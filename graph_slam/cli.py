@@ -27,7 +27,7 @@ app = typer.Typer(
 )
 
 # Modules under graph_slam/commands/ that add commands to the app (each: register(app)).
-COMMAND_MODULES: tuple[str, ...] = ("session", "gait", "convert", "planar", "bench")
+COMMAND_MODULES: tuple[str, ...] = ("session", "gait", "convert", "simulate", "planar", "bench")
 
 
 def _version_callback(value: bool) -> None:

@@ -79,6 +79,10 @@ class DepthUnitsError(ConversionError):
     """The depth values are implausible in the stated units (detected from the data)."""
 
 
+class SimulationError(GraphSlamError):
+    """The simulator (graph_slam.sim) got a scene, profile or setting it cannot use."""
+
+
 class EstimationError(GraphSlamError):
     """The estimator cannot go on (an input it cannot use, not a numerical hiccup)."""
 

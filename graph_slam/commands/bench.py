@@ -37,10 +37,30 @@ def session_io(
         typer.echo(line)
 
 
+@bench_app.command("simulate")
+def simulate_bench(
+    strides: Annotated[int, typer.Option(help="Strides to simulate.")] = 25,
+    drops: Annotated[str | None, typer.Option(help="none, random, bursty (profile).")] = None,
+    camera: Annotated[str, typer.Option(help="Camera profile.")] = "d455",
+    fast: Annotated[bool, typer.Option("--fast", help="Quarter resolution.")] = False,
+) -> None:
+    """Wall time of the simulator (target: 25 strides of D455 at 90 Hz in < 3 min, 2 cores)."""
+    from graph_slam.bench.simulate import run_simulate_bench
+    from graph_slam.commands._common import progress_bar
+    from graph_slam.sim import SimConfig
+
+    cfg = SimConfig(strides=strides, drops=drops, camera=camera, fast=fast, quicklook=False)
+    with tempfile.TemporaryDirectory() as tmp, progress_bar("simulating") as update:
+        result = run_simulate_bench(Path(tmp) / "session", cfg, progress=update)
+    for line in result.lines():
+        typer.echo(line)
+
+
 @bench_app.command("all")
 def run_all() -> None:
     """Every benchmark with its default settings."""
     session_io()
+    simulate_bench()
 
 
 def register(app: typer.Typer) -> None:
