@@ -205,32 +205,54 @@ def voxel_downsample(cloud: Cloud, voxel_m: float, grid_T_cloud: np.ndarray | No
 
 
 def estimate_normals(
-    cloud: Cloud, radius_m: float, max_nn: int = 30, viewpoint_m: np.ndarray | None = None
-) -> Cloud:
-    """Unit normals (Open3D, hybrid radius / k-NN search) oriented towards ``viewpoint_m``
-    (the camera, the frame's origin by default)."""
+    cloud: Cloud,
+    radius_m: float,
+    max_nn: int = 30,
+    viewpoint_m: np.ndarray | None = None,
+    min_spread: float = 0.05,
+    max_thickness: float = 0.5,
+) -> tuple[Cloud, int]:
+    """Unit normals from the covariance of each point's neighbours (Open3D hybrid search:
+    ≤ ``max_nn`` within ``radius_m``), oriented towards ``viewpoint_m`` (the frame's origin by
+    default). Returns the cloud of the points whose normal is defined, and how many were
+    dropped.
+
+    With eigenvalues ``λ0 ≤ λ1 ≤ λ2`` of the neighbourhood covariance, a normal is defined when
+    the neighbours spread in two directions (``λ1 ≥ min_spread · λ2``: not a line, as far,
+    sparsely sampled rows of an image are) and lie on a surface (``λ0 ≤ max_thickness · λ1``:
+    not an isotropic blob, nor a point with fewer than 3 neighbours). Undefined normals would
+    otherwise look like constraints in the degeneracy report.
+    """
     import open3d as o3d
 
     if len(cloud) == 0:
-        return Cloud(cloud.points_m, cloud.colors, np.zeros((0, 3)))
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(cloud.points_m)))
-    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius_m, max_nn=max_nn))
-    pcd.orient_normals_towards_camera_location(
-        np.zeros(3) if viewpoint_m is None else np.asarray(viewpoint_m, dtype=float)
+        return Cloud(cloud.points_m, cloud.colors, np.zeros((0, 3))), 0
+    points = cloud.points_m
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(points)))
+    pcd.estimate_covariances(o3d.geometry.KDTreeSearchParamHybrid(radius=radius_m, max_nn=max_nn))
+    values, vectors = np.linalg.eigh(np.asarray(pcd.covariances))
+    normals = vectors[:, :, 0]
+    viewpoint = np.zeros(3) if viewpoint_m is None else np.asarray(viewpoint_m, dtype=float)
+    normals[np.einsum("ij,ij->i", normals, viewpoint - points) < 0] *= -1.0
+    defined = (values[:, 1] >= min_spread * values[:, 2]) & (
+        values[:, 0] <= max_thickness * values[:, 1]
     )
-    return Cloud(cloud.points_m, cloud.colors, np.asarray(pcd.normals))
+    colors = None if cloud.colors is None else cloud.colors[defined]
+    return Cloud(points[defined], colors, normals[defined]), int(np.count_nonzero(~defined))
 
 
 @dataclass(frozen=True, eq=False)
 class Pyramid:
     """A registration target: one voxelised cloud with normals per level, coarse to fine.
 
-    Every level is on the fixed grid of the cloud's own frame. ``timing_s`` holds the time
-    spent in the ``voxel`` and ``normals`` stages.
+    Every level is on the fixed grid of the cloud's own frame. ``dropped`` counts, per level,
+    the points dropped because their normal is undefined (see :func:`estimate_normals`);
+    ``timing_s`` holds the time spent in the ``voxel`` and ``normals`` stages.
     """
 
     levels: tuple[Cloud, ...]
     voxel_m: tuple[float, ...]
+    dropped: tuple[int, ...] = ()
     timing_s: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -246,11 +268,14 @@ def build_pyramid(
     t0 = time.perf_counter()
     downs = voxel_pyramid(cloud, config.pyramid_voxels_m)
     t1 = time.perf_counter()
-    levels = tuple(
-        estimate_normals(
-            down, config.normal_radius_factor * voxel_m, config.normal_max_nn, viewpoint_m
-        )
-        for down, voxel_m in zip(downs, config.pyramid_voxels_m, strict=True)
+    levels, dropped = zip(
+        *(
+            estimate_normals(
+                down, config.normal_radius_factor * voxel_m, config.normal_max_nn, viewpoint_m
+            )
+            for down, voxel_m in zip(downs, config.pyramid_voxels_m, strict=True)
+        ),
+        strict=True,
     )
     timing = {"voxel": t1 - t0, "normals": time.perf_counter() - t1}
-    return Pyramid(levels, config.pyramid_voxels_m, timing)
+    return Pyramid(tuple(levels), config.pyramid_voxels_m, tuple(dropped), timing)

@@ -101,7 +101,7 @@ class RegistrationConfig(ConfigModel):
     )
     max_final_step_rad: float = Field(0.004, gt=0)
     degeneracy_threshold: float = Field(
-        0.005,
+        0.01,
         gt=0,
         description="normalised Hessian eigenvalue below which a direction is under-constrained",
     )
