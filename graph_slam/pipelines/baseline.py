@@ -24,7 +24,7 @@ import numpy as np
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import LocalMap, build_pyramid, depth_to_cloud, register
 from graph_slam.pipelines.config import PipelineConfig
-from graph_slam.pipelines.inputs import imu_up_in_model
+from graph_slam.pipelines.inputs import gravity_up, imu_up_in_model
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
@@ -55,6 +55,7 @@ class ThesisBaseline:
         self.leg_model = leg_model
         self.has_color = has_color
         self._imu: list[tuple[np.ndarray, np.ndarray]] = []
+        self.streams = None  # inputs.Streams, set by run_session (gravity at resets)
         self._joints: list[np.ndarray] = []
         self.results = PipelineResults(variant="icp", config=config.model_dump(mode="json"))
         self._map: LocalMap | None = None
@@ -90,12 +91,11 @@ class ThesisBaseline:
             return None, "no encoder sample around the foot strike"
         q = np.array([np.interp(t_s, j[:, 0], j[:, 1]), np.interp(t_s, j[:, 0], j[:, 2])])
         up = None
-        if self._imu:
-            t = np.concatenate([b[0] for b in self._imu])
-            a = np.concatenate([b[1] for b in self._imu])
-            m = (t >= t_s - self.cfg.gravity_window_s) & (t <= t_s)
-            if m.any():
-                up = imu_up_in_model(self.leg_model, self.camera_T_imu, a[m].mean(axis=0))
+        if self.streams is not None:
+            w = self.streams.window_before(t_s, self.cfg.gravity_window_s)
+            g = gravity_up(self.streams, t_s, w)
+            if g is not None:
+                up = imu_up_in_model(self.leg_model, self.camera_T_imu, g)
         try:
             anchor = stride_T_camera(self.leg_model, q, up_in_imu=up)
         except KinematicsError as err:

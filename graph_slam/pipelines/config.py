@@ -81,7 +81,12 @@ class PipelineConfig(ConfigModel):
         le=45,
         description="leg model camera mount pitch; None = fit to the session's thigh_T_camera",
     )
-    gravity_window_s: float = Field(0.1, gt=0, description="accel averaging before a reset")
+    gravity_window_s: float = Field(
+        1.0,
+        gt=0,
+        description="gyro-rotated accel averaging before a reset (about one stride; the "
+        "previous stride's duration when known)",
+    )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
 
     @model_validator(mode="after")

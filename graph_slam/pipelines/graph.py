@@ -105,6 +105,9 @@ class GraphPipeline:
         self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, pyramid, pose, t
         self._prev2: tuple[np.ndarray, float] | None = None
         self._new_stride = True
+        self.streams = None  # inputs.Streams, set by run_session (gravity at foot strikes)
+        self.leg_model = leg_model
+        self.camera_T_imu = np.asarray(camera_T_imu, float)
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
@@ -124,6 +127,36 @@ class GraphPipeline:
         pose0, t0 = self._prev2
         xi = gtsam.Pose3.Logmap(gtsam.Pose3(np.linalg.inv(pose0) @ pose1))
         return gtsam.Pose3.Expmap(xi * (t_s - t1) / max(t1 - t0, 1e-6)).matrix()
+
+    def _starts_stride(self) -> bool:
+        return self.slam._graph is None or self.slam._pending_start is not None
+
+    def _anchor(self, t_s: float):
+        """The stride-start prior: encoders -> ``foot_T_camera``, gravity from the gyro-rotated
+        accelerometer mean over the previous stride (:func:`inputs.gravity_up`)."""
+        from graph_slam.backend.measurements import KinematicMeasurement
+        from graph_slam.pipelines.inputs import gravity_up, imu_up_in_model
+        from kinematics.errors import KinematicsError
+        from kinematics.stride_frame import stride_T_camera
+
+        if self.streams is None or self.leg_model is None:
+            return None
+        q = self.streams.q_at(t_s)
+        g = gravity_up(
+            self.streams, t_s, self.streams.window_before(t_s, self.cfg.gravity_window_s)
+        )
+        if q is None or g is None:
+            return None
+        try:
+            a = stride_T_camera(
+                self.leg_model, q, up_in_imu=imu_up_in_model(self.leg_model, self.camera_T_imu, g)
+            )
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no anchor (%s)", t_s, err)
+            return None
+        # the stance factors hold this foot orientation (StrideSLAM keeps it per stride)
+        self.slam._strike_foot_R = a.stride_T_foot
+        return KinematicMeasurement(a.stride_T_camera, a.covariance)
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         t0 = time.perf_counter()
@@ -150,7 +183,8 @@ class GraphPipeline:
                 pyramid = None
         t1 = time.perf_counter()
         self._new_stride = False
-        est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
+        anchor = self._anchor(frame.t_s) if self._starts_stride() else None
+        est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded, kinematics=anchor)
         t2 = time.perf_counter()
         if est.k == 0:
             self._prev2 = None

@@ -38,6 +38,11 @@ class Streams:
         offs = self.toe_offs_s[(self.toe_offs_s > strikes[-1]) & (self.toe_offs_s <= t_s)]
         return offs.size == 0
 
+    def window_before(self, t_s: float, default_s: float) -> float:
+        """The previous stride's duration (strike to strike) when known, else ``default_s``."""
+        before = self.foot_strikes_s[self.foot_strikes_s < t_s - 0.3]
+        return float(t_s - before[-1]) if before.size else default_s
+
     def q_at(self, t_s: float) -> np.ndarray | None:
         if self.joints_t_s is None or not self.joints_t_s[0] <= t_s <= self.joints_t_s[-1]:
             return None
@@ -131,3 +136,34 @@ def imu_up_in_model(model, camera_T_imu: np.ndarray, up_in_imu: np.ndarray) -> n
         np.linalg.inv(model.thigh_T_frame("camera_optical")) @ model.thigh_T_frame("imu")
     )[:3, :3]
     return model_camera_R_imu.T @ camera_T_imu[:3, :3] @ up_in_imu
+
+
+def gravity_up(streams: Streams, t_s: float, window_s: float) -> np.ndarray | None:
+    """Up (m/s², IMU frame at ``t_s``) averaged over ``[t_s - window_s, t_s]`` with every
+    accelerometer sample rotated into the frame at ``t_s`` by the integrated gyro.
+
+    A plain mean of the accelerometer just before a foot strike is dominated by the swing
+    leg's deceleration (measured here: ~15° of pitch error in the stride frame). Over about
+    one stride the leg's mean acceleration is near zero (the velocity at consecutive foot
+    strikes is nearly the same), so the rotated mean is gravity.
+    """
+    if streams.imu_t_s is None:
+        return None
+    t = streams.imu_t_s
+    m = (t >= t_s - window_s) & (t <= t_s)
+    m &= np.isfinite(streams.accel_m_s2).all(1) & np.isfinite(streams.gyro_rad_s).all(1)
+    idx = np.flatnonzero(m)
+    if idx.size < 10:
+        return None
+    from scipy.spatial.transform import Rotation
+
+    tt, w, a = t[idx], streams.gyro_rad_s[idx], streams.accel_m_s2[idx]
+    # backward integration: R[k] = frame(t_s)_R_frame(t_k)
+    rot = np.empty((idx.size, 3, 3))
+    rot[-1] = np.eye(3)
+    for k in range(idx.size - 2, -1, -1):
+        dt = tt[k + 1] - tt[k]
+        step = Rotation.from_rotvec(0.5 * (w[k] + w[k + 1]) * dt).as_matrix()  # k_R_{k+1}
+        rot[k] = rot[k + 1] @ step.T
+    up = np.einsum("kij,kj->i", rot, a) / idx.size
+    return up

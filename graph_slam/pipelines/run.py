@@ -62,6 +62,7 @@ def run_session(
     leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
     has_color = bool(session.manifest.sensors.camera.has_color)
     pipe = make_pipeline(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
+    pipe.streams = streams  # gravity at foot strikes (both pipeline kinds)
     if streams.imu_t_s is not None:
         pipe.add_imu(streams.imu_t_s, streams.gyro_rad_s, streams.accel_m_s2)
     if streams.joints_t_s is not None:
