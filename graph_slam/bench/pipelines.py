@@ -187,11 +187,14 @@ def report_lines(scores: list[SessionScore]) -> list[str]:
                         f"{s.smoothed_rmse_m * 1e3:.1f} mm"
                     )
         if "icp" in sc.variants and "icp+imu+kin" in sc.variants:
-            base = {s.index: s for s in sc.variants["icp"].strides}
+            base = {
+                int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1: s
+                for s in sc.variants["icp"].strides
+            }
             n_sw = n_nopose = 0
             ratios = []
             for s in sc.variants["icp+imu+kin"].strides:
-                b = base.get(s.index)
+                b = base.get(int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1)
                 if b is None or not np.array_equal(b.swing_frames, s.swing_frames):
                     continue
                 n_sw += s.swing_frames.size

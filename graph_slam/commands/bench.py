@@ -91,3 +91,17 @@ def run_all() -> None:
 
 def register(app: typer.Typer) -> None:
     app.add_typer(bench_app, name="bench")
+
+
+@bench_app.command("pipelines")
+def pipelines_bench(
+    sessions: Annotated[
+        list[Path], typer.Argument(help="Simulated sessions (graph-slam simulate), one per speed.")
+    ],
+) -> None:
+    """Issue 5/6 figures: every variant on simulated sessions (RMSE, swing, counts, timing)."""
+    from graph_slam.bench.pipelines import report_lines, run_pipelines_bench
+
+    scores = run_pipelines_bench({p.name: p for p in sessions})
+    for line in report_lines(scores):
+        typer.echo(line)
