@@ -10,6 +10,8 @@ The ``kinematics`` package never imports ``graph_slam``; its errors derive from
 
 from __future__ import annotations
 
+from enum import StrEnum
+
 
 class GraphSlamError(Exception):
     """Base class of every error graph_slam raises on purpose."""
@@ -81,6 +83,41 @@ class DepthUnitsError(ConversionError):
 
 class SimulationError(GraphSlamError):
     """The simulator (graph_slam.sim) got a scene, profile or setting it cannot use."""
+
+
+class RegistrationFailure(StrEnum):
+    """Why a registration failed (see :class:`RegistrationError`)."""
+
+    EMPTY_SOURCE = "empty_source"
+    EMPTY_TARGET = "empty_target"
+    NO_OVERLAP = "no_overlap"
+    TOO_FEW_CORRESPONDENCES = "too_few_correspondences"
+    LOW_FITNESS = "low_fitness"
+    NOT_CONVERGED = "not_converged"
+    NUMERICAL = "numerical"
+    DEGENERATE = "degenerate"
+
+
+class RegistrationError(GraphSlamError):
+    """A registration failed: never read as zero motion.
+
+    ``reason`` is a :class:`RegistrationFailure`; ``fitness`` and ``correspondences`` are the
+    last values seen (``None`` when the failure came before any ICP iteration).
+    """
+
+    def __init__(
+        self,
+        reason: RegistrationFailure,
+        message: str,
+        *,
+        fitness: float | None = None,
+        correspondences: int | None = None,
+    ) -> None:
+        super().__init__(f"registration failed ({reason.value}): {message}")
+        self.reason = reason
+        self.detail = message
+        self.fitness = fitness
+        self.correspondences = correspondences
 
 
 class EstimationError(GraphSlamError):

@@ -56,12 +56,52 @@ def simulate_bench(
         typer.echo(line)
 
 
+@bench_app.command("registration")
+def registration(
+    pairs: Annotated[int, typer.Option(help="Synthetic frame pairs (848×480).")] = 10,
+    rate_hz: Annotated[float, typer.Option(help="Synthetic frame rate.")] = 40.0,
+    tum: Annotated[
+        Path | None,
+        typer.Option(help="TUM sample folder (default: ../shared/data/tum_fr1_xyz_10 if present)."),
+    ] = None,
+) -> None:
+    """Per-stage timings and accuracy of frame-to-frame registration (thesis and fast configs)."""
+    import os
+
+    from graph_slam.bench.registration import run_registration_bench
+    from graph_slam.commands._common import progress_bar
+
+    with progress_bar("registering") as update:
+        reports = run_registration_bench(
+            pairs=pairs, rate_hz=rate_hz, tum_folder=tum, progress=update
+        )
+    typer.echo(f"registration benchmark ({os.cpu_count()} CPUs visible)")
+    for report in reports:
+        for line in report.lines():
+            typer.echo(line)
+
+
 @bench_app.command("all")
 def run_all() -> None:
     """Every benchmark with its default settings."""
     session_io()
     simulate_bench()
+    registration()
 
 
 def register(app: typer.Typer) -> None:
     app.add_typer(bench_app, name="bench")
+
+
+@bench_app.command("pipelines")
+def pipelines_bench(
+    sessions: Annotated[
+        list[Path], typer.Argument(help="Simulated sessions (graph-slam simulate), one per speed.")
+    ],
+) -> None:
+    """Issue 5/6 figures: every variant on simulated sessions (RMSE, swing, counts, timing)."""
+    from graph_slam.bench.pipelines import report_lines, run_pipelines_bench
+
+    scores = run_pipelines_bench({p.name: p for p in sessions})
+    for line in report_lines(scores):
+        typer.echo(line)

@@ -3,7 +3,9 @@
 This is the always-available source of the session layer (tests, the foundation demo). It needs
 no renderer: depth is the exact ray–plane intersection with the floor ``z = 0``, and the IMU is
 the analytic derivative of the trajectory. It is *not* the gait simulator (``graph_slam.sim``);
-the motion is a smooth sinusoidal stand-in for walking.
+the motion is a smooth sinusoidal stand-in for walking. With ``scene="box_course"`` the thesis's
+three boxes (Table 3.1) stand on the floor ahead (exact ray–box intersection): a flat floor
+alone leaves ICP unconstrained along the floor, the boxes constrain it.
 
 Frames: ``world`` x forward, y left, z up; the camera is optical (x right, y down, z forward),
 pitched ``pitch_deg`` below the horizontal and oscillating in pitch and height at the stride
@@ -13,9 +15,10 @@ specific force is exactly ``R_world_imuᵀ (p̈ + g ẑ)``.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -31,6 +34,8 @@ from graph_slam.session.records import (
     JointSeries,
     PoseTrajectory,
     RgbdFrame,
+    SceneObject,
+    SceneTruth,
 )
 
 GRAVITY_M_S2 = 9.81
@@ -62,6 +67,9 @@ class SyntheticConfig(ConfigModel):
     accel_noise_m_s2: float = Field(0.02, ge=0, description="per-sample white noise σ")
     depth_unit_m: float = Field(2e-4, gt=0)
     with_color: bool = True
+    scene: Literal["floor", "box_course"] = Field(
+        "floor", description="floor only, or the thesis's three boxes on the floor ahead"
+    )
     seed: int = 0
 
 
@@ -156,6 +164,61 @@ def _floor_color(xy: np.ndarray, rng_phases: np.ndarray) -> np.ndarray:
     return np.clip(np.stack(channels, axis=-1), 0, 255).astype(np.uint8)
 
 
+#: The thesis's boxes (Table 3.1, mm): depth along x, width along y, height along z.
+THESIS_BOXES_MM: dict[str, tuple[float, float, float]] = {
+    "box1": (203.20, 266.70, 190.50),
+    "box2": (266.70, 355.60, 76.20),
+    "box3": (336.55, 438.15, 63.50),
+}
+
+
+def box_on_floor(
+    name: str, center_xy_m: Sequence[float], size_m: Sequence[float], yaw_rad: float = 0.0
+) -> SceneObject:
+    """A box standing on the floor ``z = 0`` (``size_m`` = depth x, width y, height z)."""
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    world_T_object = np.eye(4)
+    world_T_object[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    world_T_object[:3, 3] = [center_xy_m[0], center_xy_m[1], 0.5 * size_m[2]]
+    return SceneObject(name, world_T_object, np.asarray(size_m, dtype=float))
+
+
+def scene_truth(cfg: SyntheticConfig) -> SceneTruth:
+    """The boxes of the configured scene (none for ``floor``): the course is 1.2 m, 2.4 m and
+    3.6 m ahead of the start, on the camera's path."""
+    if cfg.scene == "floor":
+        return SceneTruth("floor")
+    objects = tuple(
+        box_on_floor(name, (1.2 * (i + 1), 0.0), np.asarray(size_mm) / 1000.0)
+        for i, (name, size_mm) in enumerate(THESIS_BOXES_MM.items())
+    )
+    return SceneTruth("box_course", objects)
+
+
+def _ray_box(
+    origin: np.ndarray, rays: np.ndarray, box: SceneObject
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ray parameter of the first hit of each ray with ``box`` (inf if none) and the hit face
+    coordinates (two in-face coordinates in the box frame, for the texture)."""
+    object_T_world = np.linalg.inv(box.world_T_object)
+    o = object_T_world[:3, :3] @ origin + object_T_world[:3, 3]
+    d = rays @ object_T_world[:3, :3].T
+    half = 0.5 * box.size_m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (-half - o) / d
+        t2 = (half - o) / d
+    t_near = np.nanmax(np.minimum(t1, t2), axis=-1)
+    t_far = np.nanmin(np.maximum(t1, t2), axis=-1)
+    hit = (t_far >= t_near) & (t_near > 0)
+    t = np.where(hit, t_near, np.inf)
+    p = o + d * np.where(hit, t_near, 0.0)[..., None]
+    axis = np.argmax(np.abs(p) / half, axis=-1)  # the face the ray hits
+    uv = np.stack(
+        [np.take_along_axis(p, ((axis + k) % 3)[..., None], -1)[..., 0] for k in (1, 2)], -1
+    )
+    return t, uv
+
+
 def render_frame(
     cfg: SyntheticConfig,
     world_T_camera: np.ndarray,
@@ -163,8 +226,10 @@ def render_frame(
     index: int,
     rng: np.random.Generator,
     phases: np.ndarray,
+    boxes: Sequence[SceneObject] = (),
 ) -> RgbdFrame:
-    """Exact depth of the floor ``z = 0`` seen from ``world_T_camera`` (+ seeded noise)."""
+    """Exact depth of the floor ``z = 0`` and of ``boxes`` seen from ``world_T_camera``
+    (+ seeded noise)."""
     k = intrinsics_for(cfg)
     u, v = np.meshgrid(np.arange(k.width_px), np.arange(k.height_px))
     rays_cam = np.stack(
@@ -175,15 +240,29 @@ def render_frame(
     with np.errstate(divide="ignore", invalid="ignore"):
         scale = -origin[2] / rays_world[..., 2]  # depth along the optical axis (z_cam = scale)
     hit = np.isfinite(scale) & (scale > 0)
-    depth = np.where(hit, scale, 0.0)
+    depth = np.where(hit, scale, np.inf)
+    box_uv = np.zeros((*depth.shape, 2))
+    box_id = np.full(depth.shape, -1)
+    for i, box in enumerate(boxes):
+        t_box, uv = _ray_box(origin, rays_world, box)
+        closer = t_box < depth
+        depth = np.where(closer, t_box, depth)
+        box_uv[closer] = uv[closer]
+        box_id[closer] = i
+    hit = np.isfinite(depth)
+    depth = np.where(hit, depth, 0.0)
     if cfg.depth_noise_m > 0:
         depth = np.where(
             hit, depth + rng.normal(0.0, 1.0, depth.shape) * cfg.depth_noise_m * depth**2, 0.0
         )
     color = None
     if cfg.with_color:
-        points = origin + rays_world * np.where(hit, scale, 0.0)[..., None]
+        points = origin + rays_world * np.where(hit, depth, 0.0)[..., None]
         color = _floor_color(points[..., :2], phases)
+        on_box = box_id >= 0
+        if on_box.any():  # box faces: the same texture, finer and shifted per box
+            box_color = _floor_color(3.0 * box_uv + box_id[..., None], phases[::-1])
+            color[on_box] = box_color[on_box]
         color[~hit] = 0
     return RgbdFrame(t_s=t_s, depth_m=depth.astype(np.float32), color_rgb=color, index=index)
 
@@ -245,8 +324,9 @@ def iter_synthetic_frames(cfg: SyntheticConfig) -> Iterator[RgbdFrame]:
     phases = np.random.default_rng([cfg.seed, 3]).uniform(0, 2 * np.pi, (3, 4))
     t_frames = _times(cfg.duration_s, cfg.camera_rate_hz)
     poses = Motion(cfg).world_T_camera(t_frames)
+    boxes = scene_truth(cfg).objects
     for index, (t, pose) in enumerate(zip(t_frames, poses, strict=True)):
-        yield render_frame(cfg, pose, float(t), index, rng, phases)
+        yield render_frame(cfg, pose, float(t), index, rng, phases, boxes)
 
 
 def write_synthetic_session(
@@ -280,4 +360,6 @@ def write_synthetic_session(
         writer.write_events(streams.events)
         writer.write_ground_truth(streams.ground_truth)
         writer.write_ground_truth(streams.ground_truth_hf, high_rate=True)
+        if cfg.scene != "floor":
+            writer.write_scene(scene_truth(cfg))
     return writer.path

@@ -1,0 +1,212 @@
+"""Pipelines benchmark (issues 5 and 6): every variant on simulated thesis-box sessions.
+
+For each session (one speed) and variant: poses per frame (online, smoothed), per-stride
+camera-position RMSE in the stride frame (no alignment) against the simulator's truth, swing
+errors of the full graph vs the thesis baseline on the same frames, the IMU+kinematics error at
+the next foot strike, the baseline's registered-frame counts per stride (thesis Table 4.2) and
+the per-frame processing time.
+
+Truth stride frame: the ground-truth camera pose at the stride's first frame carried to the foot
+by the encoders (``world_T_foot = world_T_camera · foot_T_camera(q)⁻¹``); origin at the foot
+frame's origin (the heel contact point), z up, x the horizontal projection of the sole's x axis
+(the definition in ``kinematics.stride_frame``). Only strides that start at a load-cell foot
+strike and end at the next are scored.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from graph_slam.pipelines import VARIANTS, PipelineConfig, PipelineResults, run_session
+
+
+def truth_world_T_stride(world_T_camera: np.ndarray, foot_T_camera: np.ndarray) -> np.ndarray:
+    """The stride frame from the true camera pose and the foot: heel origin, z up, yaw of x."""
+    world_T_foot = world_T_camera @ np.linalg.inv(foot_T_camera)
+    x = world_T_foot[:3, 0].copy()
+    x[2] = 0.0
+    x /= np.linalg.norm(x)
+    z = np.array([0.0, 0.0, 1.0])
+    out = np.eye(4)
+    out[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    out[:3, 3] = world_T_foot[:3, 3]
+    return out
+
+
+@dataclass
+class StrideScore:
+    index: int
+    n_frames: int
+    n_swing: int
+    online_rmse_m: float
+    smoothed_rmse_m: float
+    end_online_m: float
+    end_smoothed_m: float
+    n_with_pose: int
+    n_registered_stance: int
+    n_stance: int
+    swing_err_m: np.ndarray  # per swing frame, smoothed (NaN without pose)
+    swing_frames: np.ndarray
+
+
+@dataclass
+class VariantScore:
+    variant: str
+    strides: list[StrideScore]
+    frames_without_pose_online: int
+    frames_without_pose_smoothed: int
+    timing_ms: dict[str, float]
+    wall_s: float
+
+
+@dataclass
+class SessionScore:
+    name: str
+    speed: str
+    variants: dict[str, VariantScore] = field(default_factory=dict)
+
+
+def score(session, results: PipelineResults, leg_model) -> list[StrideScore]:
+    """Per full stride: errors of the online and smoothed ``stride_T_camera`` vs the truth."""
+    from graph_slam.pipelines.inputs import session_streams
+
+    gt = session.ground_truth
+    if gt is None:
+        raise ValueError(f"{session.path}: no ground truth")
+    t_gt = np.asarray(gt.t_s)
+    world_T_camera = np.asarray(gt.parent_T_child)
+    streams = session_streams(session, "load_cell")
+    online = results.online_stride_T_camera
+    smoothed = results.smoothed_stride_T_camera
+    out = []
+    for s in results.strides:
+        idx = np.asarray(s.frame_indices)
+        if s.start != "foot_strike" or idx.size < 2:
+            continue
+        t = results.t_s[idx]
+        nxt = streams.foot_strikes_s[streams.foot_strikes_s > t[-1]]
+        if nxt.size == 0 or (results.t_s.size > idx[-1] + 1 and False):
+            continue
+        if idx[-1] + 1 >= len(results.frames):
+            continue  # the session ended inside this stride
+        gi = np.searchsorted(t_gt, t)
+        if not np.allclose(t_gt[np.clip(gi, 0, t_gt.size - 1)], t, atol=1e-6):
+            raise ValueError(f"{session.path}: ground truth not at the frame times")
+        q0 = streams.q_at(t[0])
+        w_T_s = truth_world_T_stride(world_T_camera[gi[0]], leg_model.foot_T_camera(q0))
+        truth = np.linalg.inv(w_T_s) @ world_T_camera[gi]
+        e_on = np.linalg.norm(online[idx, :3, 3] - truth[:, :3, 3], axis=1)
+        e_sm = np.linalg.norm(smoothed[idx, :3, 3] - truth[:, :3, 3], axis=1)
+        loaded = np.array([results.frames[i].foot_loaded for i in idx])
+        swing = ~loaded
+        has = np.isfinite(e_sm)
+        out.append(
+            StrideScore(
+                index=s.index,
+                n_frames=idx.size,
+                n_swing=int(swing.sum()),
+                online_rmse_m=float(np.sqrt(np.nanmean(e_on**2))) if has.any() else np.nan,
+                smoothed_rmse_m=float(np.sqrt(np.nanmean(e_sm**2))) if has.any() else np.nan,
+                end_online_m=float(e_on[-1]),
+                end_smoothed_m=float(e_sm[-1]),
+                n_with_pose=int(has.sum()),
+                n_registered_stance=int((has & loaded).sum()),
+                n_stance=int(loaded.sum()),
+                swing_err_m=e_sm[swing],
+                swing_frames=idx[swing],
+            )
+        )
+    return out
+
+
+def run_pipelines_bench(
+    sessions: dict[str, Path],
+    variants: tuple[str, ...] = VARIANTS,
+    progress=None,
+) -> list[SessionScore]:
+    """Run every variant on every session (speed -> folder) and score it."""
+    from graph_slam.pipelines.inputs import leg_model_for
+    from graph_slam.session import open_session
+
+    scores = []
+    for speed, path in sessions.items():
+        session = open_session(path)
+        leg = leg_model_for(session.calibration.thigh_T_camera)
+        sc = SessionScore(session.name, speed)
+        for v in variants:
+            t0 = time.perf_counter()
+            res = run_session(session, PipelineConfig(variant=v), progress=progress)
+            wall = time.perf_counter() - t0
+            sm = res.smoothed_stride_T_camera
+            sc.variants[v] = VariantScore(
+                variant=v,
+                strides=score(session, res, leg),
+                frames_without_pose_online=int((~res.has_pose).sum()),
+                frames_without_pose_smoothed=int((~np.isfinite(sm[:, 0, 0])).sum()),
+                timing_ms=res.timings_ms(),
+                wall_s=wall,
+            )
+        scores.append(sc)
+    return scores
+
+
+def report_lines(scores: list[SessionScore]) -> list[str]:
+    """The figures recorded in docs/benchmarks.md."""
+    lines = [f"pipelines benchmark ({len(os.sched_getaffinity(0))} CPUs visible)"]
+    for sc in scores:
+        lines.append(f"== {sc.name} ({sc.speed})")
+        for v, vs in sc.variants.items():
+            on = np.array([s.online_rmse_m for s in vs.strides]) * 1e3
+            sm = np.array([s.smoothed_rmse_m for s in vs.strides]) * 1e3
+            endo = np.array([s.end_online_m for s in vs.strides]) * 1e3
+            ends = np.array([s.end_smoothed_m for s in vs.strides]) * 1e3
+            lines.append(
+                f"  {v:12s} {len(vs.strides)} full strides; frames without pose online "
+                f"{vs.frames_without_pose_online}, smoothed {vs.frames_without_pose_smoothed}; "
+                f"per-frame time median {vs.timing_ms['median']:.1f} ms, "
+                f"p95 {vs.timing_ms['p95']:.1f} ms; wall {vs.wall_s:.1f} s"
+            )
+            if v != "icp" and on.size:
+                lines.append(
+                    f"    stride-frame RMSE online median {np.median(on):.1f} / worst "
+                    f"{on.max():.1f} mm; smoothed median {np.median(sm):.1f} / worst "
+                    f"{sm.max():.1f} mm; error at next foot strike online max "
+                    f"{endo.max():.1f} mm, smoothed max {ends.max():.1f} mm"
+                )
+            if v == "icp":
+                for s in vs.strides:
+                    lines.append(
+                        f"    stride {s.index}: {s.n_with_pose}/{s.n_frames} frames with a pose "
+                        f"(stance {s.n_registered_stance}/{s.n_stance}, swing "
+                        f"{s.n_with_pose - s.n_registered_stance}/{s.n_swing}); RMSE on them "
+                        f"{s.smoothed_rmse_m * 1e3:.1f} mm"
+                    )
+        if "icp" in sc.variants and "icp+imu+kin" in sc.variants:
+            base = {
+                int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1: s
+                for s in sc.variants["icp"].strides
+            }
+            n_sw = n_nopose = 0
+            ratios = []
+            for s in sc.variants["icp+imu+kin"].strides:
+                b = base.get(int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1)
+                if b is None or not np.array_equal(b.swing_frames, s.swing_frames):
+                    continue
+                n_sw += s.swing_frames.size
+                has = np.isfinite(b.swing_err_m)
+                n_nopose += int((~has).sum())
+                if has.any():
+                    g = np.sqrt(np.mean(s.swing_err_m[has] ** 2))
+                    bb = np.sqrt(np.mean(b.swing_err_m[has] ** 2))
+                    ratios.append((bb * 1e3, g * 1e3, bb / g))
+            lines.append(
+                f"  swing: {n_sw} frames; baseline without pose on {n_nopose}; where it has "
+                "one, baseline / full-graph RMSE (mm, ratio) per stride: "
+                + (", ".join(f"{a:.1f}/{b:.1f} ({r:.1f}x)" for a, b, r in ratios) or "none")
+            )
+    return lines

@@ -1,0 +1,320 @@
+"""Registration benchmark: per-stage timings and accuracy of frame-to-frame registration.
+
+Datasets: synthetic D455-sized frames (848×480, 87° field of view) of the thesis's box course,
+rendered analytically with exact ground truth, and, when present, the 10 real TUM RGB-D frames
+(``../shared/data/tum_fr1_xyz_10``), where Open3D's own RGB-D odometry is run for comparison.
+
+Per pair (target = frame k, source = frame k+1), as a frame-to-frame pipeline pays them for each
+new frame: ``cloud`` (depth → points), ``voxel`` (the new frame's target pyramid and its
+voxelisation on the previous frame's grid), ``normals`` (target pyramid), ``icp`` (Open3D levels
+and the optional refinement), ``information`` (information matrix, degeneracy, convergence gate).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from graph_slam.errors import RegistrationError, SessionError
+from graph_slam.frontend import (
+    CloudConfig,
+    RegistrationConfig,
+    build_pyramid,
+    colored_registration,
+    depth_to_cloud,
+    fast_point_to_plane,
+    refined_colored_registration,
+    register,
+    thesis_registration,
+)
+from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+
+STAGES = ("cloud", "voxel", "normals", "icp", "information")
+
+#: The configurations compared (name → factory).
+BENCH_CONFIGS: dict[str, Callable[[], RegistrationConfig]] = {
+    "thesis: colored ICP 4/2/1 cm, no kernel": thesis_registration,
+    "colored ICP 4/2/1 cm, Tukey (default)": colored_registration,
+    "colored 4/2/1 cm + noise-weighted 5 mm refinement": refined_colored_registration,
+    "point-to-plane 4/2/1 cm, Tukey": lambda: RegistrationConfig(method="point_to_plane"),
+    "point-to-plane 2 cm (fast)": fast_point_to_plane,
+}
+
+TUM_INTRINSICS = CameraIntrinsics(640, 480, 517.3, 516.5, 318.6, 255.3)
+TUM_DEPTH_UNIT_M = 1.0 / 5000.0
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Frames with their intrinsics and ground-truth ``world_T_camera``."""
+
+    name: str
+    intrinsics: CameraIntrinsics
+    frames: tuple[RgbdFrame, ...]
+    world_T_camera: np.ndarray
+
+
+@dataclass(frozen=True)
+class ConfigSummary:
+    """Mean stage times and errors of one configuration on one dataset."""
+
+    name: str
+    pairs: int
+    stage_ms: dict[str, float]
+    translation_err_mm: np.ndarray  # per registered pair
+    rotation_err_deg: np.ndarray
+    statuses: Counter = field(default_factory=Counter)
+
+    @property
+    def total_ms(self) -> float:
+        return float(sum(self.stage_ms.values()))
+
+    def line(self) -> str:
+        stages = ", ".join(f"{s} {self.stage_ms[s]:.1f}" for s in STAGES)
+        if self.translation_err_mm.size:
+            acc = (
+                f"error {self.translation_err_mm.mean():.2f} mm mean / "
+                f"{self.translation_err_mm.max():.2f} max, {self.rotation_err_deg.mean():.3f}° "
+                f"mean / {self.rotation_err_deg.max():.3f}° max"
+            )
+        else:
+            acc = "no pair registered"
+        status = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
+        return (
+            f"  {self.name}\n    per pair (ms): {stages}; total {self.total_ms:.0f} ms "
+            f"({1000.0 / max(self.total_ms, 1e-9):.1f} Hz)\n    {acc}; {status}"
+        )
+
+
+@dataclass(frozen=True)
+class DatasetReport:
+    dataset: str
+    points_per_frame: float
+    summaries: tuple[ConfigSummary, ...]
+    reference: str | None = None
+
+    def lines(self) -> list[str]:
+        out = [f"{self.dataset} ({self.points_per_frame:.0f} valid depth pixels per frame)"]
+        if self.reference:
+            out.append(f"  {self.reference}")
+        out += [s.line() for s in self.summaries]
+        return out
+
+
+def pose_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """Translation (m) and rotation angle (rad) of ``truth⁻¹ · estimate``."""
+    err = np.linalg.solve(truth, estimate)
+    cos = np.clip((np.trace(err[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.linalg.norm(err[:3, 3])), float(np.arccos(cos))
+
+
+def relative_truth(world_T_camera: np.ndarray, k: int) -> np.ndarray:
+    """``camera_k_T_camera_k+1`` from the ground truth."""
+    return np.linalg.solve(world_T_camera[k], world_T_camera[k + 1])
+
+
+def run_config(
+    name: str,
+    config: RegistrationConfig,
+    data: Dataset,
+    cloud_config: CloudConfig | None = None,
+) -> ConfigSummary:
+    """Register every consecutive pair of ``data`` and time each stage."""
+    stage_s = dict.fromkeys(STAGES, 0.0)
+    t_err, r_err, statuses = [], [], Counter()
+    clouds = []
+    for frame in data.frames:
+        t0 = time.perf_counter()
+        clouds.append(depth_to_cloud(frame, data.intrinsics, cloud_config)[0])
+        stage_s["cloud"] += time.perf_counter() - t0
+    stage_s["cloud"] *= (len(clouds) - 1) / len(clouds)  # one new frame per pair
+    for k in range(len(clouds) - 1):
+        pyramid = build_pyramid(clouds[k], config)
+        stage_s["voxel"] += pyramid.timing_s["voxel"]
+        stage_s["normals"] += pyramid.timing_s["normals"]
+        t0 = time.perf_counter()
+        try:
+            result = register(clouds[k + 1], pyramid, config)
+        except RegistrationError as err:
+            stage_s["icp"] += time.perf_counter() - t0
+            statuses[f"failed {err.reason.value}"] += 1
+            continue
+        for stage in ("voxel", "icp", "information"):
+            stage_s[stage] += result.timing_s[stage]
+        statuses[result.status.value] += 1
+        t, r = pose_error(result.target_T_source, relative_truth(data.world_T_camera, k))
+        t_err.append(t * 1e3)
+        r_err.append(np.degrees(r))
+    pairs = len(clouds) - 1
+    return ConfigSummary(
+        name=name,
+        pairs=pairs,
+        stage_ms={s: 1e3 * v / pairs for s, v in stage_s.items()},
+        translation_err_mm=np.asarray(t_err),
+        rotation_err_deg=np.asarray(r_err),
+        statuses=statuses,
+    )
+
+
+# --------------------------------------------------------------------------- datasets
+def synthetic_dataset(
+    pairs: int = 10, rate_hz: float = 40.0, width_px: int = 848, height_px: int = 480
+) -> Dataset:
+    """D455-like frames (87° field of view) of the box course, from the start of the session,
+    at ``rate_hz`` (the thesis's effective rate was 35–40 Hz)."""
+    from graph_slam.session.synthetic import (
+        Motion,
+        SyntheticConfig,
+        intrinsics_for,
+        iter_synthetic_frames,
+    )
+
+    cfg = SyntheticConfig(
+        width_px=width_px,
+        height_px=height_px,
+        fov_x_deg=87.0,
+        camera_rate_hz=rate_hz,
+        duration_s=pairs / rate_hz,
+        scene="box_course",
+    )
+    frames = tuple(iter_synthetic_frames(cfg))
+    t_s = np.array([f.t_s for f in frames])
+    return Dataset(
+        f"synthetic box course, {width_px}×{height_px}, {rate_hz:g} Hz, {pairs} pairs",
+        intrinsics_for(cfg),
+        frames,
+        Motion(cfg).world_T_camera(t_s),
+    )
+
+
+def read_tum_sample(folder: str | Path, ids: Sequence[int] | None = None) -> Dataset:
+    """Frames of a ``tum_fr1_xyz_10``-style folder (``rgb/N.png``, ``depth/N.png`` uint16 at
+    5000 per metre, ``ground_truth.json`` with 4×4 ``transformation`` = world_T_camera)."""
+    from PIL import Image
+
+    folder = Path(folder)
+    truth_path = folder / "ground_truth.json"
+    try:
+        truth = json.loads(truth_path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as err:
+        raise SessionError(f"{truth_path}: cannot read ground truth ({err})") from None
+    keys = sorted(truth, key=int) if ids is None else [str(i) for i in ids]
+    frames, poses = [], []
+    for index, key in enumerate(keys):
+        if key not in truth:
+            raise SessionError(f"{truth_path}: no entry {key!r}")
+        entry = truth[key]
+        paths = {name: (folder / entry[name]).resolve() for name in ("rgb", "depth")}
+        for name, path in paths.items():
+            if folder.resolve() not in path.parents:
+                raise SessionError(f"{truth_path}: entry {key!r} field {name!r} leaves the folder")
+        try:
+            color = np.asarray(Image.open(paths["rgb"]).convert("RGB"))
+            depth_raw = np.asarray(Image.open(paths["depth"]))
+        except OSError as err:
+            raise SessionError(f"{folder}: frame {key}: cannot read image ({err})") from None
+        if depth_raw.dtype != np.uint16:
+            raise SessionError(f"{paths['depth']}: depth must be uint16, got {depth_raw.dtype}")
+        depth = (depth_raw * TUM_DEPTH_UNIT_M).astype(np.float32)
+        frames.append(RgbdFrame(float(index), depth, color, index))
+        poses.append(np.asarray(entry["transformation"], dtype=float))
+    return Dataset(
+        f"TUM fr1/xyz frames {keys[0]}–{keys[-1]}", TUM_INTRINSICS, tuple(frames), np.stack(poses)
+    )
+
+
+def open3d_rgbd_odometry(data: Dataset, depth_max_m: float = 3.0) -> list[np.ndarray | None]:
+    """Open3D's RGB-D odometry (hybrid term, default options) frame to frame:
+    ``camera_k_T_camera_k+1`` per pair, ``None`` where it reports failure."""
+    import open3d as o3d
+
+    k = data.intrinsics
+    intrinsic = o3d.camera.PinholeCameraIntrinsic(
+        k.width_px, k.height_px, k.fx_px, k.fy_px, k.cx_px, k.cy_px
+    )
+
+    def rgbd(frame: RgbdFrame):
+        return o3d.geometry.RGBDImage.create_from_color_and_depth(
+            o3d.geometry.Image(np.ascontiguousarray(frame.color_rgb)),
+            o3d.geometry.Image(np.ascontiguousarray(frame.depth_m)),
+            depth_scale=1.0,
+            depth_trunc=depth_max_m,
+            convert_rgb_to_intensity=True,
+        )
+
+    images = [rgbd(f) for f in data.frames]
+    out = []
+    for target, source in itertools.pairwise(images):
+        ok, source_to_target, _ = o3d.pipelines.odometry.compute_rgbd_odometry(
+            source,
+            target,
+            intrinsic,
+            np.eye(4),
+            o3d.pipelines.odometry.RGBDOdometryJacobianFromHybridTerm(),
+            o3d.pipelines.odometry.OdometryOption(),
+        )
+        out.append(np.asarray(source_to_target) if ok else None)
+    return out
+
+
+def odometry_errors(data: Dataset, estimates: Sequence[np.ndarray | None]) -> np.ndarray:
+    """Per pair (translation m, rotation rad); NaN for a failed pair."""
+    errors = np.full((len(estimates), 2), np.nan)
+    for k, estimate in enumerate(estimates):
+        if estimate is not None:
+            errors[k] = pose_error(estimate, relative_truth(data.world_T_camera, k))
+    return errors
+
+
+def default_tum_folder() -> Path:
+    """``../shared/data/tum_fr1_xyz_10`` next to the repository (absent in a user's clone)."""
+    return Path(__file__).resolve().parents[2].parent / "shared" / "data" / "tum_fr1_xyz_10"
+
+
+def run_registration_bench(
+    *,
+    pairs: int = 10,
+    rate_hz: float = 40.0,
+    tum_folder: Path | None = None,
+    configs: dict[str, Callable[[], RegistrationConfig]] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[DatasetReport]:
+    """Run every configuration on the synthetic frames and, when found, the TUM frames."""
+    configs = configs or BENCH_CONFIGS
+    datasets = [synthetic_dataset(pairs, rate_hz)]
+    tum_folder = default_tum_folder() if tum_folder is None else Path(tum_folder)
+    if (tum_folder / "ground_truth.json").is_file():
+        datasets.append(read_tum_sample(tum_folder))
+    reports, done, total = [], 0, len(datasets) * len(configs)
+    warm_up = Dataset(
+        "warm-up", datasets[0].intrinsics, datasets[0].frames[:2], datasets[0].world_T_camera[:2]
+    )
+    for factory in configs.values():  # first calls pay imports and thread start-up
+        run_config("warm-up", factory(), warm_up)
+    for data in datasets:
+        reference = None
+        if data.name.startswith("TUM"):
+            t0 = time.perf_counter()
+            errors = odometry_errors(data, open3d_rgbd_odometry(data))
+            ms = 1e3 * (time.perf_counter() - t0) / len(errors)
+            reference = (
+                f"Open3D RGB-D odometry (reference): error {1e3 * np.nanmean(errors[:, 0]):.2f} mm "
+                f"mean / {1e3 * np.nanmax(errors[:, 0]):.2f} max, "
+                f"{np.degrees(np.nanmean(errors[:, 1])):.3f}° mean; {ms:.0f} ms per pair"
+            )
+        summaries = []
+        for name, factory in configs.items():
+            summaries.append(run_config(name, factory(), data))
+            done += 1
+            if progress is not None:
+                progress(done, total)
+        points = np.mean([np.count_nonzero(f.depth_m) for f in data.frames])
+        reports.append(DatasetReport(data.name, float(points), tuple(summaries), reference))
+    return reports

@@ -1,0 +1,58 @@
+"""The registration front end: depth → cloud → fixed-grid voxel pyramid and normals →
+point-to-plane or colored ICP (frame-to-frame or frame-to-local-map) → a result with its quality
+report (information matrix, degeneracy), or a typed failure. See docs/frontend.md."""
+
+from graph_slam.errors import RegistrationError, RegistrationFailure
+from graph_slam.frontend.cloud import (
+    Cloud,
+    CloudCounts,
+    Pyramid,
+    build_pyramid,
+    depth_to_cloud,
+    estimate_normals,
+    voxel_downsample,
+)
+from graph_slam.frontend.config import (
+    CloudConfig,
+    FrontendConfig,
+    LevelConfig,
+    RefineConfig,
+    RegistrationConfig,
+    colored_registration,
+    fast_point_to_plane,
+    refined_colored_registration,
+    thesis_registration,
+)
+from graph_slam.frontend.local_map import LocalMap
+from graph_slam.frontend.registration import (
+    DegeneracyReport,
+    RegistrationResult,
+    RegistrationStatus,
+    register,
+)
+
+__all__ = [
+    "Cloud",
+    "CloudConfig",
+    "CloudCounts",
+    "DegeneracyReport",
+    "FrontendConfig",
+    "LevelConfig",
+    "LocalMap",
+    "Pyramid",
+    "RefineConfig",
+    "RegistrationConfig",
+    "RegistrationError",
+    "RegistrationFailure",
+    "RegistrationResult",
+    "RegistrationStatus",
+    "build_pyramid",
+    "colored_registration",
+    "depth_to_cloud",
+    "estimate_normals",
+    "fast_point_to_plane",
+    "refined_colored_registration",
+    "register",
+    "thesis_registration",
+    "voxel_downsample",
+]

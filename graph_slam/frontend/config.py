@@ -1,0 +1,170 @@
+"""Typed configuration of the registration front end.
+
+:class:`FrontendConfig` holds a :class:`CloudConfig` (depth image → cloud) and a
+:class:`RegistrationConfig` (pyramid, ICP, robust kernel, quality gates). Presets:
+:func:`thesis_registration` (the thesis: multi-scale colored ICP as in Open3D's tutorial, no
+robust kernel), :func:`colored_registration` (the default: the same with a Tukey kernel),
+:func:`refined_colored_registration` (then a depth-noise-weighted refinement at 5 mm) and
+:func:`fast_point_to_plane` (depth only, one 2 cm level).
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from graph_slam.config import ConfigModel
+
+Method = Literal["point_to_plane", "colored"]
+Kernel = Literal["none", "huber", "tukey", "cauchy"]
+
+
+class CloudConfig(ConfigModel):
+    """Depth image → cloud in the camera frame: pixels outside the range are dropped (counted)."""
+
+    min_depth_m: float = Field(0.1, gt=0, description="closer readings are dropped")
+    max_depth_m: float = Field(3.0, gt=0, description="farther readings are dropped")
+
+    @model_validator(mode="after")
+    def _range(self) -> CloudConfig:
+        if self.max_depth_m <= self.min_depth_m:
+            raise ValueError(
+                f"max_depth_m ({self.max_depth_m}) must be greater than min_depth_m "
+                f"({self.min_depth_m})"
+            )
+        return self
+
+
+class LevelConfig(ConfigModel):
+    """One level of the coarse-to-fine pyramid."""
+
+    voxel_m: float = Field(gt=0, description="voxel edge of the fixed-origin grid")
+    max_correspondence_m: float = Field(gt=0, description="ICP correspondence distance")
+    max_iterations: int = Field(30, gt=0, le=1000)
+
+
+def _levels(voxels_m: tuple[float, ...], iterations: tuple[int, ...], corr_factor: float):
+    return tuple(
+        LevelConfig(voxel_m=v, max_correspondence_m=corr_factor * v, max_iterations=n)
+        for v, n in zip(voxels_m, iterations, strict=True)
+    )
+
+
+#: The thesis's levels: Open3D's colored-ICP tutorial (4, 2, 1 cm; 50, 30, 14 iterations).
+THESIS_LEVELS = _levels((0.04, 0.02, 0.01), (50, 30, 14), 1.0)
+
+
+class RefineConfig(ConfigModel):
+    """Optional last stage: Gauss-Newton on the same objective with per-point noise weights.
+
+    Open3D's ICP weighs every correspondence alike; depth noise grows as ``z²`` (structured
+    light and stereo), so far points get ``(z_near/z_far)⁴`` too much weight. This stage divides
+    each geometric residual by ``depth_sigma_at_1m_m · z²`` (``z``: the source point's depth)
+    and each photometric residual by ``color_sigma``, with a Tukey kernel at ``kernel_sigmas``.
+    """
+
+    voxel_m: float = Field(0.005, gt=0, description="its own, finer level of the pyramid")
+    max_correspondence_m: float = Field(0.03, gt=0)
+    max_iterations: int = Field(30, gt=0, le=1000)
+    depth_sigma_at_1m_m: float = Field(0.003, gt=0, description="σ_z = this · (z / 1 m)²")
+    color_sigma: float = Field(0.03, gt=0, description="intensity noise (intensity in [0, 1])")
+    kernel_sigmas: float = Field(6.0, gt=0, description="Tukey k in units of σ")
+    min_step: float = Field(1e-5, gt=0, description="stop when |Δξ| (rad, m) falls below this")
+
+
+class RegistrationConfig(ConfigModel):
+    """ICP registration and the gates that decide success, degeneracy or failure."""
+
+    method: Method = Field("colored", description="point_to_plane (depth only) or colored (RGB-D)")
+    levels: tuple[LevelConfig, ...] = Field(THESIS_LEVELS, description="coarse to fine")
+    kernel: Kernel = Field("tukey", description="robust kernel (Open3D RobustKernel)")
+    kernel_scale: float = Field(
+        0.5, gt=0, description="kernel parameter k as a multiple of the level's voxel_m"
+    )
+    lambda_geometric: float = Field(
+        0.968, ge=0, le=1, description="colored ICP: weight of the geometric term (Park 2017)"
+    )
+    normal_radius_factor: float = Field(2.0, gt=0, description="normal radius / voxel_m")
+    normal_max_nn: int = Field(30, ge=3)
+    relative_fitness: float = Field(1e-6, ge=0, description="Open3D ICP stopping criterion")
+    relative_rmse: float = Field(1e-6, ge=0, description="Open3D ICP stopping criterion")
+    # --- quality gates (on the finest level, at the solution)
+    min_points: int = Field(20, ge=3, description="fewer points in a cloud = empty")
+    min_correspondences: int = Field(100, ge=6)
+    min_fitness: float = Field(0.3, ge=0, le=1, description="inlier fraction of the source")
+    max_final_step_m: float = Field(
+        0.002,
+        gt=0,
+        description="a Gauss-Newton step at the solution longer than this = not converged",
+    )
+    max_final_step_rad: float = Field(0.004, gt=0)
+    degeneracy_threshold: float = Field(
+        0.01,
+        gt=0,
+        description="normalised Hessian eigenvalue below which a direction is under-constrained",
+    )
+    fail_on_degenerate: bool = Field(
+        False, description="raise RegistrationError(DEGENERATE) instead of returning the result"
+    )
+    information_min_sigma_m: float = Field(
+        0.001, gt=0, description="floor of the residual sigma used to scale the information"
+    )
+    refine: RefineConfig | None = Field(
+        None, description="noise-weighted refinement after the levels (None = off)"
+    )
+
+    @model_validator(mode="after")
+    def _check_levels(self) -> RegistrationConfig:
+        if not self.levels:
+            raise ValueError("levels: at least one level is required")
+        voxels = [level.voxel_m for level in self.levels]
+        if any(b > a for a, b in itertools.pairwise(voxels)):
+            raise ValueError(f"levels: voxel_m must not increase (coarse to fine), got {voxels}")
+        return self
+
+    @property
+    def pyramid_voxels_m(self) -> tuple[float, ...]:
+        """Voxel edge of every target pyramid level: the ICP levels, then the refinement's."""
+        voxels = tuple(level.voxel_m for level in self.levels)
+        return voxels if self.refine is None else (*voxels, self.refine.voxel_m)
+
+    @property
+    def final_max_correspondence_m(self) -> float:
+        """Correspondence distance of the last stage (refinement, else the finest level)."""
+        if self.refine is not None:
+            return self.refine.max_correspondence_m
+        return self.levels[-1].max_correspondence_m
+
+
+class FrontendConfig(ConfigModel):
+    """The whole front end: cloud extraction and registration."""
+
+    cloud: CloudConfig = CloudConfig()
+    registration: RegistrationConfig = RegistrationConfig()
+
+
+def thesis_registration() -> RegistrationConfig:
+    """The thesis (Chapter 3.4): colored ICP on 3 levels, Open3D's defaults (no robust kernel)."""
+    return RegistrationConfig(method="colored", levels=THESIS_LEVELS, kernel="none")
+
+
+def colored_registration() -> RegistrationConfig:
+    """The default: the thesis's levels with a Tukey kernel (k = 0.5 voxel)."""
+    return RegistrationConfig()
+
+
+def refined_colored_registration() -> RegistrationConfig:
+    """The default levels, then the depth-noise-weighted refinement at 5 mm (RGB-D)."""
+    return RegistrationConfig(refine=RefineConfig())
+
+
+def fast_point_to_plane(voxel_m: float = 0.02) -> RegistrationConfig:
+    """Depth only, one level: point-to-plane ICP at ``voxel_m`` (2 cm), Tukey kernel."""
+    return RegistrationConfig(
+        method="point_to_plane",
+        levels=(LevelConfig(voxel_m=voxel_m, max_correspondence_m=2 * voxel_m, max_iterations=30),),
+        kernel="tukey",
+        kernel_scale=1.0,
+    )

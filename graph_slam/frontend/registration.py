@@ -1,0 +1,543 @@
+"""Registration: point-to-plane or colored ICP, coarse to fine, with an honest quality report.
+
+``register(source, target, config, initial_target_T_source)`` aligns a source cloud (a frame,
+in its camera frame) to a target (the previous frame, or a local map) and returns a
+:class:`RegistrationResult`: ``target_T_source``, fitness, inlier RMSE, correspondence count, the
+6×6 information matrix and a :class:`DegeneracyReport`. A registration that cannot be trusted
+at all raises :class:`~graph_slam.errors.RegistrationError` with a
+:class:`~graph_slam.errors.RegistrationFailure` reason; it is never returned as zero motion.
+
+The ICP itself is Open3D's legacy pipeline (``registration_icp`` with
+``TransformationEstimationPointToPlane``, or ``registration_colored_icp``), one call per level,
+each level starting from the previous level's result. The quality report is computed here, at
+the solution, from the finest level's correspondences: the Jacobian of the objective Open3D
+minimised (point-to-plane; for colored ICP also its photometric term, with Open3D's own colour
+gradients), weighted by the robust kernel.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+
+from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailure
+from graph_slam.frontend.cloud import Cloud, Pyramid, build_pyramid, voxel_pyramid
+from graph_slam.frontend.config import RegistrationConfig
+from graph_slam.session.records import check_pose
+
+
+class RegistrationStatus(StrEnum):
+    """A returned result is either well constrained or degenerate (failures raise)."""
+
+    OK = "ok"
+    DEGENERATE = "degenerate"
+
+
+# --------------------------------------------------------------------------- quality report
+@dataclass(frozen=True, eq=False)
+class DegeneracyReport:
+    """Eigen-analysis of the ICP Hessian JᵀWJ at the solution, made unit-free.
+
+    The Hessian is taken for a motion of the source about ``center_m`` (the centroid of the
+    matched source points, target frame) in the coordinates ``(L·ω, t)``, ``L = length_m`` the
+    rms distance of those points from the centre, and divided by the summed weights of the
+    geometric residuals. A pure translation ``t`` (unit) then has stiffness ``mean (n·t)²`` —
+    the share of the correspondences whose normals hold it — and a rotation about the centre
+    the same share at the cloud's scale. Directions whose eigenvalue is below ``threshold`` are
+    under-constrained: a flat floor gives three (two translations along it, the rotation
+    about its normal).
+    """
+
+    eigenvalues: np.ndarray  # (6,) ascending
+    eigenvectors: np.ndarray  # 6×6, column i for eigenvalues[i]; coordinates (L·ω, t)
+    center_m: np.ndarray
+    length_m: float
+    threshold: float
+
+    @property
+    def weak(self) -> np.ndarray:
+        """Mask of the under-constrained eigen-directions."""
+        return self.eigenvalues < self.threshold
+
+    @property
+    def is_degenerate(self) -> bool:
+        return bool(self.weak.any())
+
+    @property
+    def weak_directions(self) -> np.ndarray:
+        """k×6 unit vectors (rows) spanning the under-constrained subspace, ``(L·ω, t)``."""
+        return self.eigenvectors[:, self.weak].T
+
+    @property
+    def hessian(self) -> np.ndarray:
+        """The normalised 6×6 Hessian (rotation first)."""
+        return (self.eigenvectors * self.eigenvalues) @ self.eigenvectors.T
+
+    def stiffness(
+        self, *, translation: np.ndarray | None = None, rotation_axis: np.ndarray | None = None
+    ) -> float:
+        """Normalised curvature of the objective along a unit translation or rotation (about
+        the centre), in the report's unit-free scale (compare with ``threshold``)."""
+        direction = np.zeros(6)
+        if translation is not None:
+            direction[3:] = translation
+        if rotation_axis is not None:
+            direction[:3] = rotation_axis
+        direction /= np.linalg.norm(direction)
+        return float(direction @ self.hessian @ direction)
+
+    def describe(self) -> list[str]:
+        """One line per weak direction: a translation axis or a rotation axis (target frame)."""
+        lines = []
+        for value, vec in zip(self.eigenvalues[self.weak], self.weak_directions, strict=True):
+            rot, trans = vec[:3], vec[3:]
+            if np.linalg.norm(trans) >= np.linalg.norm(rot):
+                axis, kind = trans / np.linalg.norm(trans), "translation along"
+            else:
+                axis, kind = rot / np.linalg.norm(rot), "rotation about"
+            lines.append(f"{kind} ({axis[0]:+.2f}, {axis[1]:+.2f}, {axis[2]:+.2f}): {value:.2g}")
+        return lines
+
+
+@dataclass(frozen=True, eq=False)
+class RegistrationResult:
+    """A registration that converged with enough overlap.
+
+    ``information`` is 6×6, rotation first then translation (GTSAM ``Pose3`` order), in the
+    tangent space GTSAM uses for ``BetweenFactor<Pose3>(target, source, target_T_source)``:
+    ``target_T_source_true = target_T_source · Exp(ξ)``, ``ξ = (ω, t)`` in the source frame.
+    It is JᵀWJ / σ² with σ the weighted rms residual (floored); it assumes independent
+    residuals and is over-confident by a large factor (see docs/frontend.md).
+    """
+
+    target_T_source: np.ndarray
+    fitness: float
+    inlier_rmse_m: float
+    correspondences: int
+    information: np.ndarray
+    degeneracy: DegeneracyReport
+    residual_sigma: float
+    final_step_m: float
+    final_step_rad: float
+    timing_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def status(self) -> RegistrationStatus:
+        return (
+            RegistrationStatus.DEGENERATE
+            if self.degeneracy.is_degenerate
+            else RegistrationStatus.OK
+        )
+
+    @property
+    def is_reliable(self) -> bool:
+        """True when every direction of the motion is constrained (status OK)."""
+        return self.status is RegistrationStatus.OK
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def adjoint(a_T_b: np.ndarray) -> np.ndarray:
+    """The 6×6 adjoint of a pose in (ω, t) order, as ``gtsam.Pose3.AdjointMap``."""
+    rot, trans = a_T_b[:3, :3], a_T_b[:3, 3]
+    ad = np.zeros((6, 6))
+    ad[:3, :3] = rot
+    ad[3:, 3:] = rot
+    ad[3:, :3] = _skew(trans) @ rot
+    return ad
+
+
+def kernel_weights(residuals: np.ndarray, kernel: str, k: float) -> np.ndarray:
+    """IRLS weights of Open3D's robust kernels (``RobustKernel::Weight``)."""
+    a = np.abs(residuals)
+    if kernel == "none":
+        return np.ones_like(a)
+    if kernel == "huber":
+        return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
+    if kernel == "tukey":
+        return np.where(a <= k, (1.0 - (a / k) ** 2) ** 2, 0.0)
+    if kernel == "cauchy":
+        return 1.0 / (1.0 + (a / k) ** 2)
+    raise ValueError(f"unknown kernel {kernel!r}")
+
+
+def color_gradients(target: Cloud, index: np.ndarray, radius_m: float, max_nn: int) -> np.ndarray:
+    """Intensity gradient in the tangent plane at ``target.points_m[index]``, as Open3D's
+    colored ICP computes it: least squares over the ≤ ``max_nn`` neighbours within
+    ``radius_m``, projected on the tangent plane, with a weighted ``d·n = 0`` row; zero where
+    fewer than 4 points (the point included) are found."""
+    from scipy.spatial import cKDTree
+
+    points, normals = target.points_m, target.normals
+    intensity = target.colors.mean(axis=1)
+    dist, nbr = cKDTree(points).query(
+        points[index], k=max_nn, distance_upper_bound=radius_m, workers=-1
+    )
+    found = np.isfinite(dist)
+    found[:, 0] = False  # the point itself
+    nbr = np.where(found, nbr, index[:, None])
+    n = normals[index]
+    diff = points[nbr] - points[index][:, None, :]
+    proj = (diff - np.einsum("mkj,mj->mk", diff, n)[..., None] * n[:, None, :]) * found[..., None]
+    b = (intensity[nbr] - intensity[index][:, None]) * found
+    count = found.sum(axis=1).astype(float)
+    ata = np.einsum("mki,mkj->mij", proj, proj) + (count**2)[:, None, None] * np.einsum(
+        "mi,mj->mij", n, n
+    )
+    atb = np.einsum("mki,mk->mi", proj, b)
+    usable = count + 1 >= 4
+    grad = np.zeros((len(index), 3))
+    ata_u = ata[usable] + 1e-12 * np.eye(3)
+    grad[usable] = np.linalg.solve(ata_u, atb[usable][..., None])[..., 0]
+    return grad
+
+
+@dataclass(frozen=True, eq=False)
+class _Rows:
+    """Weighted residuals of an ICP objective at a pose, for fixed correspondences.
+
+    ``jac`` is the Jacobian for a left perturbation about the target origin, ``(ω, t)``;
+    the first ``n_geo`` rows are point-to-plane, the rest photometric; ``geo_scale`` is the
+    factor each point-to-plane residual (metres) was multiplied by.
+    """
+
+    r: np.ndarray
+    jac: np.ndarray
+    w: np.ndarray
+    q: np.ndarray
+    geo_scale: np.ndarray
+    n_geo: int
+
+
+def _rows(
+    source: Cloud,
+    target: Cloud,
+    corr: np.ndarray,
+    target_T_source: np.ndarray,
+    *,
+    geo_scale: np.ndarray | float,
+    pho_scale: float,
+    kernel: str,
+    k: float,
+    gradients: np.ndarray | None,
+) -> _Rows:
+    """Point-to-plane rows (``geo_scale · n·(q - p)``) and, when ``gradients`` (intensity
+    gradients of the target points) are given, Open3D colored ICP's photometric rows
+    (``pho_scale · (I_s - C_p(proj q))``), with the robust kernel's weights."""
+    rot, trans = target_T_source[:3, :3], target_T_source[:3, 3]
+    q = source.points_m[corr[:, 0]] @ rot.T + trans
+    p = target.points_m[corr[:, 1]]
+    n = target.normals[corr[:, 1]]
+    geo_scale = np.broadcast_to(np.asarray(geo_scale, dtype=float), (len(q),))
+    r = geo_scale * np.einsum("ij,ij->i", q - p, n)
+    jac = geo_scale[:, None] * np.hstack([np.cross(q, n), n])
+    if gradients is not None:
+        d = gradients[corr[:, 1]]
+        q_proj = q - np.einsum("ij,ij->i", q - p, n)[:, None] * n
+        i_source = source.colors[corr[:, 0]].mean(axis=1)
+        i_target = target.colors[corr[:, 1]].mean(axis=1)
+        r_pho = pho_scale * (i_source - (np.einsum("ij,ij->i", d, q_proj - p) + i_target))
+        d_m = -(d - np.einsum("ij,ij->i", d, n)[:, None] * n)  # -(I - n nᵀ) d
+        j_pho = pho_scale * np.hstack([np.cross(q, d_m), d_m])
+        r, jac = np.concatenate([r, r_pho]), np.vstack([jac, j_pho])
+    return _Rows(r, jac, kernel_weights(r, kernel, k), q, geo_scale, len(q))
+
+
+@dataclass(frozen=True, eq=False)
+class _Analysis:
+    degeneracy: DegeneracyReport
+    step_origin: np.ndarray  # Gauss-Newton step (ω, t) about the target origin
+    step_m: float
+    step_rad: float
+
+
+def _analyse(rows: _Rows, threshold: float) -> _Analysis:
+    """Eigen-analysis of the unit-free Hessian and the Gauss-Newton step restricted to its
+    well-constrained directions (see :class:`DegeneracyReport`)."""
+    center = rows.q.mean(axis=0)
+    length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
+    to_unit = np.eye(6)  # origin twist = to_unit · (L·ω, t about the centre)
+    to_unit[3:, :3] = _skew(center)
+    to_unit[:, :3] /= length
+    norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
+    weighted = rows.jac * rows.w[:, None]
+    hess_n = to_unit.T @ (weighted.T @ rows.jac) @ to_unit / norm
+    grad_n = to_unit.T @ (weighted.T @ rows.r) / norm
+    values, vectors = np.linalg.eigh(hess_n)
+    strong = values >= threshold
+    step_n = -vectors[:, strong] @ ((vectors[:, strong].T @ grad_n) / values[strong])
+    return _Analysis(
+        degeneracy=DegeneracyReport(values, vectors, center, length, threshold),
+        step_origin=to_unit @ step_n,
+        step_m=float(np.linalg.norm(step_n[3:])),
+        step_rad=float(np.linalg.norm(step_n[:3]) / length),
+    )
+
+
+def _information(
+    rows: _Rows, target_T_source: np.ndarray, min_sigma_m: float
+) -> tuple[np.ndarray, float]:
+    """JᵀWJ / σ² in GTSAM's tangent space (right perturbation, source frame) and σ, the
+    weighted rms residual, floored at ``min_sigma_m`` (in the geometric residual's scale)."""
+    sigma2 = float(np.sum(rows.w * rows.r**2) / max(float(rows.w.sum()), 1e-300))
+    sigma = max(np.sqrt(sigma2), min_sigma_m * float(np.median(rows.geo_scale)))
+    info_left = (rows.jac * rows.w[:, None]).T @ rows.jac / sigma**2
+    ad = adjoint(target_T_source)
+    return ad.T @ info_left @ ad, float(sigma)
+
+
+def _open3d_rows(source, target, corr, target_T_source, config: RegistrationConfig) -> _Rows:
+    """The rows of the objective Open3D minimised at the finest level."""
+    k = config.kernel_scale * config.levels[-1].voxel_m
+    if config.method == "point_to_plane":
+        return _rows(source, target, corr, target_T_source, geo_scale=1.0, pho_scale=0.0,
+                     kernel=config.kernel, k=k, gradients=None)  # fmt: skip
+    lam = config.lambda_geometric
+    gradients = np.zeros((len(target), 3))
+    used = np.unique(corr[:, 1])
+    radius_m = 2.0 * config.levels[-1].max_correspondence_m  # Open3D: 2 × max_distance, 30 NN
+    gradients[used] = color_gradients(target, used, radius_m, 30)
+    return _rows(source, target, corr, target_T_source, geo_scale=np.sqrt(lam),
+                 pho_scale=np.sqrt(1.0 - lam), kernel=config.kernel, k=k, gradients=gradients)  # fmt: skip
+
+
+def _exp_left(xi: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    delta = np.eye(4)
+    delta[:3, :3] = Rotation.from_rotvec(xi[:3]).as_matrix()
+    delta[:3, 3] = xi[3:]
+    return delta
+
+
+def _refine(
+    source: Cloud, target: Cloud, target_T_source: np.ndarray, config: RegistrationConfig
+) -> tuple[np.ndarray, np.ndarray, Callable[[np.ndarray, np.ndarray], _Rows]]:
+    """Depth-noise-weighted Gauss-Newton (see :class:`RefineConfig`); returns the pose, the
+    final correspondences and the function giving the objective's rows."""
+    from scipy.spatial import cKDTree
+
+    refine = config.refine
+    colored = config.method == "colored"
+    gradients = None
+    if colored:
+        radius_m = 2.0 * refine.max_correspondence_m
+        gradients = color_gradients(target, np.arange(len(target)), radius_m, 30)
+    sigma_m = refine.depth_sigma_at_1m_m * source.points_m[:, 2] ** 2
+
+    def rows_at(corr: np.ndarray, pose: np.ndarray) -> _Rows:
+        return _rows(source, target, corr, pose, geo_scale=1.0 / sigma_m[corr[:, 0]],
+                     pho_scale=1.0 / refine.color_sigma, kernel="tukey",
+                     k=refine.kernel_sigmas, gradients=gradients)  # fmt: skip
+
+    tree = cKDTree(target.points_m)
+    corr = np.zeros((0, 2), dtype=int)
+    for _ in range(refine.max_iterations):
+        moved = source.points_m @ target_T_source[:3, :3].T + target_T_source[:3, 3]
+        dist, nearest = tree.query(
+            moved, distance_upper_bound=refine.max_correspondence_m, workers=-1
+        )
+        found = np.flatnonzero(np.isfinite(dist))
+        corr = np.column_stack([found, nearest[found]])
+        if len(corr) < config.min_correspondences:
+            break
+        step = _analyse(rows_at(corr, target_T_source), config.degeneracy_threshold).step_origin
+        target_T_source = _exp_left(step) @ target_T_source
+        if np.linalg.norm(step) < refine.min_step:
+            break
+    return target_T_source, corr, rows_at
+
+
+# --------------------------------------------------------------------------- ICP
+def _open3d_kernel(kernel: str, k: float):
+    from open3d.pipelines import registration as reg
+
+    if kernel == "none":
+        return reg.L2Loss()
+    return {"huber": reg.HuberLoss, "tukey": reg.TukeyLoss, "cauchy": reg.CauchyLoss}[kernel](k)
+
+
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def _icp_level(source, target, level, init: np.ndarray, config: RegistrationConfig):
+    from open3d.pipelines import registration as reg
+
+    kernel = _open3d_kernel(config.kernel, config.kernel_scale * level.voxel_m)
+    criteria = reg.ICPConvergenceCriteria(
+        config.relative_fitness, config.relative_rmse, level.max_iterations
+    )
+    try:
+        if config.method == "colored":
+            estimation = reg.TransformationEstimationForColoredICP(config.lambda_geometric, kernel)
+            return reg.registration_colored_icp(
+                source, target, level.max_correspondence_m, init, estimation, criteria
+            )
+        estimation = reg.TransformationEstimationPointToPlane(kernel)
+        return reg.registration_icp(
+            source, target, level.max_correspondence_m, init, estimation, criteria
+        )
+    except RuntimeError as err:  # Open3D reports problems as RuntimeError with a message
+        message = _ANSI.sub("", str(err)).strip()
+        reason = (
+            RegistrationFailure.NO_OVERLAP
+            if "No correspondences" in message
+            else RegistrationFailure.NUMERICAL
+        )
+        raise RegistrationError(
+            reason, f"level voxel {level.voxel_m} m: Open3D: {message}"
+        ) from None
+
+
+def _check_inputs(source: Cloud, target: Pyramid, config: RegistrationConfig, init: np.ndarray):
+    check_pose("register", "initial_target_T_source", init)
+    if target.voxel_m != config.pyramid_voxels_m:
+        raise ConfigError(
+            f"levels: the target pyramid's voxels {target.voxel_m} do not match the config's "
+            f"{config.pyramid_voxels_m}; build it with the same config"
+        )
+    if config.method == "colored" and (source.colors is None or target.finest.colors is None):
+        which = "source" if source.colors is None else "target"
+        raise ConfigError(
+            f"method: 'colored' needs colours on both clouds, the {which} has none; "
+            "use 'point_to_plane' for depth-only sensors"
+        )
+    if len(source) < config.min_points:
+        raise RegistrationError(
+            RegistrationFailure.EMPTY_SOURCE,
+            f"source has {len(source)} points (min_points {config.min_points})",
+        )
+    if len(target.finest) < config.min_points:
+        raise RegistrationError(
+            RegistrationFailure.EMPTY_TARGET,
+            f"target has {len(target.finest)} points at the finest level "
+            f"(min_points {config.min_points})",
+        )
+
+
+def _gate(config: RegistrationConfig, fitness: float, count: int) -> None:
+    if count < config.min_correspondences:
+        raise RegistrationError(
+            RegistrationFailure.TOO_FEW_CORRESPONDENCES,
+            f"{count} correspondences (min_correspondences {config.min_correspondences})",
+            fitness=fitness,
+            correspondences=count,
+        )
+    if fitness < config.min_fitness:
+        raise RegistrationError(
+            RegistrationFailure.LOW_FITNESS,
+            f"fitness {fitness:.3f} (min_fitness {config.min_fitness})",
+            fitness=fitness,
+            correspondences=count,
+        )
+
+
+def register(
+    source: Cloud,
+    target: Pyramid | Cloud,
+    config: RegistrationConfig | None = None,
+    initial_target_T_source: np.ndarray | None = None,
+) -> RegistrationResult:
+    """Register ``source`` (full cloud, own frame) to ``target`` (a pyramid, or a cloud to build
+    one from), starting from ``initial_target_T_source`` (identity by default).
+
+    Steps: voxelise the source on the *target's* fixed grid (through the initial guess, so both
+    clouds are sampled on the same grid); Open3D ICP level by level, coarse to fine; optionally
+    the noise-weighted refinement; gates (correspondences, fitness, a Gauss-Newton step at the
+    solution); the information matrix and the degeneracy report. Raises
+    :class:`RegistrationError` with a :class:`RegistrationFailure` reason on failure.
+    """
+    config = config or RegistrationConfig()
+    init = (
+        np.eye(4)
+        if initial_target_T_source is None
+        else np.asarray(initial_target_T_source, dtype=float)
+    )
+    if isinstance(target, Cloud):
+        target = build_pyramid(target, config)
+    _check_inputs(source, target, config, init)
+
+    t0 = time.perf_counter()  # the source on the target's grid, through the initial guess
+    source_levels = voxel_pyramid(source, config.pyramid_voxels_m, grid_T_cloud=init)
+    timing = {"voxel": time.perf_counter() - t0, "icp": 0.0, "information": 0.0}
+    target_T_source = init
+    for level, source_level, target_level in zip(
+        config.levels, source_levels, target.levels, strict=False
+    ):
+        t0 = time.perf_counter()
+        result = _icp_level(
+            source_level.to_open3d(), target_level.to_open3d(), level, target_T_source, config
+        )
+        timing["icp"] += time.perf_counter() - t0
+        if len(result.correspondence_set) == 0:
+            raise RegistrationError(
+                RegistrationFailure.NO_OVERLAP,
+                f"no correspondence within {level.max_correspondence_m} m at level voxel "
+                f"{level.voxel_m} m",
+                fitness=0.0,
+                correspondences=0,
+            )
+        target_T_source = np.asarray(result.transformation)
+        if not np.isfinite(target_T_source).all():
+            raise RegistrationError(RegistrationFailure.NUMERICAL, "non-finite transform")
+    source_level = source_levels[len(config.levels) - 1]
+    fitness, corr = float(result.fitness), np.asarray(result.correspondence_set)
+    inlier_rmse_m = float(result.inlier_rmse)
+    _gate(config, fitness, len(corr))
+
+    if config.refine is None:
+        t0 = time.perf_counter()
+        rows = _open3d_rows(source_level, target.finest, corr, target_T_source, config)
+    else:
+        t0 = time.perf_counter()
+        source_level = source_levels[-1]
+        target_T_source, corr, rows_at = _refine(
+            source_level, target.finest, target_T_source, config
+        )
+        timing["icp"] += time.perf_counter() - t0
+        fitness = len(corr) / max(len(source_level), 1)
+        _gate(config, fitness, len(corr))
+        t0 = time.perf_counter()
+        rows = rows_at(corr, target_T_source)
+        moved = source_level.points_m[corr[:, 0]] @ target_T_source[:3, :3].T
+        gap = moved + target_T_source[:3, 3] - target.finest.points_m[corr[:, 1]]
+        inlier_rmse_m = float(np.sqrt(np.mean(np.sum(gap**2, axis=1))))
+    analysis = _analyse(rows, config.degeneracy_threshold)
+    information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
+    timing["information"] = time.perf_counter() - t0
+    count = len(corr)
+    if analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad:
+        raise RegistrationError(
+            RegistrationFailure.NOT_CONVERGED,
+            f"a Gauss-Newton step at the solution still moves {analysis.step_m * 1e3:.2f} mm, "
+            f"{np.degrees(analysis.step_rad):.3f} deg (max_final_step_m "
+            f"{config.max_final_step_m}, max_final_step_rad {config.max_final_step_rad})",
+            fitness=fitness,
+            correspondences=count,
+        )
+    if config.fail_on_degenerate and analysis.degeneracy.is_degenerate:
+        raise RegistrationError(
+            RegistrationFailure.DEGENERATE,
+            "under-constrained: " + "; ".join(analysis.degeneracy.describe()),
+            fitness=fitness,
+            correspondences=count,
+        )
+    return RegistrationResult(
+        target_T_source=target_T_source,
+        fitness=fitness,
+        inlier_rmse_m=inlier_rmse_m,
+        correspondences=count,
+        information=information,
+        degeneracy=analysis.degeneracy,
+        residual_sigma=sigma,
+        final_step_m=analysis.step_m,
+        final_step_rad=analysis.step_rad,
+        timing_s=timing,
+    )

@@ -1,0 +1,98 @@
+"""Typed configuration of the pipelines (one sub-model per concern)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from graph_slam.backend.config import BackendConfig
+from graph_slam.config import ConfigModel
+from graph_slam.frontend.config import (
+    THESIS_LEVELS,
+    CloudConfig,
+    LevelConfig,
+    RegistrationConfig,
+)
+
+PipelineVariant = Literal["icp", "icp+imu", "imu+kin", "icp+imu+kin"]
+
+
+def _graph_registration() -> RegistrationConfig:
+    """Frame-to-frame registration for the graph: colored ICP, 2 levels (4, 2 cm), Tukey."""
+    return RegistrationConfig(
+        method="colored",
+        levels=(
+            LevelConfig(voxel_m=0.04, max_correspondence_m=0.04, max_iterations=30),
+            LevelConfig(voxel_m=0.02, max_correspondence_m=0.02, max_iterations=20),
+        ),
+        kernel="tukey",
+    )
+
+
+class BaselineConfig(ConfigModel):
+    """The thesis pipeline (Ch. 3.3-3.4): reset at foot strike, ICP to the global map."""
+
+    registration: RegistrationConfig = Field(
+        default_factory=lambda: RegistrationConfig(
+            method="colored", levels=THESIS_LEVELS, kernel="none", min_fitness=0.0
+        ),
+        description="3 levels (4, 2, 1 cm), colored ICP (point_to_plane for depth-only "
+        "sensors); min_fitness 0 here: the stop rule below decides",
+    )
+    stop_fitness: float = Field(
+        0.3, ge=0, le=1, description="fitness below this stops registration for the stride"
+    )
+    stop_on_any_failure: bool = Field(
+        True,
+        description="a registration that fails otherwise (no overlap, too few "
+        "correspondences, not converged) also stops the stride (the map cannot be trusted)",
+    )
+    map_voxel_m: float = Field(
+        0.01, gt=0, description="fusion: running mean per voxel of a grid fixed in the stride frame"
+    )
+    keep_maps: bool = Field(True, description="keep each stride's fused map in the results")
+
+
+class GraphFrontendConfig(ConfigModel):
+    """How the graph variants register frames (frame-to-frame, within a stride)."""
+
+    registration: RegistrationConfig = Field(default_factory=_graph_registration)
+    constant_velocity_guess: bool = Field(
+        True, description="initial guess: the last online relative motion scaled by Δt"
+    )
+
+
+class PipelineConfig(ConfigModel):
+    """Everything ``run_session`` needs: the variant, front end, back end, baseline, events."""
+
+    variant: PipelineVariant = "icp+imu+kin"
+    cloud: CloudConfig = CloudConfig()
+    graph: GraphFrontendConfig = GraphFrontendConfig()
+    baseline: BaselineConfig = BaselineConfig()
+    backend: BackendConfig = BackendConfig()
+    event_source: str | None = Field(
+        "load_cell",
+        description="events.csv source used to cut strides (None: every source in the file)",
+    )
+    mount_pitch_deg: float | None = Field(
+        None,
+        ge=30,
+        le=45,
+        description="leg model camera mount pitch; None = fit to the session's thigh_T_camera",
+    )
+    gravity_window_s: float = Field(
+        1.0,
+        gt=0,
+        description="gyro-rotated accel averaging before a reset (about one stride; the "
+        "previous stride's duration when known)",
+    )
+    max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
+
+    @model_validator(mode="after")
+    def _sync_backend_variant(self) -> PipelineConfig:
+        if self.variant not in ("icp", self.backend.variant):
+            object.__setattr__(
+                self, "backend", self.backend.model_copy(update={"variant": self.variant})
+            )
+        return self

@@ -1,0 +1,247 @@
+"""The factor-graph variants (``icp+imu``, ``imu+kin``, ``icp+imu+kin``): the front end's
+frame-to-frame registrations become :class:`IcpMeasurement` s for :class:`StrideSLAM`, fed
+together with the IMU, the encoders (through a :class:`kinematics.leg_model.LegModel`) and the
+load cell's foot-loaded state."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import gtsam
+import numpy as np
+
+from graph_slam.backend import StrideSLAM
+from graph_slam.backend.measurements import IcpMeasurement
+from graph_slam.errors import RegistrationError
+from graph_slam.frontend import build_pyramid, depth_to_cloud, register
+from graph_slam.frontend.registration import RegistrationResult, adjoint
+from graph_slam.pipelines.config import PipelineConfig
+from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
+from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+
+log = logging.getLogger(__name__)
+
+
+def information_left_to_right(target_T_source: np.ndarray, information_left: np.ndarray):
+    """Information of ``target_T_source`` in left (target-frame) coordinates
+    ``Exp(ξ_L)·T`` → right (source-frame) coordinates ``T·Exp(ξ_R)``.
+
+    ``ξ_L = Ad(T) ξ_R`` so ``I_R = Ad(T)ᵀ I_L Ad(T)`` (rotation first, GTSAM order).
+    """
+    ad = adjoint(np.asarray(target_T_source, float))
+    return ad.T @ np.asarray(information_left, float) @ ad
+
+
+def icp_measurement(
+    result: RegistrationResult,
+    source_index: int,
+    target_index: int,
+    convention: str = "right",
+) -> IcpMeasurement:
+    """The back end's record of a front-end registration.
+
+    The front end (``RegistrationResult``) reports its information in GTSAM's tangent space
+    of ``BetweenFactor<Pose3>``: right perturbation, source frame — what ``IcpMeasurement``
+    wants, so ``convention="right"`` passes it through; ``"left"`` converts with the adjoint.
+    The degeneracy report's eigenvectors are in scaled coordinates about the cloud's centre,
+    so they are not passed: the back end's gate takes the eigen-decomposition of the
+    information itself.
+    """
+    if convention == "right":
+        info = result.information
+    elif convention == "left":
+        info = information_left_to_right(result.target_T_source, result.information)
+    else:
+        raise ValueError(f"convention: 'right' or 'left', got {convention!r}")
+    return IcpMeasurement(
+        source_index=source_index,
+        target_index=target_index,
+        target_T_source=result.target_T_source,
+        information=info,
+        fitness=result.fitness,
+        inlier_rmse_m=result.inlier_rmse_m,
+        correspondences=result.correspondences,
+    )
+
+
+def failed_icp_measurement(err: RegistrationError, source_index: int, target_index: int):
+    """A failed registration: recorded with its reason, never a zero-motion factor."""
+    return IcpMeasurement(
+        source_index=source_index,
+        target_index=target_index,
+        target_T_source=np.eye(4),
+        information=np.zeros((6, 6)),
+        fitness=float("nan") if err.fitness is None else float(err.fitness),
+        inlier_rmse_m=float("nan"),
+        correspondences=err.correspondences or 0,
+        ok=False,
+        reason=f"{err.reason.value}: {err.detail}",
+    )
+
+
+class GraphPipeline:
+    """Front end + :class:`StrideSLAM` (see the module docstring)."""
+
+    def __init__(
+        self,
+        config: PipelineConfig,
+        intrinsics: CameraIntrinsics,
+        camera_T_imu: np.ndarray,
+        leg_model,
+        has_color: bool = True,
+    ) -> None:
+        self.cfg = config
+        self.variant = config.variant
+        self.intrinsics = intrinsics
+        self.use_icp = config.backend.factors["icp"]
+        reg = config.graph.registration
+        if not has_color and reg.method == "colored":
+            reg = reg.model_copy(update={"method": "point_to_plane"})
+        self.registration = reg
+        self.has_color = has_color
+        self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
+        self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
+        self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, pyramid, pose, t
+        self._prev2: tuple[np.ndarray, float] | None = None
+        self._new_stride = True
+        self.streams = None  # inputs.Streams, set by run_session (gravity at foot strikes)
+        self.leg_model = leg_model
+        self.camera_T_imu = np.asarray(camera_T_imu, float)
+
+    def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
+        self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
+
+    def add_joints(self, t_s, knee_rad, ankle_rad) -> None:
+        self.slam.add_joints(t_s, knee_rad, ankle_rad)
+
+    def foot_strike(self, t_s: float) -> None:
+        self.slam.foot_strike(t_s)
+        self._new_stride = True
+
+    def _guess(self, t_s: float) -> np.ndarray:
+        """Initial ``prev_T_current``: constant velocity from the last two online poses."""
+        if self._prev2 is None or not self.cfg.graph.constant_velocity_guess:
+            return np.eye(4)
+        _, _, pose1, t1 = self._prev
+        pose0, t0 = self._prev2
+        xi = gtsam.Pose3.Logmap(gtsam.Pose3(np.linalg.inv(pose0) @ pose1))
+        return gtsam.Pose3.Expmap(xi * (t_s - t1) / max(t1 - t0, 1e-6)).matrix()
+
+    def _starts_stride(self) -> bool:
+        return self.slam._graph is None or self.slam._pending_start is not None
+
+    def _anchor(self, t_s: float):
+        """The stride-start prior: encoders -> ``foot_T_camera``, gravity from the gyro-rotated
+        accelerometer mean over the previous stride (:func:`inputs.gravity_up`)."""
+        from graph_slam.backend.measurements import KinematicMeasurement
+        from graph_slam.pipelines.inputs import gravity_up, imu_up_in_model
+        from kinematics.errors import KinematicsError
+        from kinematics.stride_frame import stride_T_camera
+
+        if self.streams is None or self.leg_model is None:
+            return None
+        q = self.streams.q_at(t_s)
+        g = gravity_up(
+            self.streams, t_s, self.streams.window_before(t_s, self.cfg.gravity_window_s)
+        )
+        if q is None or g is None:
+            return None
+        try:
+            a = stride_T_camera(
+                self.leg_model, q, up_in_imu=imu_up_in_model(self.leg_model, self.camera_T_imu, g)
+            )
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no anchor (%s)", t_s, err)
+            return None
+        # the stance factors hold this foot orientation (StrideSLAM keeps it per stride)
+        self.slam._strike_foot_R = a.stride_T_foot
+        return KinematicMeasurement(a.stride_T_camera, a.covariance)
+
+    def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
+        t0 = time.perf_counter()
+        index = len(self.results.frames)
+        icp = None
+        pyramid = None
+        fitness = float("nan")
+        if self.use_icp:
+            cloud, _ = depth_to_cloud(frame, self.intrinsics, self.cfg.cloud)
+            if not self.has_color:
+                cloud = type(cloud)(cloud.points_m)
+            if self._prev is not None and not self._new_stride:
+                prev_index, prev_pyramid, _, _ = self._prev
+                try:
+                    r = register(cloud, prev_pyramid, self.registration, self._guess(frame.t_s))
+                    icp = icp_measurement(r, index, prev_index)
+                    fitness = r.fitness
+                except RegistrationError as err:
+                    icp = failed_icp_measurement(err, index, prev_index)
+                    fitness = icp.fitness
+            try:
+                pyramid = build_pyramid(cloud, self.registration)
+            except RegistrationError:
+                pyramid = None
+        t1 = time.perf_counter()
+        self._new_stride = False
+        anchor = self._anchor(frame.t_s) if self._starts_stride() else None
+        est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded, kinematics=anchor)
+        t2 = time.perf_counter()
+        if est.k == 0:
+            self._prev2 = None
+        elif self._prev is not None:
+            self._prev2 = (self._prev[2], self._prev[3])
+        self._prev = (index, pyramid, est.stride_T_camera, frame.t_s)
+        if pyramid is None:
+            self._prev = None
+            self._prev2 = None
+            self._new_stride = True  # nothing to register the next frame against
+        status = "reset" if est.k == 0 else "estimated"
+        out = FrameOutput(
+            frame_index=index,
+            stride_index=est.stride_index,
+            t_s=float(frame.t_s),
+            stride_T_camera=est.stride_T_camera,
+            world_T_camera=est.world_T_camera,
+            status=status,
+            foot_loaded=foot_loaded,
+            frontend_s=t1 - t0,
+            backend_s=t2 - t1,
+            fitness=fitness,
+            flags=est.flags + ((f"icp:{est.gate.reason}",) if est.gate is not None else ()),
+        )
+        self.results.frames.append(out)
+        return out
+
+    def finish(self) -> PipelineResults:
+        t0 = time.perf_counter()
+        res = self.slam.finish()
+        log.debug("final smoothing %.3f s", time.perf_counter() - t0)
+        self.results.backend = res
+        for s in res.strides:
+            self.results.strides.append(
+                StrideOutput(
+                    index=s.index,
+                    start=s.start,
+                    world_T_stride=s.world_T_stride,
+                    frame_indices=list(s.frame_indices),
+                    smoothed_stride_T_camera=s.smoothed_stride_T_camera,
+                    n_registered=s.n_icp_accepted,
+                    flags=s.flags,
+                )
+            )
+        if self.cfg.backend.covariances:
+            self.results.covariances = np.array(
+                [
+                    f.covariance if f.covariance is not None else np.full((6, 6), np.nan)
+                    for f in res.frames
+                ]
+            )
+        n = len(self.results.frames)
+        self.results.counts = {
+            "frames": n,
+            "with_pose": int(sum(f.has_pose for f in self.results.frames)),
+            "icp_accepted": int(sum(s.n_icp_accepted for s in res.strides)),
+            "icp_rejected": int(sum(s.n_icp_rejected for s in res.strides)),
+            **{f"imu_{k}": v for k, v in res.imu_counts.items()},
+        }
+        return self.results

@@ -1,0 +1,83 @@
+"""``make_pipeline(config, ...)`` and ``run_session(session, config) -> PipelineResults``."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from graph_slam.errors import SessionError
+from graph_slam.pipelines.base import Pipeline
+from graph_slam.pipelines.config import PipelineConfig
+from graph_slam.pipelines.inputs import leg_model_for, session_streams
+from graph_slam.pipelines.results import PipelineResults
+
+log = logging.getLogger(__name__)
+
+ProgressCallback = Callable[[int, int], None]
+"""Called after every frame with (frames done, frames in total)."""
+
+
+def make_pipeline(
+    config: PipelineConfig,
+    intrinsics,
+    camera_T_imu: np.ndarray,
+    leg_model,
+    has_color: bool = True,
+) -> Pipeline:
+    """The variant's pipeline: ``icp`` = the thesis baseline, else the factor graph."""
+    if config.variant == "icp":
+        from graph_slam.pipelines.baseline import ThesisBaseline
+
+        return ThesisBaseline(config, intrinsics, camera_T_imu, leg_model, has_color)
+    from graph_slam.pipelines.graph import GraphPipeline
+
+    return GraphPipeline(config, intrinsics, camera_T_imu, leg_model, has_color)
+
+
+def run_session(
+    session,
+    config: PipelineConfig | None = None,
+    progress: ProgressCallback | None = None,
+) -> PipelineResults:
+    """Run one variant over a session (a :class:`graph_slam.session.Session` or its folder).
+
+    Steps: read the streams and shift them onto the camera clock (calibration offsets); build
+    the leg model matching the calibration; make the pipeline; give it the IMU and encoders;
+    for every frame, announce the foot strikes (``events.csv``, source ``event_source``) that
+    happened since the previous frame, then the frame with its foot-loaded state (between a
+    foot strike and the next toe-off); finish.
+    """
+    from graph_slam.session import open_session
+
+    config = config or PipelineConfig()
+    if isinstance(session, str | Path):
+        session = open_session(session)
+    if session.intrinsics is None:
+        raise SessionError(f"{session.path}: the session has no camera; pipelines need frames")
+    streams = session_streams(session, config.event_source)
+    calib = session.calibration
+    leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
+    has_color = bool(session.manifest.sensors.camera.has_color)
+    pipe = make_pipeline(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
+    pipe.streams = streams  # gravity at foot strikes (both pipeline kinds)
+    if streams.imu_t_s is not None:
+        pipe.add_imu(streams.imu_t_s, streams.gyro_rad_s, streams.accel_m_s2)
+    if streams.joints_t_s is not None:
+        pipe.add_joints(streams.joints_t_s, streams.knee_rad, streams.ankle_rad)
+    n = session.n_frames if config.max_frames is None else min(config.max_frames, session.n_frames)
+    strikes = list(streams.foot_strikes_s)
+    t_prev = -np.inf
+    for i, frame in enumerate(session.iter_frames(0, n)):
+        new = [t for t in strikes if t_prev < t <= frame.t_s]
+        if new:
+            pipe.foot_strike(new[-1])
+        pipe.add_frame(frame, streams.foot_loaded(frame.t_s))
+        t_prev = frame.t_s
+        if progress is not None:
+            progress(i + 1, n)
+    results = pipe.finish()
+    results.counts["foot_strikes"] = int(np.sum(streams.foot_strikes_s <= t_prev))
+    return results
