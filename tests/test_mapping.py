@@ -66,6 +66,15 @@ def test_obstacles_of_known_boxes_within_2mm():
         assert abs(obstacle.leading_edge_x_m - (cx - d / 2)) < 0.002
 
 
+def test_obstacles_on_a_fused_5mm_voxel_map_within_2_5mm():
+    """Voxel averaging moves edge cells inwards by up to a voxel fraction: 2.5 mm at 5 mm voxels."""
+    cloud = _box_scene(np.random.default_rng(11))
+    fused = fuse_clouds([cloud], np.eye(4)[None], voxel_m=0.005)
+    result = extract_obstacles(fused.points_m)
+    sizes = np.array([o.size_m for o in result.obstacles])
+    np.testing.assert_allclose(sizes, [b[1] for b in BOXES.values()], atol=0.0025)
+
+
 def test_obstacles_on_a_tilted_raised_floor():
     """The floor 3 cm below the stride origin and tilted 5° about y: heights stay above it."""
     rng = np.random.default_rng(8)
