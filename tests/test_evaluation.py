@@ -15,6 +15,7 @@ from graph_slam.evaluation import (
     StrideEvaluation,
     VariantEvaluation,
     frame_counts,
+    gait_cycle_percent,
     match_obstacles,
     metrics_document,
     obstacle_accuracy,
@@ -219,3 +220,12 @@ def test_metrics_json_round_trip_and_schema_checks(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps({**doc, "schema_version": 99}))
     with pytest.raises(EvaluationError, match="schema_version"):
         read_metrics_json(tmp_path / "bad.json")
+
+
+def test_gait_cycle_percent_and_stance_mask():
+    t = np.array([10.0, 10.5, 11.0, 11.2])
+    np.testing.assert_allclose(gait_cycle_percent(t, 10.0, 11.0), [0, 50, 100, 120])
+    np.testing.assert_array_equal(stance_mask(t, 10.6), [True, True, False, False])
+    assert stance_mask(t, None).all()
+    with pytest.raises(EvaluationError, match="must follow"):
+        gait_cycle_percent(t, 11.0, 10.0)

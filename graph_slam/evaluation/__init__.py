@@ -29,6 +29,7 @@ from graph_slam.evaluation.tables import StrideRow, VariantStride, table_4_1, ta
 from graph_slam.evaluation.timing import TimingStats, timing_stats
 from graph_slam.evaluation.trajectory import (
     StrideTrajectoryMetrics,
+    gait_cycle_percent,
     stance_mask,
     stride_trajectory_metrics,
 )
@@ -47,6 +48,7 @@ __all__ = [
     "base_name",
     "collect_measurements",
     "frame_counts",
+    "gait_cycle_percent",
     "match_obstacles",
     "metrics_document",
     "obstacle_accuracy",

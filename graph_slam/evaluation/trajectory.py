@@ -65,6 +65,15 @@ def stance_mask(t_s: np.ndarray, toe_off_s: float | None) -> np.ndarray:
     return t < toe_off_s
 
 
+def gait_cycle_percent(t_s: np.ndarray, t_strike_s: float, t_next_strike_s: float) -> np.ndarray:
+    """Position in the gait cycle (0 at this foot strike, 100 at the next), linear in time."""
+    if not t_next_strike_s > t_strike_s:
+        raise EvaluationError(
+            f"gait_cycle_percent: the next foot strike ({t_next_strike_s}) must follow this one ({t_strike_s})"
+        )
+    return 100.0 * (np.asarray(t_s, dtype=np.float64) - t_strike_s) / (t_next_strike_s - t_strike_s)
+
+
 def _rmse(errors: np.ndarray) -> float:
     return float(np.sqrt(np.mean(errors**2))) if errors.size else float("nan")
 
