@@ -9,7 +9,9 @@ from scipy.spatial.transform import Rotation
 from graph_slam.errors import MappingError
 from graph_slam.mapping import (
     ElevationConfig,
+    MappingConfig,
     ObstacleConfig,
+    build_stride_map,
     elevation_grid,
     extract_obstacles,
     fuse_clouds,
@@ -158,3 +160,21 @@ def test_fusion_skips_and_counts_frames_without_pose():
     assert fused.colors_rgb is None
     with pytest.raises(MappingError, match="one pose per cloud"):
         fuse_clouds([cloud], poses)
+
+
+def test_build_stride_map_from_camera_clouds_and_poses():
+    """Two camera views of the box scene, fused with known poses, give the boxes back."""
+    scene = _box_scene(np.random.default_rng(5))
+    poses = np.stack([_pose([0, 0, 0.1], [0.2, 0, 0.6]), _pose([0, 0, -0.1], [0.5, -0.1, 0.6])])
+    clouds = [(scene - T[:3, 3]) @ T[:3, :3] for T in poses]
+    stride_map = build_stride_map(clouds, poses)
+    assert stride_map.fused.frames_fused == 2 and stride_map.obstacle_error is None
+    sizes = np.array([o.size_m for o in stride_map.obstacles.obstacles])
+    np.testing.assert_allclose(sizes, [b[1] for b in BOXES.values()], atol=0.0025)
+    assert stride_map.elevation.height_at(0.6, -0.3) == pytest.approx(0.1905, abs=0.002)
+
+    # A map without a floor still gets its fused cloud and grid; the reason is kept.
+    wall = np.column_stack([np.full(50, 1.0), np.linspace(-0.2, 0.2, 50), np.linspace(0, 0.5, 50)])
+    no_floor = build_stride_map([wall], np.eye(4)[None], config=MappingConfig(voxel_m=0.01))
+    assert no_floor.obstacles is None and "near-horizontal" in no_floor.obstacle_error
+    assert len(no_floor.fused) > 0

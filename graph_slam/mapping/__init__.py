@@ -14,15 +14,19 @@ from graph_slam.mapping.obstacles import (
     extract_obstacles,
     fit_floor,
 )
+from graph_slam.mapping.stride_map import MappingConfig, StrideMap, build_stride_map
 
 __all__ = [
     "ElevationConfig",
     "ElevationGrid",
     "FloorPlane",
     "FusedMap",
+    "MappingConfig",
     "Obstacle",
     "ObstacleConfig",
     "ObstacleMap",
+    "StrideMap",
+    "build_stride_map",
     "elevation_grid",
     "extract_obstacles",
     "fit_floor",
