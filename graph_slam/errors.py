@@ -124,6 +124,14 @@ class EstimationError(GraphSlamError):
     """The estimator cannot go on (an input it cannot use, not a numerical hiccup)."""
 
 
+class MappingError(GraphSlamError):
+    """Map building (fusion, elevation grid, obstacles) got input it cannot use."""
+
+
+class EvaluationError(GraphSlamError):
+    """Evaluation got inputs it cannot compare, or a needed optional extra is missing."""
+
+
 def library_errors() -> tuple[type[Exception], ...]:
     """The exception types a caller should treat as 'bad input', not as a bug."""
     from kinematics import KinematicsError

@@ -1,0 +1,64 @@
+"""Evaluation against ground truth: trajectory metrics (via evo), frame counts, obstacle
+accuracy, timing, thesis-style tables, ``metrics.json`` and plots (``evaluation.plots``).
+
+evo is GPL-3 and an optional extra (``pip install 'graph_slam[eval]'``): only this package
+imports it, lazily, when trajectory metrics are computed. Nothing in the estimator imports
+this package.
+"""
+
+from graph_slam.evaluation.counts import FrameCounts, frame_counts
+from graph_slam.evaluation.obstacles import (
+    DIMENSIONS,
+    DimensionStats,
+    base_name,
+    collect_measurements,
+    match_obstacles,
+    obstacle_accuracy,
+    truth_boxes_in_stride,
+)
+from graph_slam.evaluation.report import (
+    SCHEMA_VERSION,
+    StrideEvaluation,
+    VariantEvaluation,
+    metrics_document,
+    read_metrics_json,
+    table_rows,
+    write_metrics_json,
+)
+from graph_slam.evaluation.tables import StrideRow, VariantStride, table_4_1, table_4_2
+from graph_slam.evaluation.timing import TimingStats, timing_stats
+from graph_slam.evaluation.trajectory import (
+    StrideTrajectoryMetrics,
+    gait_cycle_percent,
+    stance_mask,
+    stride_trajectory_metrics,
+)
+
+__all__ = [
+    "DIMENSIONS",
+    "SCHEMA_VERSION",
+    "DimensionStats",
+    "FrameCounts",
+    "StrideEvaluation",
+    "StrideRow",
+    "StrideTrajectoryMetrics",
+    "TimingStats",
+    "VariantEvaluation",
+    "VariantStride",
+    "base_name",
+    "collect_measurements",
+    "frame_counts",
+    "gait_cycle_percent",
+    "match_obstacles",
+    "metrics_document",
+    "obstacle_accuracy",
+    "read_metrics_json",
+    "stance_mask",
+    "stride_trajectory_metrics",
+    "table_4_1",
+    "table_4_2",
+    "table_rows",
+    "timing_stats",
+    "truth_boxes_in_stride",
+    "write_metrics_json",
+]

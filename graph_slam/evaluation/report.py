@@ -1,0 +1,176 @@
+"""The numbers of an evaluation, per variant and stride, and their ``metrics.json`` form.
+
+Schema (``schema_version`` 1; every length in metres, every time in seconds; NaN is written as
+``null``; documented in docs/evaluation.md)::
+
+    {
+      "schema": "graph_slam.metrics", "schema_version": 1,
+      "session": str,
+      "variants": {
+        "<variant>": {
+          "strides": [
+            {"index": int, "speed": str, "number": int,
+             "frames": {"recorded": int, "registered": int, "bridged": int, "other": int},
+             "trajectory": null | {"n_frames", "n_evaluated", "rmse_unaligned_m", "rmse_aligned_m",
+                                   "rmse_by_phase_m": {"stance"|"swing": {"unaligned", "aligned", "n"}},
+                                   "rpe_rmse_m"}}
+          ],
+          "summary": {"strides": int, "frames_recorded": int, "frames_registered": int,
+                      "frames_bridged": int,
+                      "rmse_unaligned_m": {"mean", "median", "max"},
+                      "rmse_aligned_m": {"mean", "median", "max"}},
+          "timing": null | {"n", "median_s", "p95_s", "mean_s", "max_s"},
+          "obstacles": {"<box>": {"depth"|"width"|"height": {"n", "truth_m", "mean_m", "std_m", "rmse_m"}}}
+        }
+      }
+    }
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from graph_slam.errors import EvaluationError
+from graph_slam.evaluation.counts import FrameCounts
+from graph_slam.evaluation.obstacles import DimensionStats
+from graph_slam.evaluation.tables import StrideRow, VariantStride
+from graph_slam.evaluation.timing import TimingStats
+from graph_slam.evaluation.trajectory import StrideTrajectoryMetrics
+
+SCHEMA = "graph_slam.metrics"
+SCHEMA_VERSION = 1
+
+
+@dataclass(frozen=True, eq=False)
+class StrideEvaluation:
+    index: int
+    speed: str
+    number: int
+    """Stride number within its speed group (thesis Table 4.2's 'Stride #')."""
+    frames: FrameCounts
+    trajectory: StrideTrajectoryMetrics | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "index": self.index,
+            "speed": self.speed,
+            "number": self.number,
+            "frames": self.frames.to_dict(),
+            "trajectory": None if self.trajectory is None else self.trajectory.to_dict(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class VariantEvaluation:
+    strides: list[StrideEvaluation]
+    timing: TimingStats | None = None
+    obstacles: dict[str, dict[str, DimensionStats]] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        def stats(name: str) -> dict[str, float]:
+            values = np.array(
+                [getattr(s.trajectory, name) for s in self.strides if s.trajectory is not None],
+                dtype=np.float64,
+            )
+            values = values[np.isfinite(values)]
+            if values.size == 0:
+                return {"mean": math.nan, "median": math.nan, "max": math.nan}
+            return {
+                "mean": float(values.mean()),
+                "median": float(np.median(values)),
+                "max": float(values.max()),
+            }
+
+        return {
+            "strides": len(self.strides),
+            "frames_recorded": sum(s.frames.recorded for s in self.strides),
+            "frames_registered": sum(s.frames.registered for s in self.strides),
+            "frames_bridged": sum(s.frames.bridged for s in self.strides),
+            "rmse_unaligned_m": stats("rmse_unaligned_m"),
+            "rmse_aligned_m": stats("rmse_aligned_m"),
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "strides": [s.to_dict() for s in self.strides],
+            "summary": self.summary(),
+            "timing": None if self.timing is None else self.timing.to_dict(),
+            "obstacles": {
+                box: {dim: s.to_dict() for dim, s in dims.items()}
+                for box, dims in self.obstacles.items()
+            },
+        }
+
+
+def table_rows(variants: dict[str, VariantEvaluation], aligned: bool = True) -> list[StrideRow]:
+    """Table 4.2 rows (frames recorded from the first variant; RMSE aligned by default)."""
+    if not variants:
+        return []
+    first = next(iter(variants.values()))
+    rows = []
+    for k, stride in enumerate(first.strides):
+        figures = {}
+        for name, variant in variants.items():
+            if k >= len(variant.strides):
+                continue
+            s = variant.strides[k]
+            rmse = None
+            if s.trajectory is not None:
+                rmse = s.trajectory.rmse_aligned_m if aligned else s.trajectory.rmse_unaligned_m
+            figures[name] = VariantStride(s.frames.registered, s.frames.bridged, rmse)
+        rows.append(StrideRow(stride.speed, stride.number, stride.frames.recorded, figures))
+    return rows
+
+
+def metrics_document(session: str, variants: dict[str, VariantEvaluation]) -> dict[str, Any]:
+    return {
+        "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "session": session,
+        "variants": {name: v.to_dict() for name, v in variants.items()},
+    }
+
+
+def _nan_to_none(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _nan_to_none(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_nan_to_none(v) for v in value]
+    return value
+
+
+def write_metrics_json(document: dict[str, Any], path: str | Path) -> Path:
+    """Write ``metrics.json`` (NaN and inf as null, keys in insertion order)."""
+    path = Path(path)
+    path.write_text(
+        json.dumps(_nan_to_none(document), indent=2, allow_nan=False) + "\n", encoding="utf-8"
+    )
+    return path
+
+
+def read_metrics_json(path: str | Path) -> dict[str, Any]:
+    """Read and check a ``metrics.json`` (schema name, version and top-level fields)."""
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as err:
+        raise EvaluationError(f"{path}: cannot read metrics JSON ({err})") from None
+    if not isinstance(document, dict) or document.get("schema") != SCHEMA:
+        raise EvaluationError(f"{path}: field 'schema' must be {SCHEMA!r}")
+    if document.get("schema_version") != SCHEMA_VERSION:
+        raise EvaluationError(
+            f"{path}: field 'schema_version' is {document.get('schema_version')!r}; this reader knows {SCHEMA_VERSION}"
+        )
+    if not isinstance(document.get("variants"), dict):
+        raise EvaluationError(
+            f"{path}: field 'variants' must be a mapping of variant name to metrics"
+        )
+    return document

@@ -1,0 +1,35 @@
+"""Terrain maps of a stride: fused clouds, an elevation grid, the floor and the boxes on it.
+
+Inputs are plain arrays (camera-frame clouds and ``stride_T_camera`` poses), so the same
+functions serve the online poses, the smoothed poses and any pipeline.
+"""
+
+from graph_slam.mapping.elevation import ElevationConfig, ElevationGrid, elevation_grid
+from graph_slam.mapping.fusion import FusedMap, fuse_clouds, voxel_keys
+from graph_slam.mapping.obstacles import (
+    FloorPlane,
+    Obstacle,
+    ObstacleConfig,
+    ObstacleMap,
+    extract_obstacles,
+    fit_floor,
+)
+from graph_slam.mapping.stride_map import MappingConfig, StrideMap, build_stride_map
+
+__all__ = [
+    "ElevationConfig",
+    "ElevationGrid",
+    "FloorPlane",
+    "FusedMap",
+    "MappingConfig",
+    "Obstacle",
+    "ObstacleConfig",
+    "ObstacleMap",
+    "StrideMap",
+    "build_stride_map",
+    "elevation_grid",
+    "extract_obstacles",
+    "fit_floor",
+    "fuse_clouds",
+    "voxel_keys",
+]

@@ -1,0 +1,58 @@
+"""One stride's terrain map in one call: fused cloud, elevation grid, floor and obstacles."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import Field
+
+from graph_slam.config import ConfigModel
+from graph_slam.errors import MappingError
+from graph_slam.mapping.elevation import ElevationConfig, ElevationGrid, elevation_grid
+from graph_slam.mapping.fusion import FusedMap, fuse_clouds
+from graph_slam.mapping.obstacles import ObstacleConfig, ObstacleMap, extract_obstacles
+
+log = logging.getLogger(__name__)
+
+
+class MappingConfig(ConfigModel):
+    """Voxel size of the fused map (5 mm keeps box extents within 2 mm), grid and obstacles."""
+
+    voxel_m: float = Field(0.005, gt=0)
+    elevation: ElevationConfig = ElevationConfig()
+    obstacles: ObstacleConfig = ObstacleConfig()
+
+
+@dataclass(frozen=True, eq=False)
+class StrideMap:
+    fused: FusedMap
+    elevation: ElevationGrid
+    obstacles: ObstacleMap | None
+    """None when no floor could be found; ``obstacle_error`` says why."""
+    obstacle_error: str | None = None
+
+
+def build_stride_map(
+    clouds_camera_m: Sequence[np.ndarray],
+    stride_T_camera: np.ndarray,
+    colors_rgb: Sequence[np.ndarray | None] | None = None,
+    config: MappingConfig | None = None,
+) -> StrideMap:
+    """Fuse (fixed grid), grid the heights and extract the floor and boxes of one stride.
+
+    Call again with smoothed poses to re-fuse. A stride whose map has no floor (too few points,
+    no near-horizontal plane) still gets its fused map and grid; its obstacles are None and the
+    reason is kept and logged.
+    """
+    cfg = config or MappingConfig()
+    fused = fuse_clouds(clouds_camera_m, stride_T_camera, colors_rgb, voxel_m=cfg.voxel_m)
+    grid = elevation_grid(fused.points_m, cfg.elevation)
+    try:
+        obstacles = extract_obstacles(fused.points_m, cfg.obstacles)
+    except MappingError as err:
+        log.warning("build_stride_map: no obstacles for this stride: %s", err)
+        return StrideMap(fused, grid, None, str(err))
+    return StrideMap(fused, grid, obstacles)

@@ -1,0 +1,196 @@
+"""Loggers for a 3D view of a run: a :class:`NullLogger` (the default) and a rerun logger.
+
+Estimation code never plots: it is handed a logger (``make_logger(None)`` gives the null one)
+and calls its methods. :class:`RerunLogger` writes a ``.rrd`` recording file (rerun-sdk 0.41,
+imported lazily; no viewer needed; open it with ``rerun FILE.rrd``).
+
+Entity tree (constants below): ``world`` (z up) → ``world/stride`` (``world_T_stride``) →
+``world/stride/camera`` (``stride_T_camera``) → ``world/stride/camera/image`` (pinhole, depth,
+colour). Clouds, maps, trajectories and obstacles live under ``world/stride``. Two timelines:
+``stride`` (stride index, a sequence) and ``time`` (session time, seconds).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from graph_slam.errors import GraphSlamError
+from graph_slam.mapping.obstacles import Obstacle
+from graph_slam.session.records import CameraIntrinsics
+
+WORLD = "world"
+STRIDE = "world/stride"
+CAMERA = "world/stride/camera"
+IMAGE = "world/stride/camera/image"
+DEPTH = "world/stride/camera/image/depth"
+COLOR = "world/stride/camera/image/color"
+CLOUD = "world/stride/cloud"
+MAP = "world/stride/map"
+TRAJECTORY = "world/stride/trajectory"
+"""Trajectories are logged at ``TRAJECTORY/<name>`` (``truth``, a variant's name)."""
+OBSTACLES = "world/stride/obstacles"
+
+TIMELINE_STRIDE = "stride"
+TIMELINE_TIME = "time"
+
+
+class Logger(Protocol):
+    """What estimation and reporting code may call; every method is cheap on the null logger."""
+
+    def set_time(self, stride_index: int, t_s: float) -> None: ...
+
+    def log_stride(self, world_T_stride: np.ndarray) -> None: ...
+
+    def log_camera(
+        self,
+        stride_T_camera: np.ndarray,
+        intrinsics: CameraIntrinsics | None = None,
+        depth_m: np.ndarray | None = None,
+        color_rgb: np.ndarray | None = None,
+    ) -> None: ...
+
+    def log_cloud(
+        self, points_m: np.ndarray, colors_rgb: np.ndarray | None = None, entity: str = CLOUD
+    ) -> None: ...
+
+    def log_trajectory(self, name: str, positions_m: np.ndarray) -> None: ...
+
+    def log_obstacles(
+        self, obstacles: Sequence[Obstacle], floor_T_stride: np.ndarray | None = None
+    ) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class NullLogger:
+    """Logs nothing (the default)."""
+
+    def set_time(self, stride_index: int, t_s: float) -> None:
+        pass
+
+    def log_stride(self, world_T_stride: np.ndarray) -> None:
+        pass
+
+    def log_camera(self, stride_T_camera, intrinsics=None, depth_m=None, color_rgb=None) -> None:
+        pass
+
+    def log_cloud(self, points_m, colors_rgb=None, entity: str = CLOUD) -> None:
+        pass
+
+    def log_trajectory(self, name: str, positions_m: np.ndarray) -> None:
+        pass
+
+    def log_obstacles(self, obstacles, floor_T_stride=None) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def _transform(rr, a_T_b: np.ndarray):
+    a_T_b = np.asarray(a_T_b, dtype=np.float64)
+    if a_T_b.shape != (4, 4) or not np.isfinite(a_T_b).all():
+        raise GraphSlamError(
+            f"rerun logger: a pose must be a finite 4×4 array, got shape {a_T_b.shape}"
+        )
+    return rr.Transform3D(translation=a_T_b[:3, 3], mat3x3=a_T_b[:3, :3])
+
+
+class RerunLogger:
+    """Writes everything logged to a ``.rrd`` file (rerun-sdk, imported here, lazily)."""
+
+    def __init__(
+        self, path: str | Path, application_id: str = "graph_slam", recording_id: str | None = None
+    ):
+        import rerun as rr
+
+        self._rr = rr
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._rec = rr.RecordingStream(application_id, recording_id=recording_id)
+        self._rec.save(self.path)
+        self._rec.log(WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+    def set_time(self, stride_index: int, t_s: float) -> None:
+        self._rec.set_time(TIMELINE_STRIDE, sequence=int(stride_index))
+        self._rec.set_time(TIMELINE_TIME, duration=float(t_s))
+
+    def log_stride(self, world_T_stride: np.ndarray) -> None:
+        self._rec.log(STRIDE, _transform(self._rr, world_T_stride))
+
+    def log_camera(self, stride_T_camera, intrinsics=None, depth_m=None, color_rgb=None) -> None:
+        rr = self._rr
+        if not np.isfinite(np.asarray(stride_T_camera, dtype=np.float64)).all():
+            return  # no pose for this frame (failed registration): nothing to draw
+        self._rec.log(CAMERA, _transform(rr, stride_T_camera))
+        if intrinsics is not None:
+            self._rec.log(
+                IMAGE,
+                rr.Pinhole(
+                    image_from_camera=intrinsics.K,
+                    resolution=[intrinsics.width_px, intrinsics.height_px],
+                    camera_xyz=rr.ViewCoordinates.RDF,
+                    image_plane_distance=0.3,
+                ),
+            )
+        if depth_m is not None:
+            self._rec.log(DEPTH, rr.DepthImage(np.asarray(depth_m, dtype=np.float32), meter=1.0))
+        if color_rgb is not None:
+            self._rec.log(COLOR, rr.Image(np.asarray(color_rgb, dtype=np.uint8)))
+
+    def log_cloud(self, points_m, colors_rgb=None, entity: str = CLOUD) -> None:
+        self._rec.log(
+            entity,
+            self._rr.Points3D(
+                np.asarray(points_m, dtype=np.float32), colors=colors_rgb, radii=0.003
+            ),
+        )
+
+    def log_trajectory(self, name: str, positions_m: np.ndarray) -> None:
+        p = np.asarray(positions_m, dtype=np.float64)
+        p = p[np.isfinite(p).all(axis=1)]
+        self._rec.log(
+            f"{TRAJECTORY}/{name}", self._rr.LineStrips3D([p.astype(np.float32)], radii=0.002)
+        )
+
+    def log_obstacles(self, obstacles, floor_T_stride=None) -> None:
+        """Boxes in the floor frame (``ObstacleMap.floor.floor_T_stride()``), drawn in the stride frame."""
+        rr = self._rr
+        if not obstacles:
+            return
+        centers = np.array([[*o.center_xy_m, o.height_m / 2] for o in obstacles])
+        sizes = np.array([[o.depth_m, o.width_m, o.height_m] for o in obstacles])
+        rotation = None
+        if floor_T_stride is not None:
+            stride_T_floor = np.linalg.inv(np.asarray(floor_T_stride, dtype=np.float64))
+            centers = centers @ stride_T_floor[:3, :3].T + stride_T_floor[:3, 3]
+            from scipy.spatial.transform import Rotation
+
+            q_xyzw = Rotation.from_matrix(stride_T_floor[:3, :3]).as_quat()
+            rotation = [rr.Quaternion(xyzw=q_xyzw)] * len(obstacles)
+        self._rec.log(
+            OBSTACLES,
+            rr.Boxes3D(
+                centers=centers,
+                sizes=sizes,
+                quaternions=rotation,
+                labels=[
+                    f"{o.depth_m * 1000:.0f}×{o.width_m * 1000:.0f}×{o.height_m * 1000:.0f} mm"
+                    for o in obstacles
+                ],
+            ),
+        )
+
+    def close(self) -> None:
+        """Flush and finish the file (call once, at the end)."""
+        self._rec.flush()
+        self._rec.disconnect()
+
+
+def make_logger(rrd_path: str | Path | None) -> Logger:
+    """A :class:`RerunLogger` writing ``rrd_path``, or a :class:`NullLogger` when it is None."""
+    return NullLogger() if rrd_path is None else RerunLogger(rrd_path)
