@@ -77,7 +77,10 @@ class CompareConfig(ConfigModel):
         2, ge=1, le=8, description="subsample the .rrd's depth/colour images by this factor"
     )
     plot_maps_per_session: int = Field(
-        1, ge=0, description="map/elevation plots for the first n strides of each session"
+        1,
+        ge=0,
+        description="map/elevation plots (last variant and true poses) for the first n strides "
+        "of each session",
     )
 
 
@@ -513,13 +516,16 @@ def _maps_and_views(out, session, label, results, truths, cfg, matches, truth_si
                 files.append(ply)
             obstacles = smap.obstacles.obstacles if smap.obstacles is not None else []
             matches[v].append(match_obstacles(obstacles, truth_boxes))
-            if k < cfg.plot_maps_per_session and len(fused):
+            if k < cfg.plot_maps_per_session and len(fused) and v in (primary, TRUTH):
+                # a scatter of every voxel takes seconds to draw: plot at most 40k of them
+                sub = slice(None, None, max(1, len(fused) // 40_000))
+                colors_sub = None if fused.colors_rgb is None else fused.colors_rgb[sub]
                 title = f"{v}, {label} stride {st.number} ({session.name})"
                 files.append(
                     plots.plot_map_top_view(
                         out / "plots" / f"map_{tag}_{tag_stride}.png",
-                        fused.points_m,
-                        getattr(fused, "colors_rgb", None),
+                        fused.points_m[sub],
+                        colors_sub,
                         obstacles,
                         title=title,
                     )
@@ -532,7 +538,7 @@ def _maps_and_views(out, session, label, results, truths, cfg, matches, truth_si
             if cfg.rrd and v == primary:
                 logger.set_time(st.global_index, t0 + float(st.t_s[-1]))
                 logger.log_stride(st.world_T_stride)
-                logger.log_cloud(fused.points_m, getattr(fused, "colors_rgb", None), entity=_MAP)
+                logger.log_cloud(fused.points_m, fused.colors_rgb, entity=_MAP)
                 if smap.obstacles is not None:
                     logger.log_obstacles(obstacles, smap.obstacles.floor.floor_T_stride())
         if cfg.rrd:
