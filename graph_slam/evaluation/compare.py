@@ -232,6 +232,10 @@ def _session_truth(session, results, first_global: int, label: str) -> list[_Str
     t_gt = np.asarray(gt.t_s)
     world_T_camera = np.asarray(gt.parent_T_child)
     events = session.events
+    if events is None or not len(events):
+        raise EvaluationError(
+            f"{session.path}: compare needs gait events (events.csv) to cut strides"
+        )
     kinds = np.asarray(events.kind)
     sources = np.asarray(events.source)
     use = sources == "load_cell" if (sources == "load_cell").any() else np.ones(len(kinds), bool)
