@@ -114,8 +114,8 @@ def register(app: typer.Typer) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
 
-        Quarter resolution and two variants by default so that it finishes in under 10 minutes
-        on 2 cores (docs/benchmarks.md, "Demo (issue 7)").
+        Quarter resolution and two variants by default, aiming at 10 minutes on 2 cores
+        (measured 11.8 min on a loaded machine (docs/benchmarks.md, "Demo (issue 7)").
         """
         from graph_slam.commands._common import progress_bar
         from graph_slam.evaluation.compare import SessionSpec
