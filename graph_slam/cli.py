@@ -27,7 +27,15 @@ app = typer.Typer(
 )
 
 # Modules under graph_slam/commands/ that add commands to the app (each: register(app)).
-COMMAND_MODULES: tuple[str, ...] = ("session", "gait", "convert", "simulate", "planar", "bench")
+COMMAND_MODULES: tuple[str, ...] = (
+    "session",
+    "gait",
+    "convert",
+    "simulate",
+    "planar",
+    "bench",
+    "compare",
+)
 
 
 def _version_callback(value: bool) -> None:

@@ -70,11 +70,3 @@ def test_missing_folder_is_exit_2(tmp_path: Path) -> None:
         bad.stderr.strip()
         == f"error: {tmp_path / 'nope'}: not a session folder (no such directory)"
     )
-
-
-def test_demo_writes_a_valid_session_and_its_config(tmp_path: Path) -> None:
-    out = _run(["demo", "--out", str(tmp_path)])
-    assert out.returncode == 0, out.stderr
-    assert (tmp_path / "session" / "session.yaml").is_file()
-    assert yaml.safe_load((tmp_path / "config.yaml").read_text())["camera_rate_hz"] == 30.0
-    assert "validated" in out.stdout

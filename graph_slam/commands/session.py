@@ -1,4 +1,4 @@
-"""Session commands: ``info``, ``validate``, and the foundation ``demo``."""
+"""Session commands: ``info`` and ``validate`` (``demo`` lives in commands/compare.py)."""
 
 from __future__ import annotations
 
@@ -86,26 +86,3 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"error: {problem}", err=True)
         typer.echo(f"invalid: {session}: {len(report.problems)} problem(s)", err=True)
         raise typer.Exit(2)
-
-    @app.command()
-    def demo(
-        out: Annotated[Path, typer.Option(help="Output folder.")] = Path("runs/demo"),
-    ) -> None:
-        """Foundation demo: write the synthetic session, validate it, read it back, summarise it.
-
-        (The simulated thesis box course and comparison report replace this as the later
-        issues land.)
-        """
-        from graph_slam.commands._common import progress_bar
-        from graph_slam.config import write_config
-        from graph_slam.session import open_session, session_info, validate_session
-        from graph_slam.session.synthetic import SyntheticConfig, write_synthetic_session
-
-        cfg = SyntheticConfig()
-        out.mkdir(parents=True, exist_ok=True)
-        write_config(cfg, out / "config.yaml")
-        with progress_bar("writing synthetic session") as update:
-            path = write_synthetic_session(out / "session", cfg, overwrite=True, progress=update)
-        validate_session(path).raise_if_failed()
-        print_info(session_info(open_session(path)))
-        typer.echo(f"session written and validated: {path} (config: {out / 'config.yaml'})")

@@ -1,0 +1,179 @@
+"""``compare``, ``demo`` and ``view``: the comparison report, the embedded demo, the 3D view."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
+    ("slow", "Slow", 9),
+    ("normal", "Normal", 9),
+    ("fast", "Fast", 7),
+)
+"""The thesis's 25 strides (Table 4.2): 9 slow, 9 normal, 7 fast."""
+DEMO_VARIANTS = "icp,icp+imu+kin"
+"""Variants the demo runs by default: the thesis baseline and the full graph (fits 10 min)."""
+
+
+def _parse_variants(text: str) -> list[str]:
+    from graph_slam.errors import ConfigError
+    from graph_slam.pipelines import VARIANTS
+
+    names = [v.strip() for v in text.split(",") if v.strip()]
+    bad = [v for v in names if v not in VARIANTS]
+    if bad or not names:
+        raise ConfigError(
+            f"--variants: {', '.join(bad) or '(empty)'} not known; choose from {', '.join(VARIANTS)}"
+        )
+    return names
+
+
+def _load_compare_config(path: Path | None, variants: str | None):
+    from graph_slam.config import load_config
+    from graph_slam.evaluation.compare import CompareConfig
+
+    cfg = load_config(CompareConfig, path)
+    if variants is not None:
+        cfg = CompareConfig.model_validate(
+            {**cfg.model_dump(), "variants": _parse_variants(variants)}
+        )
+    return cfg
+
+
+def _run_compare(sessions, out: Path, cfg):
+    from graph_slam.commands._common import progress_bar
+    from graph_slam.evaluation.compare import compare
+
+    with progress_bar("running variants") as update:
+        return compare(sessions, out, cfg, progress=update)
+
+
+def _print_report(report) -> None:
+    from graph_slam.evaluation.compare import summary_table
+
+    typer.echo("\nTable 4.2 (online poses; RMSE after SE(3) alignment, m)\n")
+    typer.echo(report.table_4_2_online)
+    if report.table_4_2_smoothed:
+        typer.echo("Table 4.2 (smoothed poses)\n")
+        typer.echo(report.table_4_2_smoothed)
+    typer.echo("Summary (medians over strides)\n")
+    typer.echo(summary_table(report))
+    for name, table in report.tables_4_1.items():
+        typer.echo(f"Table 4.1, obstacle dimensions (mm), map from {name}\n")
+        typer.echo(table)
+    typer.echo(
+        f"report: {report.out / 'report.md'} ({len(report.files)} files, {report.wall_s:.0f} s)"
+    )
+    typer.echo(f"3D view: graph-slam view {report.out}")
+
+
+def has_display(env: dict[str, str] | None = None) -> bool:
+    env = os.environ if env is None else env
+    return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("compare")
+    def compare_cmd(
+        session: Annotated[Path, typer.Argument(help="Session folder (with ground truth).")],
+        out: Annotated[Path, typer.Option(help="Report folder.")],
+        variants: Annotated[
+            str | None,
+            typer.Option(help="Comma-separated: icp,icp+imu,imu+kin,icp+imu+kin (default all)."),
+        ] = None,
+        config: Annotated[
+            Path | None, typer.Option(help="CompareConfig YAML (pipeline:, mapping:, ...).")
+        ] = None,
+    ) -> None:
+        """Run the baseline and the graph variants on one session; write the report folder."""
+        cfg = _load_compare_config(config, variants)
+        _print_report(_run_compare([session], out, cfg))
+
+    @app.command()
+    def demo(
+        out: Annotated[Path, typer.Option(help="Output folder.")] = Path("runs/demo"),
+        strides_scale: Annotated[
+            float, typer.Option(help="Multiply the 9/9/7 strides (e.g. 0.34 → 3/3/2).")
+        ] = 1.0,
+        full_resolution: Annotated[
+            bool, typer.Option(help="Simulate 848×480 instead of quarter resolution (slow).")
+        ] = False,
+        variants: Annotated[
+            str,
+            typer.Option(help="Variants to compare (all four: icp,icp+imu,imu+kin,icp+imu+kin)."),
+        ] = DEMO_VARIANTS,
+        seed: Annotated[int, typer.Option(help="Simulator seed.")] = 1,
+    ) -> None:
+        """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
+        compare the variants on it and print the tables.
+
+        Quarter resolution and two variants by default, aiming at 10 minutes on 2 cores
+        (measured 11.8 min on a loaded machine: docs/benchmarks.md, "Demo (issue 7)").
+        """
+        from graph_slam.commands._common import progress_bar
+        from graph_slam.evaluation.compare import SessionSpec
+        from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
+
+        t0 = time.perf_counter()
+        cfg = _load_compare_config(None, variants)
+        out.mkdir(parents=True, exist_ok=True)
+        specs = []
+        for speed, label, n in DEMO_SPEEDS:
+            strides = max(1, round(n * strides_scale))
+            sim_cfg = SimConfig(
+                scene="thesis-boxes",
+                speed_m_s=SPEEDS_M_S[speed],
+                strides=strides,
+                seed=seed,
+                drops="bursty",
+                fast=not full_resolution,
+                quicklook=False,
+            )
+            with progress_bar(f"simulating {label.lower()} ({strides} strides)") as update:
+                path = simulate(sim_cfg, out / "sessions" / speed, overwrite=True, progress=update)
+            specs.append(SessionSpec(path.path, label))
+        t_sim = time.perf_counter() - t0
+        typer.echo(
+            f"simulated {len(specs)} sessions in {t_sim:.0f} s "
+            f"({'848×480' if full_resolution else 'quarter resolution (--full-resolution for 848×480)'}, "
+            f"variants {', '.join(cfg.variants)})"
+        )
+        report = _run_compare(specs, out / "report", cfg)
+        _print_report(report)
+        typer.echo(f"demo done in {time.perf_counter() - t0:.0f} s")
+
+    @app.command()
+    def view(
+        run_dir: Annotated[
+            Path, typer.Argument(help="A compare/demo report folder or a .rrd file.")
+        ],
+    ) -> None:
+        """Open the run's rerun recording (spawns the viewer when a display exists)."""
+        from graph_slam.errors import EvaluationError
+
+        rrd = run_dir if run_dir.suffix == ".rrd" else run_dir / "recording.rrd"
+        if not rrd.is_file() and run_dir.is_dir():
+            found = sorted(run_dir.rglob("*.rrd"))
+            rrd = found[0] if found else rrd
+        if not rrd.is_file():
+            raise EvaluationError(
+                f"{run_dir}: no recording.rrd here (run graph-slam compare first)"
+            )
+        exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+        if not has_display() or not Path(exe).exists():
+            why = (
+                "no display ($DISPLAY/$WAYLAND_DISPLAY unset)"
+                if not has_display()
+                else "no rerun executable"
+            )
+            typer.echo(f"{why}; open the recording on a machine with a display:\n  rerun {rrd}")
+            return
+        subprocess.Popen([exe, str(rrd)], start_new_session=True)
+        typer.echo(f"opened {rrd} in the rerun viewer")

@@ -1,0 +1,140 @@
+"""compare / demo / view: a smoke run writes every promised file; view without a display; errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from graph_slam.cli import main
+
+pytest.importorskip("evo")
+
+# Coarse, fast settings: one quarter-resolution stride, the baseline with one ICP level and the
+# cheap graph variant (both pipeline kinds, online and smoothed), coarse map clouds.
+FAST_CONFIG = {
+    "variants": ["icp", "imu+kin"],
+    "pipeline": {
+        "baseline": {
+            "registration": {
+                "levels": [{"voxel_m": 0.04, "max_correspondence_m": 0.04, "max_iterations": 15}]
+            }
+        }
+    },
+    "map_pixel_step": 2,
+    "rrd_frame_step": 10,
+}
+
+
+@pytest.fixture(scope="module")
+def tiny_session(tmp_path_factory) -> Path:
+    from graph_slam.sim import SimConfig, simulate
+
+    out = tmp_path_factory.mktemp("sim") / "session"
+    cfg = SimConfig(strides=1, fast=True, drops="bursty", seed=3, quicklook=False)
+    return simulate(cfg, out).path
+
+
+@pytest.fixture(scope="module")
+def report_dir(tiny_session: Path, tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    import yaml
+
+    base = tmp_path_factory.mktemp("cmp")
+    cfg_path = base / "compare.yaml"
+    cfg_path.write_text(yaml.safe_dump(FAST_CONFIG))
+    out = base / "report"
+    run = subprocess.run(
+        [sys.executable, "-m", "graph_slam", "compare", str(tiny_session), "--out", str(out),
+         "--config", str(cfg_path)],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    return out, run
+
+
+def test_compare_writes_every_promised_file(report_dir) -> None:
+    from graph_slam.evaluation import read_metrics_json
+
+    out, run = report_dir
+    assert run.returncode == 0, run.stderr
+    assert "Table 4.2" in run.stdout and "Table 4.1" in run.stdout
+    for name in ("report.md", "metrics.json", "config.yaml", "recording.rrd"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    doc = read_metrics_json(out / "metrics.json")
+    assert set(doc["variants"]) == {"icp", "imu+kin", "imu+kin smoothed"}
+    strides = doc["variants"]["imu+kin"]["strides"]
+    assert len(strides) == 1 and strides[0]["frames"]["recorded"] > 10
+    assert strides[0]["trajectory"]["n_evaluated"] == strides[0]["frames"]["recorded"]
+    report = (out / "report.md").read_text()
+    assert "Table 4.2" in report and "Table 4.1" in report and "| Walking speed |" in report
+    (session_dir,) = (out / "trajectories").iterdir()
+    tums = {p.name for p in session_dir.glob("*.tum")}
+    assert tums == {
+        "icp_online.tum",
+        "icp_smoothed.tum",
+        "imu_kin_online.tum",
+        "imu_kin_smoothed.tum",
+        "ground_truth.tum",
+    }
+    for variant in ("icp", "imu_kin", "ground_truth"):
+        assert list((out / "maps" / variant).glob("*_s00.ply")), variant
+    plots = {p.name.split("_")[0] for p in (out / "plots").glob("*.png")}
+    assert {"trajectory", "error", "map", "elevation", "obstacles"} <= plots
+
+
+def test_ground_truth_tum_matches_the_session(report_dir, tiny_session: Path) -> None:
+    """The reference trajectory starts each stride at the heel: camera ~0.9 m above the floor."""
+    from graph_slam.session.io import read_tum
+
+    out, run = report_dir
+    assert run.returncode == 0, run.stderr
+    (session_dir,) = (out / "trajectories").iterdir()
+    t_s, poses = read_tum(session_dir / "ground_truth.tum")
+    assert t_s.size > 10
+    assert 0.5 < poses[0, 2, 3] < 1.2  # camera height above the heel, metres
+    assert abs(poses[0, 1, 3]) < 0.2  # camera roughly above the foot's line
+
+
+def test_truth_stride_frame_known_answer() -> None:
+    # Foot pitched 20° toe-up, yawed 30°, heel at (1, 2, 0); camera 1 m above the heel.
+    from scipy.spatial.transform import Rotation
+
+    from graph_slam.evaluation.compare import truth_world_T_stride
+
+    world_T_foot = np.eye(4)
+    world_T_foot[:3, :3] = Rotation.from_euler("ZY", [30, -20], degrees=True).as_matrix()
+    world_T_foot[:3, 3] = [1.0, 2.0, 0.0]
+    foot_T_camera = np.eye(4)
+    foot_T_camera[:3, 3] = [0.1, 0.0, 1.0]
+    w_T_s = truth_world_T_stride(world_T_foot @ foot_T_camera, foot_T_camera)
+    np.testing.assert_allclose(w_T_s[:3, 3], [1.0, 2.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(w_T_s[:3, 2], [0, 0, 1], atol=1e-12)
+    yaw = np.radians(30)
+    np.testing.assert_allclose(w_T_s[:3, 0], [np.cos(yaw), np.sin(yaw), 0], atol=1e-12)
+
+
+def test_view_without_display_prints_how_to_open(tmp_path: Path, monkeypatch, capsys) -> None:
+    (tmp_path / "recording.rrd").write_bytes(b"RRF2")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(SystemExit) as exc:
+        main(["view", str(tmp_path)])
+    assert exc.value.code == 0
+    assert f"rerun {tmp_path / 'recording.rrd'}" in capsys.readouterr().out
+
+
+def test_view_and_compare_errors_exit_2(tmp_path: Path, capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["view", str(tmp_path)])
+    assert exc.value.code == 2
+    assert "no recording.rrd" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["compare", str(tmp_path / "nope"), "--out", str(tmp_path / "r")])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.startswith("error: ")
+    with pytest.raises(SystemExit) as exc:
+        main(["compare", str(tmp_path), "--out", str(tmp_path / "r"), "--variants", "icp,slam"])
+    assert exc.value.code == 2
+    assert "slam" in capsys.readouterr().err
