@@ -289,9 +289,10 @@ def run_registration_bench(
     """Run every configuration on the synthetic frames and, when found, the TUM frames."""
     configs = configs or BENCH_CONFIGS
     datasets = [synthetic_dataset(pairs, rate_hz)]
-    tum_folder = default_tum_folder() if tum_folder is None else Path(tum_folder)
-    if (tum_folder / "ground_truth.json").is_file():
+    if tum_folder is not None:  # asked for: it must be there
         datasets.append(read_tum_sample(tum_folder))
+    elif (default_tum_folder() / "ground_truth.json").is_file():
+        datasets.append(read_tum_sample(default_tum_folder()))
     reports, done, total = [], 0, len(datasets) * len(configs)
     warm_up = Dataset(
         "warm-up", datasets[0].intrinsics, datasets[0].frames[:2], datasets[0].world_T_camera[:2]
