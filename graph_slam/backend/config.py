@@ -100,7 +100,10 @@ class KinematicFactorConfig(ConfigModel):
         "orientation at foot strike: wrong once the foot rolls flat or lifts its heel)",
     )
     contact_sigma_m: float = Field(
-        0.004, gt=0, description="σ of a contact point's position (encoders + contact), m"
+        0.01,
+        gt=0,
+        description="σ of a contact point's position (encoders + contact), m; 4 mm, 1 and 2 cm "
+        "tried on the simulator (docs/benchmarks.md)",
     )
     contact_pitch_rad: float = Field(
         0.0175,
