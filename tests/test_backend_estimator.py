@@ -275,3 +275,25 @@ def test_foot_strike_up_in_imu_sets_the_anchor_gravity():
     assert np.abs(default.stride_T_camera - want.stride_T_camera).max() > 0.05
     with pytest.raises(EstimationError, match="up_in_imu"):
         slam.foot_strike(0.35, up_in_imu=np.array([np.nan, 0.0, 1.0]))
+
+
+def test_tilt_covariance_replaces_roll_pitch_about_the_stride_origin():
+    """``foot_strike(up_sigma_rad=σ)``: the anchor's tilt about the stride x/y axes (through the
+    heel) gets σ, independent of the rest; yaw and position keep the kinematics' covariance."""
+    from graph_slam.backend.estimator import tilt_covariance
+    from graph_slam.backend.factors import adjoint
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(6, 6))
+    cov = a @ a.T * 1e-3 + np.eye(6) * 1e-4
+    pose = gtsam.Pose3(gtsam.Rot3.RzRyRx(0.1, -0.6, 0.2), np.array([0.1, 0.05, 0.7])).matrix()
+    out = tilt_covariance(pose, cov, 0.01)
+    ad = adjoint(pose)
+    left_in, left_out = ad @ cov @ ad.T, ad @ out @ ad.T
+    np.testing.assert_allclose(left_out[:2, :2], np.eye(2) * 1e-4, atol=1e-12)
+    np.testing.assert_allclose(left_out[:2, 2:], 0.0, atol=1e-12)
+    np.testing.assert_allclose(left_out[2:, 2:], left_in[2:, 2:], atol=1e-12)
+    np.testing.assert_allclose(out, out.T, atol=1e-12)
+    slam = StrideSLAM()
+    with pytest.raises(EstimationError, match="up_sigma_rad"):
+        slam.foot_strike(0.0, up_in_imu=np.array([0.0, 0.0, 9.8]), up_sigma_rad=-1.0)

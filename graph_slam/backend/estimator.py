@@ -45,6 +45,19 @@ def gravity_aligned_rotation(up_in_imu: np.ndarray) -> np.ndarray:
     return np.vstack([x, y, z])  # rows: nav axes in IMU coordinates -> nav_R_imu
 
 
+def tilt_covariance(stride_T_camera: np.ndarray, cov: np.ndarray, sigma_rad: float) -> np.ndarray:
+    """``cov`` (camera local, rotation first) with its tilt about the stride frame's x and y axes
+    (through the stride origin) replaced by an independent σ ``sigma_rad``: with the stride
+    frame's z from the IMU's up vector the camera's tilt error is that vector's error."""
+    ad = factors.adjoint(stride_T_camera)  # right (camera) -> left (stride) coordinates
+    left = ad @ cov @ ad.T
+    left[:2, :] = 0.0
+    left[:, :2] = 0.0
+    left[0, 0] = left[1, 1] = sigma_rad**2
+    inv = np.linalg.inv(ad)
+    return inv @ left @ inv.T
+
+
 class StrideSLAM:
     """Per-stride factor-graph estimator (see the module docstring)."""
 
@@ -70,6 +83,7 @@ class StrideSLAM:
         self._stride_T_foot: np.ndarray | None = None  # foot at strike ("foot_pose" stance)
         self._strike_up: tuple[float, np.ndarray] | None = None  # foot_strike(up_in_imu=...)
         self._heel_off = False  # contact_points stance: the heel has left the ground
+        self._strike_up_sigma: float | None = None
         self._last_nav = None  # (t_s, NavEstimate, cov_pose, cov_vel, cov_bias) at stride end
         self.results = Results()
         self._frame_count = 0
@@ -100,7 +114,12 @@ class StrideSLAM:
             self._joints.append(block[good])
         return int(good.sum())
 
-    def foot_strike(self, t_s: float, up_in_imu: np.ndarray | None = None) -> StrideSummary | None:
+    def foot_strike(
+        self,
+        t_s: float,
+        up_in_imu: np.ndarray | None = None,
+        up_sigma_rad: float | None = None,
+    ) -> StrideSummary | None:
         """A foot strike: close the current stride (smoothing); the next frame starts a new one.
 
         ``up_in_imu``: the up direction (e.g. a gravity estimate in m/s²) in the IMU frame at
@@ -108,7 +127,15 @@ class StrideSLAM:
         rotates it to the first frame's time with the gyro. Default: the accelerometer mean over
         ``kinematics.gravity_window_s`` before the first frame — biased by the swing leg's
         deceleration (measured ~60° off on the simulator); pipelines pass a better estimate.
+        ``up_sigma_rad``: the σ of that up vector's direction. Given, it replaces the anchor's
+        roll/pitch uncertainty (the camera's tilt in the stride frame is the IMU's, whatever
+        the foot contact); otherwise the kinematics' covariance (contact σ up to 5°) stays.
         """
+        if up_sigma_rad is not None and not (np.isfinite(up_sigma_rad) and up_sigma_rad > 0):
+            raise EstimationError(
+                f"foot_strike: up_sigma_rad must be finite and > 0, got {up_sigma_rad!r}"
+            )
+        self._strike_up_sigma = None if up_in_imu is None else up_sigma_rad
         if up_in_imu is not None:
             up = np.asarray(up_in_imu, float)
             if up.shape != (3,) or not np.isfinite(up).all() or np.linalg.norm(up) < 1e-9:
@@ -152,7 +179,10 @@ class StrideSLAM:
                 up = self._up_at(t_s)
                 a = stride_T_camera(self.leg_model, q, up_in_imu=self._imu_up_to_model(up))
                 self._stride_T_foot = a.stride_T_foot
-                return KinematicMeasurement(a.stride_T_camera, a.covariance)
+                cov = a.covariance
+                if self._strike_up_sigma is not None and self._strike_up is not None:
+                    cov = tilt_covariance(a.stride_T_camera, cov, self._strike_up_sigma)
+                return KinematicMeasurement(a.stride_T_camera, cov)
             if self._stride_T_foot is None:
                 return None
             from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2
@@ -556,6 +586,7 @@ class StrideSLAM:
         self._stride_start = reason
         self._pending_start = None
         self._strike_up = None
+        self._strike_up_sigma = None
         self._heel_off = False
         self._stride_t0 = t_s
         self._frame_to_k = {}

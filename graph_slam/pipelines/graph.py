@@ -120,12 +120,17 @@ class GraphPipeline:
         accelerometer mean over the previous stride (:func:`inputs.gravity_up`)."""
         from graph_slam.pipelines.inputs import gravity_up
 
-        up = None
+        up = sigma = None
         if self.streams is not None:
-            up = gravity_up(
-                self.streams, t_s, self.streams.window_before(t_s, self.cfg.gravity_window_s)
-            )
-        self.slam.foot_strike(t_s, up_in_imu=up)
+            window = self.streams.window_before(t_s, self.cfg.gravity_window_s)
+            up = gravity_up(self.streams, t_s, window)
+            span = 0.0 if self.streams.imu_t_s is None else t_s - self.streams.imu_t_s[0]
+            if (
+                self.cfg.gravity_sigma_rad is not None
+                and min(window, span) >= self.cfg.gravity_min_window_s
+            ):
+                sigma = self.cfg.gravity_sigma_rad
+        self.slam.foot_strike(t_s, up_in_imu=up, up_sigma_rad=sigma)
         self._new_stride = True
 
     def _guess(self, t_s: float) -> np.ndarray:
