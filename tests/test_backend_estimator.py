@@ -246,3 +246,54 @@ def test_anchor_from_leg_model_and_joints():
     est = slam.add_frame(0.25, foot_loaded=True)
     assert est.kinematic_factor
     np.testing.assert_allclose(est.stride_T_camera, anchor.stride_T_camera, atol=1e-4)
+
+
+def test_foot_strike_up_in_imu_sets_the_anchor_gravity():
+    """``foot_strike(t, up_in_imu=...)``: the anchor's roll/pitch come from the caller's up
+    vector, carried from the strike to the first frame by the gyro, not from the accelerometer
+    mean (here deliberately wrong, like a decelerating swing leg)."""
+    from scipy.spatial.transform import Rotation
+
+    from kinematics.leg_model import LegModel
+    from kinematics.stride_frame import stride_T_camera
+
+    model = LegModel()
+    camera_T_imu = np.linalg.inv(model.thigh_T_frame("camera_optical")) @ model.thigh_T_frame("imu")
+    q = np.array([0.1, 0.0])
+    t = np.arange(0.0, 0.4, 0.005)
+    w = np.array([0.0, 0.0, 1.5])  # rad/s about the IMU z axis
+    slam = StrideSLAM(camera_T_imu=camera_T_imu, leg_model=model)
+    slam.add_imu(t, np.tile(w, (t.size, 1)), np.tile([6.0, 0.0, 7.0], (t.size, 1)))
+    slam.add_joints(t, np.full(t.size, q[0]), np.full(t.size, q[1]))
+    up_strike = np.array([-9.0, 1.0, 3.0])
+    slam.foot_strike(0.1, up_in_imu=up_strike)
+    est = slam.add_frame(0.3)
+    strike_R_frame = Rotation.from_rotvec(w * 0.2).as_matrix()
+    want = stride_T_camera(model, q, up_in_imu=strike_R_frame.T @ up_strike)
+    np.testing.assert_allclose(est.stride_T_camera, want.stride_T_camera, atol=1e-5)
+    default = stride_T_camera(model, q, up_in_imu=np.array([6.0, 0.0, 7.0]))
+    assert np.abs(default.stride_T_camera - want.stride_T_camera).max() > 0.05
+    with pytest.raises(EstimationError, match="up_in_imu"):
+        slam.foot_strike(0.35, up_in_imu=np.array([np.nan, 0.0, 1.0]))
+
+
+def test_tilt_covariance_replaces_roll_pitch_about_the_stride_origin():
+    """``foot_strike(up_sigma_rad=σ)``: the anchor's tilt about the stride x/y axes (through the
+    heel) gets σ, independent of the rest; yaw and position keep the kinematics' covariance."""
+    from graph_slam.backend.estimator import tilt_covariance
+    from graph_slam.backend.factors import adjoint
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(6, 6))
+    cov = a @ a.T * 1e-3 + np.eye(6) * 1e-4
+    pose = gtsam.Pose3(gtsam.Rot3.RzRyRx(0.1, -0.6, 0.2), np.array([0.1, 0.05, 0.7])).matrix()
+    out = tilt_covariance(pose, cov, 0.01)
+    ad = adjoint(pose)
+    left_in, left_out = ad @ cov @ ad.T, ad @ out @ ad.T
+    np.testing.assert_allclose(left_out[:2, :2], np.eye(2) * 1e-4, atol=1e-12)
+    np.testing.assert_allclose(left_out[:2, 2:], 0.0, atol=1e-12)
+    np.testing.assert_allclose(left_out[2:, 2:], left_in[2:, 2:], atol=1e-12)
+    np.testing.assert_allclose(out, out.T, atol=1e-12)
+    slam = StrideSLAM()
+    with pytest.raises(EstimationError, match="up_sigma_rad"):
+        slam.foot_strike(0.0, up_in_imu=np.array([0.0, 0.0, 9.8]), up_sigma_rad=-1.0)

@@ -196,3 +196,39 @@ def test_imu_gap_splits_preintegration():
     gap = buf.integrate(0.15, 0.35, gtsam.imuBias.ConstantBias())
     assert not gap.ok and gap.reason == "imu_gap" and gap.max_hold_s > 0.09
     assert buf.integrate(0.31, 0.45, gtsam.imuBias.ConstantBias()).ok
+
+
+def test_contact_point_jacobian_matches_numerical():
+    """The stance contact-point factor: residual R·p + t − p_stride, Jacobian vs numerical
+    derivatives (right perturbation, rotation first) and through gtsam's linearisation."""
+    import gtsam
+
+    from graph_slam.backend.factors import contact_point_factor, contact_point_residual
+    from graph_slam.backend.keys import X
+
+    rng = np.random.default_rng(7)
+    pose = gtsam.Pose3.Expmap(rng.normal(size=6) * 0.5)
+    p_imu = np.array([0.05, -0.6, 0.2])
+    p_stride = np.array([0.26, 0.0, 0.0])
+    err, h = contact_point_residual(pose.matrix(), p_imu, p_stride)
+    np.testing.assert_allclose(err, pose.transformFrom(p_imu) - p_stride, atol=1e-12)
+    num = np.zeros((3, 6))
+    eps = 1e-6
+    for i in range(6):
+        d = np.zeros(6)
+        d[i] = eps
+        plus = contact_point_residual(
+            pose.compose(gtsam.Pose3.Expmap(d)).matrix(), p_imu, p_stride
+        )[0]
+        minus = contact_point_residual(
+            pose.compose(gtsam.Pose3.Expmap(-d)).matrix(), p_imu, p_stride
+        )[0]
+        num[:, i] = (plus - minus) / (2 * eps)
+    np.testing.assert_allclose(h, num, atol=1e-7)
+    f = contact_point_factor(3, p_imu, p_stride, sigma_m=0.004, kernel="none")
+    values = gtsam.Values()
+    values.insert(X(3), pose)
+    np.testing.assert_allclose(f.unwhitenedError(values), err, atol=1e-12)
+    a, b = f.linearize(values).jacobian()
+    np.testing.assert_allclose(a, h / 0.004, atol=1e-6)
+    np.testing.assert_allclose(b, -err / 0.004, atol=1e-9)

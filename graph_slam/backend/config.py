@@ -92,6 +92,25 @@ class KinematicFactorConfig(ConfigModel):
         description="a stance factor farther than this (in its sigmas) from the IMU prediction "
         "is inconsistent (e.g. a missed foot strike: the foot is elsewhere) and is not added",
     )
+    stance_model: Literal["contact_points", "foot_pose"] = Field(
+        "contact_points",
+        description="stance factors from the encoders: 'contact_points' (the heel stays at the "
+        "stride origin until heel-off, the toe at its foot-flat position from foot flat to "
+        "toe-off; the foot may pivot about them) or 'foot_pose' (the whole foot held in its "
+        "orientation at foot strike: wrong once the foot rolls flat or lifts its heel)",
+    )
+    contact_sigma_m: float = Field(
+        0.01,
+        gt=0,
+        description="σ of a contact point's position (encoders + contact), m; 4 mm, 1 and 2 cm "
+        "tried on the simulator (docs/benchmarks.md)",
+    )
+    contact_pitch_rad: float = Field(
+        0.0175,
+        gt=0,
+        description="foot pitch (from the predicted orientation and the encoders) beyond which "
+        "the heel (toe down) or the toe (toe up) is taken to be off the ground",
+    )
 
 
 class PriorConfig(ConfigModel):

@@ -45,6 +45,19 @@ def gravity_aligned_rotation(up_in_imu: np.ndarray) -> np.ndarray:
     return np.vstack([x, y, z])  # rows: nav axes in IMU coordinates -> nav_R_imu
 
 
+def tilt_covariance(stride_T_camera: np.ndarray, cov: np.ndarray, sigma_rad: float) -> np.ndarray:
+    """``cov`` (camera local, rotation first) with its tilt about the stride frame's x and y axes
+    (through the stride origin) replaced by an independent σ ``sigma_rad``: with the stride
+    frame's z from the IMU's up vector the camera's tilt error is that vector's error."""
+    ad = factors.adjoint(stride_T_camera)  # right (camera) -> left (stride) coordinates
+    left = ad @ cov @ ad.T
+    left[:2, :] = 0.0
+    left[:, :2] = 0.0
+    left[0, 0] = left[1, 1] = sigma_rad**2
+    inv = np.linalg.inv(ad)
+    return inv @ left @ inv.T
+
+
 class StrideSLAM:
     """Per-stride factor-graph estimator (see the module docstring)."""
 
@@ -67,7 +80,10 @@ class StrideSLAM:
         self._frame_to_k: dict[int, int] = {}
         self._frames_in_stride: list[FrameEstimate] = []
         self._stride_counts = {"icp_ok": 0, "icp_rej": 0, "kin": 0, "gap": 0}
-        self._strike_foot_R: np.ndarray | None = None
+        self._stride_T_foot: np.ndarray | None = None  # foot at strike ("foot_pose" stance)
+        self._strike_up: tuple[float, np.ndarray] | None = None  # foot_strike(up_in_imu=...)
+        self._heel_off = False  # contact_points stance: the heel has left the ground
+        self._strike_up_sigma: float | None = None
         self._last_nav = None  # (t_s, NavEstimate, cov_pose, cov_vel, cov_bias) at stride end
         self.results = Results()
         self._frame_count = 0
@@ -98,8 +114,37 @@ class StrideSLAM:
             self._joints.append(block[good])
         return int(good.sum())
 
-    def foot_strike(self, t_s: float) -> StrideSummary | None:
-        """A foot strike: close the current stride (smoothing); the next frame starts a new one."""
+    def foot_strike(
+        self,
+        t_s: float,
+        up_in_imu: np.ndarray | None = None,
+        up_sigma_rad: float | None = None,
+    ) -> StrideSummary | None:
+        """A foot strike: close the current stride (smoothing); the next frame starts a new one.
+
+        ``up_in_imu``: the up direction (e.g. a gravity estimate in m/s²) in the IMU frame at
+        ``t_s``, for the new stride's anchor (roll and pitch of the stride frame). The back end
+        rotates it to the first frame's time with the gyro. Default: the accelerometer mean over
+        ``kinematics.gravity_window_s`` before the first frame — biased by the swing leg's
+        deceleration (measured ~60° off on the simulator); pipelines pass a better estimate.
+        ``up_sigma_rad``: the σ of that up vector's direction. Given, it replaces the anchor's
+        roll/pitch uncertainty (the camera's tilt in the stride frame is the IMU's, whatever
+        the foot contact); otherwise the kinematics' covariance (contact σ up to 5°) stays.
+        """
+        if up_sigma_rad is not None and not (np.isfinite(up_sigma_rad) and up_sigma_rad > 0):
+            raise EstimationError(
+                f"foot_strike: up_sigma_rad must be finite and > 0, got {up_sigma_rad!r}"
+            )
+        self._strike_up_sigma = None if up_in_imu is None else up_sigma_rad
+        if up_in_imu is not None:
+            up = np.asarray(up_in_imu, float)
+            if up.shape != (3,) or not np.isfinite(up).all() or np.linalg.norm(up) < 1e-9:
+                raise EstimationError(
+                    f"foot_strike: up_in_imu must be a finite non-zero 3-vector, got {up_in_imu!r}"
+                )
+            self._strike_up = (float(t_s), up)
+        else:
+            self._strike_up = None
         summary = self._close_stride() if self._graph is not None else None
         self._pending_start = "foot_strike"
         return summary
@@ -131,20 +176,106 @@ class StrideSLAM:
 
         try:
             if anchor:
-                w = self.cfg.kinematics.gravity_window_s
-                up = self.imu.mean_accel(t_s - w, t_s)
+                up = self._up_at(t_s)
                 a = stride_T_camera(self.leg_model, q, up_in_imu=self._imu_up_to_model(up))
-                self._strike_foot_R = a.stride_T_foot
-                return KinematicMeasurement(a.stride_T_camera, a.covariance)
-            if self._strike_foot_R is None:
+                self._stride_T_foot = a.stride_T_foot
+                cov = a.covariance
+                if self._strike_up_sigma is not None and self._strike_up is not None:
+                    cov = tilt_covariance(a.stride_T_camera, cov, self._strike_up_sigma)
+                return KinematicMeasurement(a.stride_T_camera, cov)
+            if self._stride_T_foot is None:
                 return None
             from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2
 
             cov = self.leg_model.camera_covariance(q, DEFAULT_ENCODER_VAR_RAD2, contact="foot_flat")
-            return KinematicMeasurement(self._strike_foot_R @ self.leg_model.foot_T_camera(q), cov)
+            return KinematicMeasurement(self._stride_T_foot @ self.leg_model.foot_T_camera(q), cov)
         except KinematicsError as err:
             log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
             return None
+
+    def _up_at(self, t_s: float) -> np.ndarray | None:
+        """Up in the IMU frame at ``t_s``: the caller's (``foot_strike(up_in_imu=...)``) rotated
+        from the strike to ``t_s`` by the gyro, else the accelerometer mean before ``t_s``."""
+        if self._strike_up is not None:
+            t0, up = self._strike_up
+            if t_s <= t0:
+                return up
+            seg = self.imu.integrate(t0, t_s, gtsam.imuBias.ConstantBias())
+            if seg.ok:  # strike_R_now: up_now = strike_R_nowᵀ · up_strike
+                return np.asarray(seg.pim.deltaRij().matrix()).T @ up
+            log.warning("t=%.3f s: no IMU to carry the strike's up vector (%s)", t_s, seg.reason)
+        w = self.cfg.kinematics.gravity_window_s
+        return self.imu.mean_accel(t_s - w, t_s)
+
+    def _predicted_cov(self, g: StrideGraph, k: int, seg, dt_s: float) -> np.ndarray | None:
+        """Approximate covariance of the predicted ``X(k)`` (IMU local): the marginal of
+        ``X(k-1)``, its velocity's marginal × dt² and the preintegration noise."""
+        try:
+            cov = g.marginal_covariance(X(k - 1)).copy()
+            cov_v = g.marginal_covariance(V(k - 1))
+        except RuntimeError as err:
+            log.info("no marginal for the stance gate (%s)", err)
+            return None
+        rot = g.estimate.atPose3(X(k - 1)).rotation().matrix()
+        cov[3:, 3:] += rot.T @ cov_v @ rot * dt_s**2
+        if seg.ok:
+            cov += np.asarray(seg.pim.preintMeasCov())[:6, :6]
+        return cov
+
+    def _contact_factors(
+        self, t_s: float, k: int, pred: gtsam.Pose3, pred_cov: np.ndarray | None = None
+    ):
+        """Stance factors of the ``contact_points`` model (see ``KinematicFactorConfig``).
+
+        Heel at the stride origin while the foot is not pitched toe-down (before heel-off),
+        toe at its foot-flat position (level ground) while the foot is not pitched toe-up
+        (from foot flat to toe-off). The foot pitch comes from the predicted IMU orientation
+        and the encoders. A point farther than ``max_mahalanobis`` from the prediction (its σ
+        combined with the prediction's covariance ``pred_cov`` when given) is not used
+        (``kin_inconsistent``). Returns ``(tagged factors, flags)``."""
+        from kinematics.errors import KinematicsError
+
+        q = self._q_at(t_s)
+        if self.leg_model is None or q is None:
+            return [], ["no_kinematics"]
+        kc = self.cfg.kinematics
+        try:
+            imu_T_foot = np.linalg.inv(self.leg_model.foot_T_imu(q))
+            foot_p_toe = self.leg_model.frame_T_frame("heel", "toe", q)[:3, 3]
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
+            return [], ["no_kinematics"]
+        stride_R_foot = pred.rotation().matrix() @ imu_T_foot[:3, :3]
+        x = stride_R_foot[:, 0]
+        pitch = float(np.arctan2(x[2], np.hypot(x[0], x[1])))
+        if pitch < -kc.contact_pitch_rad:
+            self._heel_off = True
+        points = []
+        if not self._heel_off:
+            points.append(("heel", imu_T_foot[:3, 3], np.zeros(3)))
+        if pitch < kc.contact_pitch_rad:
+            points.append(("toe", imu_T_foot[:3, :3] @ foot_p_toe + imu_T_foot[:3, 3], foot_p_toe))
+        tagged, flags = [], []
+        pose = pred.matrix()
+        for name, imu_p, stride_p in points:
+            err, h = factors.contact_point_residual(pose, imu_p, stride_p)
+            cov = np.eye(3) * kc.contact_sigma_m**2
+            if pred_cov is not None:
+                cov = cov + h @ pred_cov @ h.T
+            if np.sqrt(err @ np.linalg.solve(cov, err)) > kc.max_mahalanobis:
+                flags.append(f"kin_inconsistent:{name}")
+                continue
+            tagged.append(
+                (
+                    "kin",
+                    factors.contact_point_factor(
+                        k, imu_p, stride_p, kc.contact_sigma_m, kc.robust_kernel, kc.robust_k
+                    ),
+                )
+            )
+        if not points:
+            flags.append("no_contact")
+        return tagged, flags
 
     def _imu_up_to_model(self, up_in_imu: np.ndarray | None) -> np.ndarray | None:
         """The session IMU's up vector in the leg model's ``imu`` frame (via the camera)."""
@@ -242,7 +373,23 @@ class StrideSLAM:
                 gate, f = self._icp_factor(icp, index, k)
                 if f is not None:
                     tagged.append(("icp", f))
-            if foot_loaded and use["kin"]:
+            contact_model = (
+                kinematics is None
+                and self.leg_model is not None
+                and self.cfg.kinematics.stance_model == "contact_points"
+            )
+            if foot_loaded and use["kin"] and contact_model:
+                if self._stride_start in ("missed_foot_strike", "no_anchor"):
+                    flags.append("kin_unanchored")
+                else:
+                    kin_tagged, kin_flags = self._contact_factors(
+                        t_s, k, pred.pose(), self._predicted_cov(g, k, seg, t_s - t_prev)
+                    )
+                    tagged += kin_tagged
+                    flags += kin_flags
+                    if any(f.startswith("kin_inconsistent") for f in kin_flags):
+                        g.flags.add("kin_inconsistent")
+            elif foot_loaded and use["kin"]:
                 if kinematics is None:
                     kinematics = self._kinematics_from_joints(t_s, anchor=False)
                 if kinematics is not None and self._stride_start in (
@@ -438,6 +585,9 @@ class StrideSLAM:
         self._graph = g
         self._stride_start = reason
         self._pending_start = None
+        self._strike_up = None
+        self._strike_up_sigma = None
+        self._heel_off = False
         self._stride_t0 = t_s
         self._frame_to_k = {}
         self._frames_in_stride = []

@@ -54,6 +54,43 @@ def kinematic_prior_factor(
     return gtsam.PriorFactorPose3(X(k), mean, noise.robust(noise.covariance(cov), kernel, robust_k))
 
 
+def contact_point_residual(
+    stride_T_imu: np.ndarray, imu_p_point: np.ndarray, stride_p_point: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residual ``R·p_imu + t − p_stride`` (m) of a contact point and its 3×6 Jacobian with
+    respect to the IMU pose (right perturbation, rotation first): ``[−R·[p]×, R]``."""
+    rot = np.asarray(stride_T_imu, float)[:3, :3]
+    p = np.asarray(imu_p_point, float)
+    err = rot @ p + np.asarray(stride_T_imu, float)[:3, 3] - np.asarray(stride_p_point, float)
+    skew = np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
+    return err, np.hstack([-rot @ skew, rot])
+
+
+def contact_point_factor(
+    k: int,
+    imu_p_point: np.ndarray,
+    stride_p_point: np.ndarray,
+    sigma_m: float,
+    kernel: RobustKernel = "huber",
+    robust_k: float = 2.0,
+) -> gtsam.CustomFactor:
+    """Stance factor on ``X(k)``: a point of the foot in contact (heel or toe, given in the IMU
+    frame by FK of the encoders) is at ``stride_p_point``. Constrains 3 of the 6 pose
+    directions: the foot may pivot about the point (heel rocker, toe rocker)."""
+    imu_p = np.asarray(imu_p_point, float).copy()
+    stride_p = np.asarray(stride_p_point, float).copy()
+
+    def error(this: gtsam.CustomFactor, values: gtsam.Values, jac: list | None):
+        pose = values.atPose3(this.keys()[0]).matrix()
+        err, h = contact_point_residual(pose, imu_p, stride_p)
+        if jac is not None:
+            jac[0] = h
+        return err
+
+    model = noise.robust(noise.vector_sigmas(sigma_m), kernel, robust_k)
+    return gtsam.CustomFactor(model, [X(k)], error)
+
+
 def icp_between_factor(
     k_target: int,
     k_source: int,

@@ -87,6 +87,19 @@ class PipelineConfig(ConfigModel):
         description="gyro-rotated accel averaging before a reset (about one stride; the "
         "previous stride's duration when known)",
     )
+    gravity_sigma_rad: float | None = Field(
+        0.01,
+        gt=0,
+        description="σ of the stride-start up vector's direction (graph variants; measured "
+        "within 0.3° on the simulator): the anchor's tilt σ. None: the kinematics' contact "
+        "covariance (up to 5°), which lets the accel bias and the tilt trade off",
+    )
+    gravity_min_window_s: float = Field(
+        0.8,
+        gt=0,
+        description="a shorter gravity window (the session's first foot strike) keeps the "
+        "kinematics' covariance: its up vector was 13° off on the simulator",
+    )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
 
     @model_validator(mode="after")

@@ -116,7 +116,21 @@ class GraphPipeline:
         self.slam.add_joints(t_s, knee_rad, ankle_rad)
 
     def foot_strike(self, t_s: float) -> None:
-        self.slam.foot_strike(t_s)
+        """Close the stride; the new one's anchor takes its gravity from the gyro-rotated
+        accelerometer mean over the previous stride (:func:`inputs.gravity_up`)."""
+        from graph_slam.pipelines.inputs import gravity_up
+
+        up = sigma = None
+        if self.streams is not None:
+            window = self.streams.window_before(t_s, self.cfg.gravity_window_s)
+            up = gravity_up(self.streams, t_s, window)
+            span = 0.0 if self.streams.imu_t_s is None else t_s - self.streams.imu_t_s[0]
+            if (
+                self.cfg.gravity_sigma_rad is not None
+                and min(window, span) >= self.cfg.gravity_min_window_s
+            ):
+                sigma = self.cfg.gravity_sigma_rad
+        self.slam.foot_strike(t_s, up_in_imu=up, up_sigma_rad=sigma)
         self._new_stride = True
 
     def _guess(self, t_s: float) -> np.ndarray:
@@ -127,36 +141,6 @@ class GraphPipeline:
         pose0, t0 = self._prev2
         xi = gtsam.Pose3.Logmap(gtsam.Pose3(np.linalg.inv(pose0) @ pose1))
         return gtsam.Pose3.Expmap(xi * (t_s - t1) / max(t1 - t0, 1e-6)).matrix()
-
-    def _starts_stride(self) -> bool:
-        return self.slam._graph is None or self.slam._pending_start is not None
-
-    def _anchor(self, t_s: float):
-        """The stride-start prior: encoders -> ``foot_T_camera``, gravity from the gyro-rotated
-        accelerometer mean over the previous stride (:func:`inputs.gravity_up`)."""
-        from graph_slam.backend.measurements import KinematicMeasurement
-        from graph_slam.pipelines.inputs import gravity_up, imu_up_in_model
-        from kinematics.errors import KinematicsError
-        from kinematics.stride_frame import stride_T_camera
-
-        if self.streams is None or self.leg_model is None:
-            return None
-        q = self.streams.q_at(t_s)
-        g = gravity_up(
-            self.streams, t_s, self.streams.window_before(t_s, self.cfg.gravity_window_s)
-        )
-        if q is None or g is None:
-            return None
-        try:
-            a = stride_T_camera(
-                self.leg_model, q, up_in_imu=imu_up_in_model(self.leg_model, self.camera_T_imu, g)
-            )
-        except KinematicsError as err:
-            log.warning("t=%.3f s: no anchor (%s)", t_s, err)
-            return None
-        # the stance factors hold this foot orientation (StrideSLAM keeps it per stride)
-        self.slam._strike_foot_R = a.stride_T_foot
-        return KinematicMeasurement(a.stride_T_camera, a.covariance)
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         t0 = time.perf_counter()
@@ -183,8 +167,7 @@ class GraphPipeline:
                 pyramid = None
         t1 = time.perf_counter()
         self._new_stride = False
-        anchor = self._anchor(frame.t_s) if self._starts_stride() else None
-        est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded, kinematics=anchor)
+        est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
         t2 = time.perf_counter()
         if est.k == 0:
             self._prev2 = None
