@@ -160,29 +160,37 @@ class ProsthesisProfile(ConfigModel):
     sources: tuple[str, ...] = ()
 
 
-def load_profile(cls: type[P], name_or_path: str) -> P:
-    """Load a profile by name (``models/sensors/<name>.yaml``) or by file path."""
+def load_model_config(cls: type[P], folder: str, what: str, name_or_path: str) -> tuple[P, Path]:
+    """Load ``models/<folder>/<name>.yaml`` (or a YAML file path) into ``cls``.
+
+    Errors are :class:`SimulationError` naming the file (or the known names) and the field.
+    """
     from graph_slam_models import model_path
 
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
         try:
-            path = model_path(f"sensors/{name_or_path}.yaml")
+            path = model_path(f"{folder}/{name_or_path}.yaml")
         except (FileNotFoundError, ValueError):
             raise SimulationError(
-                f"sensor profile {name_or_path!r}: no file models/sensors/{name_or_path}.yaml "
-                f"(known: {', '.join(known_names('sensors'))})"
+                f"{what} {name_or_path!r}: no file models/{folder}/{name_or_path}.yaml "
+                f"(known: {', '.join(known_names(folder))})"
             ) from None
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as err:
-        raise SimulationError(f"{path}: cannot read sensor profile ({err.strerror})") from None
+        raise SimulationError(f"{path}: cannot read {what} ({err.strerror})") from None
     except yaml.YAMLError as err:
         raise SimulationError(f"{path}: not valid YAML ({err})") from None
     try:
-        return config_from_dict(cls, data, source=str(path))
+        return config_from_dict(cls, data, source=str(path)), path
     except ConfigError as err:
         raise SimulationError(str(err)) from None
+
+
+def load_profile(cls: type[P], name_or_path: str) -> P:
+    """Load a profile by name (``models/sensors/<name>.yaml``) or by file path."""
+    return load_model_config(cls, "sensors", "sensor profile", name_or_path)[0]
 
 
 def known_names(folder: str) -> list[str]:

@@ -16,15 +16,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import Field
 
-from graph_slam.config import ConfigModel, config_from_dict
-from graph_slam.errors import ConfigError, SimulationError
+from graph_slam.config import ConfigModel
+from graph_slam.errors import SimulationError
 from graph_slam.session.records import SceneObject, SceneTruth
 
 TEXTURE_TEXEL_M = 0.005
@@ -279,27 +277,7 @@ def _pose(center: np.ndarray, yaw: float) -> np.ndarray:
 
 def load_scene(name_or_path: str) -> Scene:
     """Load ``models/scenes/<name>.yaml`` or a YAML file path."""
-    from graph_slam_models import model_path
+    from graph_slam.sim.config import load_model_config
 
-    from graph_slam.sim.config import known_names
-
-    path = Path(name_or_path)
-    if path.suffix not in (".yaml", ".yml"):
-        try:
-            path = model_path(f"scenes/{name_or_path}.yaml")
-        except (FileNotFoundError, ValueError):
-            raise SimulationError(
-                f"scene {name_or_path!r}: no file models/scenes/{name_or_path}.yaml "
-                f"(known: {', '.join(known_names('scenes'))})"
-            ) from None
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise SimulationError(f"{path}: cannot read scene ({err.strerror})") from None
-    except yaml.YAMLError as err:
-        raise SimulationError(f"{path}: not valid YAML ({err})") from None
-    try:
-        spec = config_from_dict(SceneSpec, data, source=str(path))
-    except ConfigError as err:
-        raise SimulationError(str(err)) from None
+    spec, path = load_model_config(SceneSpec, "scenes", "scene", name_or_path)
     return Scene(spec, source=str(path))
