@@ -24,7 +24,7 @@ import numpy as np
 from scipy.signal import find_peaks
 
 from kinematics.gait_curves import joint_angles
-from kinematics.gait_events import detect_from_thigh_imu
+from kinematics.gait_events import detect_from_thigh_imu, match_events
 from kinematics.gait_synth import (
     ImuNoise,
     ImuSeries,
@@ -38,24 +38,13 @@ from kinematics.gait_synth import (
 REPO = Path(__file__).resolve().parents[1]
 
 
-def match(detected: np.ndarray, truth: np.ndarray, gate_s: float = 0.25):
-    errors, missed = [], 0
-    for t in truth:
-        if detected.size and np.min(np.abs(detected - t)) < gate_s:
-            errors.append(detected[np.argmin(np.abs(detected - t))] - t)
-        else:
-            missed += 1
-    extra = sum(1 for d in detected if truth.size == 0 or np.min(np.abs(truth - d)) >= gate_s)
-    return list(errors), missed, extra
-
-
 class Tally:
     def __init__(self) -> None:
         self.errors: list[float] = []
         self.missed = self.extra = self.true = 0
 
     def add(self, detected: np.ndarray, truth: np.ndarray) -> None:
-        e, m, x = match(detected, truth)
+        e, m, x = match_events(detected, truth)
         self.errors += e
         self.missed += m
         self.extra += x

@@ -275,6 +275,24 @@ def read_events_csv(path: str | Path) -> dict[str, np.ndarray]:
 
 
 # --- helpers ---------------------------------------------------------------------------------
+def match_events(
+    detected_s: np.ndarray, truth_s: np.ndarray, gate_s: float = 0.25
+) -> tuple[np.ndarray, int, int]:
+    """Match detected event times to true ones: (errors of the detection nearest each matched
+    true event, detected − true, in s; number of true events with no detection within
+    ``gate_s``; number of detections with no true event within ``gate_s``)."""
+    detected_s = np.asarray(detected_s, float)
+    truth_s = np.asarray(truth_s, float)
+    errors, missed = [], 0
+    for t in truth_s:
+        if detected_s.size and np.min(np.abs(detected_s - t)) < gate_s:
+            errors.append(detected_s[np.argmin(np.abs(detected_s - t))] - t)
+        else:
+            missed += 1
+    extra = sum(1 for d in detected_s if truth_s.size == 0 or np.min(np.abs(truth_s - d)) >= gate_s)
+    return np.asarray(errors), missed, extra
+
+
 def merge_close_strikes(
     strikes_s: np.ndarray, min_stride_s: float, source: str = ""
 ) -> tuple[np.ndarray, int]:

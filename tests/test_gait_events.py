@@ -15,6 +15,7 @@ from kinematics.gait_events import (
     detect_from_load_cell,
     detect_from_thigh_imu,
     gait_phase,
+    match_events,
     merge_close_strikes,
     read_events_csv,
     read_imu_csv,
@@ -33,18 +34,6 @@ from kinematics.gait_synth import (
 
 MOT = Path(__file__).resolve().parent / "data" / "opensim_subject01_walk1_ik.mot"
 TOL_S = 0.060  # the issue's bar: foot strikes within ±60 ms
-
-
-def match(detected: np.ndarray, truth: np.ndarray, gate_s: float = 0.25):
-    """Errors of the detections nearest each true event; counts of missed and extra events."""
-    errors, missed = [], 0
-    for t in truth:
-        if detected.size and np.min(np.abs(detected - t)) < gate_s:
-            errors.append(detected[np.argmin(np.abs(detected - t))] - t)
-        else:
-            missed += 1
-    extra = sum(1 for d in detected if truth.size == 0 or np.min(np.abs(truth - d)) >= gate_s)
-    return np.asarray(errors), missed, extra
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +65,7 @@ def test_real_trial_thigh_imu_meets_the_60ms_bar(motion, side, seed, rate_hz) ->
         motion, side, rate_hz=rate_hz, thigh_R_sensor=random_mounting(seed), seed=seed
     )
     events = detect_from_thigh_imu(imu)
-    errors, missed, extra = match(events.foot_strikes_s, truth)
+    errors, missed, extra = match_events(events.foot_strikes_s, truth)
     assert missed == 0 and extra == 0
     assert np.abs(errors).max() < TOL_S, errors
 
@@ -88,10 +77,10 @@ def test_reference_walking_with_standing_before_and_after(speed) -> None:
         seed=int(speed * 10),
     )  # fmt: skip
     events = detect_from_thigh_imu(sim.imu)
-    errors, missed, extra = match(events.foot_strikes_s, sim.foot_strikes_s)
+    errors, missed, extra = match_events(events.foot_strikes_s, sim.foot_strikes_s)
     assert missed == 0 and extra == 0
     assert np.abs(errors).max() < 0.02  # the template is the truth here: much tighter than 60 ms
-    to_errors, to_missed, to_extra = match(events.toe_offs_s, sim.toe_offs_s)
+    to_errors, to_missed, to_extra = match_events(events.toe_offs_s, sim.toe_offs_s)
     assert to_missed == 0 and to_extra == 0
     assert np.abs(to_errors).max() < TOL_S
     # no events while standing (first 3 s and last 3 s)
@@ -114,7 +103,9 @@ def test_heavy_noise_and_bias_still_detected() -> None:
         1.0, n_strides=5, rate_hz=100.0, thigh_R_sensor=random_mounting(4), noise=noise, seed=4,
         stride_time_jitter=0.05,
     )  # fmt: skip
-    errors, missed, extra = match(detect_from_thigh_imu(sim.imu).foot_strikes_s, sim.foot_strikes_s)
+    errors, missed, extra = match_events(
+        detect_from_thigh_imu(sim.imu).foot_strikes_s, sim.foot_strikes_s
+    )
     assert missed == 0 and extra == 0 and np.abs(errors).max() < TOL_S
 
 
@@ -169,14 +160,14 @@ def test_load_cell_hysteresis_standing_before_and_after() -> None:
     f = _load(t, contacts, rng)
     events = detect_from_load_cell(t, f, on_threshold_n=150.0, off_threshold_n=60.0)
     # the only toe-offs are real lift-offs; standing gives no events
-    errors, missed, extra = match(events.foot_strikes_s, strikes)
+    errors, missed, extra = match_events(events.foot_strikes_s, strikes)
     assert missed == 0 and extra == 0 and np.abs(errors).max() < 0.02
     true_to = np.array([3.0] + [s + 0.7 for s in strikes[:-1]])
-    to_err, to_missed, to_extra = match(events.toe_offs_s, true_to)
+    to_err, to_missed, to_extra = match_events(events.toe_offs_s, true_to)
     assert to_missed == 0 and to_extra == 0 and np.abs(to_err).max() < 0.02
     # default thresholds (relative to the load range) agree
     auto = detect_from_load_cell(t, f)
-    assert match(auto.foot_strikes_s, strikes)[1:] == (0, 0)
+    assert match_events(auto.foot_strikes_s, strikes)[1:] == (0, 0)
 
 
 def test_load_cell_standing_only_and_chatter_and_merge(caplog) -> None:
@@ -258,3 +249,10 @@ def test_bad_imu_csv_names_file_line_column_rule(tmp_path: Path, text: str, patt
     with pytest.raises(GaitInputError, match=pattern) as info:
         read_imu_csv(path)
     assert str(path) in str(info.value)
+
+
+def test_match_events_known_answer() -> None:
+    errors, missed, extra = match_events(np.array([1.02, 2.5, 3.0]), np.array([1.0, 2.0, 3.1]))
+    # 1.0 ↔ 1.02 and 3.1 ↔ 3.0 match; 2.0 has no detection within 0.25 s; 2.5 is extra.
+    np.testing.assert_allclose(errors, [0.02, -0.1])
+    assert (missed, extra) == (1, 1)

@@ -12,29 +12,15 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from graph_slam.config import ConfigModel
+from graph_slam.session.manifest import IntrinsicsSpec, Matrix4
 
 GaitKind = Literal["foot_strike", "toe_off"]
 #: The names of the registered sources (graph_slam.session.adapters.registry.ADAPTERS).
 SourceFormat = Literal["auto", "rosbag", "tum", "euroc", "prosthesis-log", "session", "synthetic"]
 BagPreset = Literal["auto", "realsense-sdk", "realsense-ros", "none"]
 
-Matrix4 = tuple[
-    tuple[float, float, float, float],
-    tuple[float, float, float, float],
-    tuple[float, float, float, float],
-    tuple[float, float, float, float],
-]
-
-
-class IntrinsicsConfig(ConfigModel):
-    """Pinhole intrinsics of the depth image (pixels), given explicitly."""
-
-    width_px: int = Field(gt=0)
-    height_px: int = Field(gt=0)
-    fx_px: float = Field(gt=0)
-    fy_px: float = Field(gt=0)
-    cx_px: float
-    cy_px: float
+# The manifest's intrinsics schema and 4×4 type, under the names this config has always used.
+IntrinsicsConfig = IntrinsicsSpec
 
 
 class AssociationConfig(ConfigModel):
