@@ -45,7 +45,7 @@ class Tally:
 
     def add(self, detected: np.ndarray, truth: np.ndarray) -> None:
         e, m, x = match_events(detected, truth)
-        self.errors += e
+        self.errors.extend(e.tolist())
         self.missed += m
         self.extra += x
         self.true += truth.size
