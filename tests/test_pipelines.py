@@ -169,3 +169,48 @@ def test_imu_kin_follows_the_truth(sim_session):
         assert sc.smoothed_rmse_m < 0.06, sc
     stance = [f for f in r.backend.frames if f.stride_index > 0 and f.kinematic_factor]
     assert len(stance) > 20
+
+
+@pytest.fixture(scope="session")
+def scored_full(sim_session):
+    """The full graph on the whole session (2 scored strides), default configuration."""
+    from graph_slam.bench.pipelines import score
+    from graph_slam.pipelines.inputs import leg_model_for
+    from graph_slam.session import open_session
+
+    s = open_session(sim_session)
+    leg = leg_model_for(s.calibration.thigh_T_camera)
+
+    def run(**overrides):
+        r = run_session(s, PipelineConfig(variant="icp+imu+kin", **overrides))
+        return r, score(s, r, leg)
+
+    return run
+
+
+def test_full_graph_meets_the_stride_rmse_target(scored_full):
+    """Issue 6 target on a small session: smoothed stride-frame RMSE (no alignment) ≤ 5 mm per
+    stride. Measured 1.6 and 3.4 mm (online 1.2, 2.8 mm); without the floor in the anchor's
+    tilt 18.0 and 11.4 mm (the IMU's up vector was 1.4° and 0.8° off)."""
+    r, scores = scored_full()
+    assert len(scores) == 2
+    for sc in scores:
+        assert sc.smoothed_rmse_m < 0.005, sc
+        assert sc.online_rmse_m < 0.008, sc
+    assert r.has_pose.all()
+    floor = [x for f in r.frames for x in f.flags if x.startswith("floor:")]
+    assert floor == ["floor:ok"] * r.counts["foot_strikes"]  # one fit per stride start
+
+
+def test_swing_bridged_by_imu_and_kinematics(scored_full):
+    """ICP removed for every swing frame (``graph.icp_in_swing: false``): the IMU carries the
+    swing; the error at the last frame before the next foot strike stays under 3 cm (issue 6;
+    measured 12.4 and 13.6 mm smoothed)."""
+    r, scores = scored_full(graph={"icp_in_swing": False})
+    assert len(scores) == 2
+    for sc in scores:
+        assert sc.end_smoothed_m < 0.03, sc
+        assert sc.end_online_m < 0.03, sc
+    swing = [f for f in r.frames if not f.foot_loaded and f.stride_index > 0]
+    assert swing and all(not any(x.startswith("icp:") for x in f.flags) for f in swing)
+    assert r.has_pose.all()

@@ -119,6 +119,7 @@ class StrideSLAM:
         t_s: float,
         up_in_imu: np.ndarray | None = None,
         up_sigma_rad: float | None = None,
+        up_t_s: float | None = None,
     ) -> StrideSummary | None:
         """A foot strike: close the current stride (smoothing); the next frame starts a new one.
 
@@ -130,6 +131,8 @@ class StrideSLAM:
         ``up_sigma_rad``: the σ of that up vector's direction. Given, it replaces the anchor's
         roll/pitch uncertainty (the camera's tilt in the stride frame is the IMU's, whatever
         the foot contact); otherwise the kinematics' covariance (contact σ up to 5°) stays.
+        ``up_t_s``: the time at which ``up_in_imu`` holds (default ``t_s``; e.g. the new
+        stride's first frame when the up vector comes from the floor in its depth).
         """
         if up_sigma_rad is not None and not (np.isfinite(up_sigma_rad) and up_sigma_rad > 0):
             raise EstimationError(
@@ -142,7 +145,7 @@ class StrideSLAM:
                 raise EstimationError(
                     f"foot_strike: up_in_imu must be a finite non-zero 3-vector, got {up_in_imu!r}"
                 )
-            self._strike_up = (float(t_s), up)
+            self._strike_up = (float(t_s if up_t_s is None else up_t_s), up)
         else:
             self._strike_up = None
         summary = self._close_stride() if self._graph is not None else None

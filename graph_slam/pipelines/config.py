@@ -8,6 +8,7 @@ from pydantic import Field, model_validator
 
 from graph_slam.backend.config import BackendConfig
 from graph_slam.config import ConfigModel
+from graph_slam.frontend.floor import FloorConfig
 from graph_slam.frontend.config import (
     THESIS_LEVELS,
     CloudConfig,
@@ -61,6 +62,15 @@ class GraphFrontendConfig(ConfigModel):
     constant_velocity_guess: bool = Field(
         True, description="initial guess: the last online relative motion scaled by Δt"
     )
+    icp_in_swing: bool = Field(
+        True,
+        description="False: no registration while the foot is unloaded, as if every swing "
+        "registration failed (the bridging experiment: IMU + kinematics carry the swing)",
+    )
+    floor: FloorConfig = Field(
+        default_factory=FloorConfig,
+        description="the floor plane in the stride's first frame, fused into the anchor's tilt",
+    )
 
 
 class PipelineConfig(ConfigModel):
@@ -99,6 +109,12 @@ class PipelineConfig(ConfigModel):
         gt=0,
         description="a shorter gravity window (the session's first foot strike) keeps the "
         "kinematics' covariance: its up vector was 13° off on the simulator",
+    )
+    gravity_short_sigma_rad: float = Field(
+        0.2,
+        gt=0,
+        description="σ assumed for an up vector from a window shorter than "
+        "gravity_min_window_s when fusing it with the floor (widens the floor's angle gate)",
     )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
 

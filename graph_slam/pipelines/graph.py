@@ -108,6 +108,7 @@ class GraphPipeline:
         self.streams = None  # inputs.Streams, set by run_session (gravity at foot strikes)
         self.leg_model = leg_model
         self.camera_T_imu = np.asarray(camera_T_imu, float)
+        self._pending_strike: float | None = None
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
@@ -116,22 +117,46 @@ class GraphPipeline:
         self.slam.add_joints(t_s, knee_rad, ankle_rad)
 
     def foot_strike(self, t_s: float) -> None:
-        """Close the stride; the new one's anchor takes its gravity from the gyro-rotated
-        accelerometer mean over the previous stride (:func:`inputs.gravity_up`)."""
+        """Note the strike; the stride is closed at the next frame (or at ``finish``), whose
+        depth gives the floor for the new anchor's tilt (:meth:`_strike_with_up`)."""
+        self._pending_strike = float(t_s)
+        self._new_stride = True
+
+    def _strike_with_up(self, t_frame_s: float, cloud):
+        """Close the stride at the pending strike. The new anchor's up vector (IMU frame at the
+        new stride's first frame): the gyro-rotated accelerometer mean over about one stride
+        (:func:`inputs.gravity_up`), fused with the floor plane in this frame's depth when one
+        lies near it (:mod:`graph_slam.frontend.floor`). Returns the floor fit (None: not
+        tried — no IMU up vector, no depth or the floor disabled)."""
+        from graph_slam.frontend.floor import fit_floor, fuse_up
         from graph_slam.pipelines.inputs import gravity_up
 
+        t_strike, self._pending_strike = self._pending_strike, None
         up = sigma = None
         if self.streams is not None:
-            window = self.streams.window_before(t_s, self.cfg.gravity_window_s)
-            up = gravity_up(self.streams, t_s, window)
-            span = 0.0 if self.streams.imu_t_s is None else t_s - self.streams.imu_t_s[0]
+            window = self.streams.window_before(t_strike, self.cfg.gravity_window_s)
+            up = gravity_up(self.streams, t_frame_s, window)
+            span = 0.0 if self.streams.imu_t_s is None else t_frame_s - self.streams.imu_t_s[0]
             if (
                 self.cfg.gravity_sigma_rad is not None
                 and min(window, span) >= self.cfg.gravity_min_window_s
             ):
                 sigma = self.cfg.gravity_sigma_rad
-        self.slam.foot_strike(t_s, up_in_imu=up, up_sigma_rad=sigma)
-        self._new_stride = True
+        fcfg = self.cfg.graph.floor
+        fit = None
+        if up is not None and cloud is not None and fcfg.enabled:
+            sigma_imu = sigma if sigma is not None else self.cfg.gravity_short_sigma_rad
+            hint = self.camera_T_imu[:3, :3] @ up  # camera frame
+            fit = fit_floor(
+                cloud.points_m, hint, fcfg, max_angle_rad=fcfg.max_angle_rad + 3.0 * sigma_imu
+            )
+            if fit.ok:
+                n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
+                up, sigma = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
+            else:
+                log.info("t=%.3f s: no floor for the anchor (%s)", t_frame_s, fit.reason)
+        self.slam.foot_strike(t_strike, up_in_imu=up, up_sigma_rad=sigma, up_t_s=t_frame_s)
+        return fit
 
     def _guess(self, t_s: float) -> np.ndarray:
         """Initial ``prev_T_current``: constant velocity from the last two online poses."""
@@ -148,7 +173,9 @@ class GraphPipeline:
         icp = None
         pyramid = None
         fitness = float("nan")
-        if self.use_icp:
+        cloud = None
+        skip = not (self.cfg.graph.icp_in_swing or foot_loaded)
+        if self.use_icp and not skip:
             cloud, _ = depth_to_cloud(frame, self.intrinsics, self.cfg.cloud)
             if not self.has_color:
                 cloud = type(cloud)(cloud.points_m)
@@ -165,6 +192,11 @@ class GraphPipeline:
                 pyramid = build_pyramid(cloud, self.registration)
             except RegistrationError:
                 pyramid = None
+        floor_flag: tuple[str, ...] = ()
+        if self._pending_strike is not None:
+            fit = self._strike_with_up(frame.t_s, cloud)
+            if fit is not None:
+                floor_flag = (f"floor:{fit.reason}",)
         t1 = time.perf_counter()
         self._new_stride = False
         est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
@@ -174,10 +206,9 @@ class GraphPipeline:
         elif self._prev is not None:
             self._prev2 = (self._prev[2], self._prev[3])
         self._prev = (index, pyramid, est.stride_T_camera, frame.t_s)
-        if pyramid is None:
+        if pyramid is None:  # nothing to register the next frame against
             self._prev = None
             self._prev2 = None
-            self._new_stride = True  # nothing to register the next frame against
         status = "reset" if est.k == 0 else "estimated"
         out = FrameOutput(
             frame_index=index,
@@ -190,13 +221,18 @@ class GraphPipeline:
             frontend_s=t1 - t0,
             backend_s=t2 - t1,
             fitness=fitness,
-            flags=est.flags + ((f"icp:{est.gate.reason}",) if est.gate is not None else ()),
+            flags=est.flags
+            + floor_flag
+            + ((f"icp:{est.gate.reason}",) if est.gate is not None else ()),
         )
         self.results.frames.append(out)
         return out
 
     def finish(self) -> PipelineResults:
         t0 = time.perf_counter()
+        if self._pending_strike is not None:  # a strike after the last frame
+            self.slam.foot_strike(self._pending_strike)
+            self._pending_strike = None
         res = self.slam.finish()
         log.debug("final smoothing %.3f s", time.perf_counter() - t0)
         self.results.backend = res
