@@ -8,13 +8,13 @@ from pydantic import Field, model_validator
 
 from graph_slam.backend.config import BackendConfig
 from graph_slam.config import ConfigModel
-from graph_slam.frontend.floor import FloorConfig
 from graph_slam.frontend.config import (
     THESIS_LEVELS,
     CloudConfig,
     LevelConfig,
     RegistrationConfig,
 )
+from graph_slam.frontend.floor import FloorConfig
 
 PipelineVariant = Literal["icp", "icp+imu", "imu+kin", "icp+imu+kin"]
 
