@@ -124,12 +124,28 @@ def score(session, results: PipelineResults, leg_model) -> list[StrideScore]:
     return out
 
 
+BRIDGE = "bridge"
+"""The bridging experiment: ``icp+imu+kin`` with no registration in swing (``graph.icp_in_swing``
+False), as if every swing registration failed; scored at the next foot strike."""
+
+
+def variant_config(name: str) -> PipelineConfig:
+    """The pipeline configuration of a benchmark row (a variant or :data:`BRIDGE`)."""
+    if name == BRIDGE:
+        return PipelineConfig(variant="icp+imu+kin", graph={"icp_in_swing": False})
+    return PipelineConfig(variant=name)
+
+
 def run_pipelines_bench(
     sessions: dict[str, Path],
-    variants: tuple[str, ...] = VARIANTS,
+    variants: tuple[str, ...] = (*VARIANTS, BRIDGE),
     progress=None,
+    on_variant=None,
 ) -> list[SessionScore]:
-    """Run every variant on every session (speed -> folder) and score it."""
+    """Run every variant on every session (speed -> folder) and score it.
+
+    ``on_variant(session_score, variant)`` is called as soon as a variant is scored (the CLI
+    prints its lines then: a full run takes many minutes)."""
     from graph_slam.pipelines.inputs import leg_model_for
     from graph_slam.session import open_session
 
@@ -140,7 +156,7 @@ def run_pipelines_bench(
         sc = SessionScore(session.name, speed)
         for v in variants:
             t0 = time.perf_counter()
-            res = run_session(session, PipelineConfig(variant=v), progress=progress)
+            res = run_session(session, variant_config(v), progress=progress)
             wall = time.perf_counter() - t0
             sm = res.smoothed_stride_T_camera
             sc.variants[v] = VariantScore(
@@ -151,62 +167,104 @@ def run_pipelines_bench(
                 timing_ms=res.timings_ms(),
                 wall_s=wall,
             )
+            if on_variant is not None:
+                on_variant(sc, v)
         scores.append(sc)
     return scores
 
 
+def variant_lines(v: str, vs: VariantScore) -> list[str]:
+    """One variant on one session: poses, timing, stride-frame RMSE (or the baseline's counts)."""
+    on = np.array([s.online_rmse_m for s in vs.strides]) * 1e3
+    sm = np.array([s.smoothed_rmse_m for s in vs.strides]) * 1e3
+    endo = np.array([s.end_online_m for s in vs.strides]) * 1e3
+    ends = np.array([s.end_smoothed_m for s in vs.strides]) * 1e3
+    lines = [
+        f"  {v:12s} {len(vs.strides)} full strides; frames without pose online "
+        f"{vs.frames_without_pose_online}, smoothed {vs.frames_without_pose_smoothed}; "
+        f"per-frame time median {vs.timing_ms['median']:.1f} ms, "
+        f"p95 {vs.timing_ms['p95']:.1f} ms; wall {vs.wall_s:.1f} s"
+    ]
+    if v != "icp" and on.size:
+        lines.append(
+            f"    stride-frame RMSE online median {np.median(on):.1f} / worst "
+            f"{on.max():.1f} mm; smoothed median {np.median(sm):.1f} / worst "
+            f"{sm.max():.1f} mm; error at next foot strike online max "
+            f"{endo.max():.1f} mm, smoothed max {ends.max():.1f} mm"
+        )
+        lines.append(
+            "    per stride smoothed / online / next strike (mm): "
+            + ", ".join(f"{a:.1f}/{b:.1f}/{c:.1f}" for a, b, c in zip(sm, on, ends, strict=True))
+        )
+    if v == "icp":
+        for s in vs.strides:
+            lines.append(
+                f"    stride {s.index}: {s.n_with_pose}/{s.n_frames} frames with a pose "
+                f"(stance {s.n_registered_stance}/{s.n_stance}, swing "
+                f"{s.n_with_pose - s.n_registered_stance}/{s.n_swing}); RMSE on them "
+                f"{s.smoothed_rmse_m * 1e3:.1f} mm"
+            )
+    return lines
+
+
+def swing_lines(sc: SessionScore) -> list[str]:
+    """The full graph vs the baseline on the same swing frames."""
+    if "icp" not in sc.variants or "icp+imu+kin" not in sc.variants:
+        return []
+    base = {
+        int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1: s
+        for s in sc.variants["icp"].strides
+    }
+    n_sw = n_nopose = 0
+    ratios = []
+    for s in sc.variants["icp+imu+kin"].strides:
+        b = base.get(int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1)
+        if b is None or not np.array_equal(b.swing_frames, s.swing_frames):
+            continue
+        n_sw += s.swing_frames.size
+        has = np.isfinite(b.swing_err_m)
+        n_nopose += int((~has).sum())
+        if has.any():
+            g = np.sqrt(np.mean(s.swing_err_m[has] ** 2))
+            bb = np.sqrt(np.mean(b.swing_err_m[has] ** 2))
+            ratios.append((bb * 1e3, g * 1e3, bb / g))
+    return [
+        f"  swing: {n_sw} frames; baseline without pose on {n_nopose}; where it has "
+        "one, baseline / full-graph RMSE (mm, ratio) per stride: "
+        + (", ".join(f"{a:.1f}/{b:.1f} ({r:.1f}x)" for a, b, r in ratios) or "none")
+    ]
+
+
+def summary_lines(scores: list[SessionScore]) -> list[str]:
+    """Per variant over every session: smoothed stride RMSE median / worst, next-strike max."""
+    lines = ["== all sessions"]
+    names = dict.fromkeys(v for sc in scores for v in sc.variants)
+    for v in names:
+        if v == "icp":
+            continue
+        st = [s for sc in scores if v in sc.variants for s in sc.variants[v].strides]
+        if not st:
+            continue
+        sm = np.array([s.smoothed_rmse_m for s in st]) * 1e3
+        ends = np.array([s.end_smoothed_m for s in st]) * 1e3
+        lines.append(
+            f"  {v:12s} {len(st)} strides: smoothed RMSE median {np.median(sm):.1f} / worst "
+            f"{sm.max():.1f} mm; next strike median {np.median(ends):.1f} / max "
+            f"{ends.max():.1f} mm"
+        )
+    return lines
+
+
 def report_lines(scores: list[SessionScore]) -> list[str]:
     """The figures recorded in docs/benchmarks.md."""
-    lines = [f"pipelines benchmark ({len(os.sched_getaffinity(0))} CPUs visible)"]
+    lines = [header_line()]
     for sc in scores:
         lines.append(f"== {sc.name} ({sc.speed})")
         for v, vs in sc.variants.items():
-            on = np.array([s.online_rmse_m for s in vs.strides]) * 1e3
-            sm = np.array([s.smoothed_rmse_m for s in vs.strides]) * 1e3
-            endo = np.array([s.end_online_m for s in vs.strides]) * 1e3
-            ends = np.array([s.end_smoothed_m for s in vs.strides]) * 1e3
-            lines.append(
-                f"  {v:12s} {len(vs.strides)} full strides; frames without pose online "
-                f"{vs.frames_without_pose_online}, smoothed {vs.frames_without_pose_smoothed}; "
-                f"per-frame time median {vs.timing_ms['median']:.1f} ms, "
-                f"p95 {vs.timing_ms['p95']:.1f} ms; wall {vs.wall_s:.1f} s"
-            )
-            if v != "icp" and on.size:
-                lines.append(
-                    f"    stride-frame RMSE online median {np.median(on):.1f} / worst "
-                    f"{on.max():.1f} mm; smoothed median {np.median(sm):.1f} / worst "
-                    f"{sm.max():.1f} mm; error at next foot strike online max "
-                    f"{endo.max():.1f} mm, smoothed max {ends.max():.1f} mm"
-                )
-            if v == "icp":
-                for s in vs.strides:
-                    lines.append(
-                        f"    stride {s.index}: {s.n_with_pose}/{s.n_frames} frames with a pose "
-                        f"(stance {s.n_registered_stance}/{s.n_stance}, swing "
-                        f"{s.n_with_pose - s.n_registered_stance}/{s.n_swing}); RMSE on them "
-                        f"{s.smoothed_rmse_m * 1e3:.1f} mm"
-                    )
-        if "icp" in sc.variants and "icp+imu+kin" in sc.variants:
-            base = {
-                int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1: s
-                for s in sc.variants["icp"].strides
-            }
-            n_sw = n_nopose = 0
-            ratios = []
-            for s in sc.variants["icp+imu+kin"].strides:
-                b = base.get(int(s.swing_frames[0]) if s.swing_frames.size else -s.index - 1)
-                if b is None or not np.array_equal(b.swing_frames, s.swing_frames):
-                    continue
-                n_sw += s.swing_frames.size
-                has = np.isfinite(b.swing_err_m)
-                n_nopose += int((~has).sum())
-                if has.any():
-                    g = np.sqrt(np.mean(s.swing_err_m[has] ** 2))
-                    bb = np.sqrt(np.mean(b.swing_err_m[has] ** 2))
-                    ratios.append((bb * 1e3, g * 1e3, bb / g))
-            lines.append(
-                f"  swing: {n_sw} frames; baseline without pose on {n_nopose}; where it has "
-                "one, baseline / full-graph RMSE (mm, ratio) per stride: "
-                + (", ".join(f"{a:.1f}/{b:.1f} ({r:.1f}x)" for a, b, r in ratios) or "none")
-            )
-    return lines
+            lines += variant_lines(v, vs)
+        lines += swing_lines(sc)
+    return lines + summary_lines(scores)
+
+
+def header_line() -> str:
+    return f"pipelines benchmark ({len(os.sched_getaffinity(0))} CPUs visible)"

@@ -98,10 +98,33 @@ def pipelines_bench(
     sessions: Annotated[
         list[Path], typer.Argument(help="Simulated sessions (graph-slam simulate), one per speed.")
     ],
+    variants: Annotated[
+        str,
+        typer.Option(
+            help="Comma-separated: icp, icp+imu, imu+kin, icp+imu+kin, bridge "
+            "(icp+imu+kin without ICP in swing)."
+        ),
+    ] = "icp,icp+imu,imu+kin,icp+imu+kin,bridge",
 ) -> None:
-    """Issue 5/6 figures: every variant on simulated sessions (RMSE, swing, counts, timing)."""
-    from graph_slam.bench.pipelines import report_lines, run_pipelines_bench
+    """Issue 5/6 figures: every variant on simulated sessions (RMSE, swing, counts, timing),
+    and the bridging experiment (no ICP in swing). Prints each variant as it finishes."""
+    from graph_slam.bench import pipelines as bp
 
-    scores = run_pipelines_bench({p.name: p for p in sessions})
-    for line in report_lines(scores):
+    names = tuple(v.strip() for v in variants.split(",") if v.strip())
+    known = (*bp.VARIANTS, bp.BRIDGE)
+    if unknown := [v for v in names if v not in known]:
+        raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(known)}")
+    typer.echo(bp.header_line())
+
+    def show(sc, v: str) -> None:
+        if len(sc.variants) == 1:
+            typer.echo(f"== {sc.name} ({sc.speed})")
+        for line in bp.variant_lines(v, sc.variants[v]):
+            typer.echo(line)
+        if len(sc.variants) == len(names):
+            for line in bp.swing_lines(sc):
+                typer.echo(line)
+
+    scores = bp.run_pipelines_bench({p.name: p for p in sessions}, names, on_variant=show)
+    for line in bp.summary_lines(scores):
         typer.echo(line)
