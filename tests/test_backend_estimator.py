@@ -297,3 +297,24 @@ def test_tilt_covariance_replaces_roll_pitch_about_the_stride_origin():
     slam = StrideSLAM()
     with pytest.raises(EstimationError, match="up_sigma_rad"):
         slam.foot_strike(0.0, up_in_imu=np.array([0.0, 0.0, 9.8]), up_sigma_rad=-1.0)
+
+
+def test_anchor_covariance_is_the_encoders_plus_tilt():
+    """With a known up vector the anchor is uncertain by the encoders' FK error, the up vector's
+    tilt and a small floor on yaw and position (the foot defines the stride frame); no contact
+    noise. Checked in stride-frame (left) coordinates."""
+    from graph_slam.backend.estimator import anchor_covariance
+    from graph_slam.backend.factors import adjoint
+
+    rng = np.random.default_rng(4)
+    j = rng.normal(size=(6, 2)) * 0.3
+    enc = j @ j.T * 1e-6  # rank 2, like J Σq Jᵀ for two encoders
+    pose = gtsam.Pose3(gtsam.Rot3.RzRyRx(-1.9, 0.1, -1.6), np.array([0.2, 0.01, 0.55])).matrix()
+    out = anchor_covariance(pose, enc, 0.003, 1e-3, 2e-3)
+    ad = adjoint(pose)
+    left, left_enc = ad @ out @ ad.T, ad @ enc @ ad.T
+    np.testing.assert_allclose(left[:2, :2], np.eye(2) * 0.003**2, atol=1e-15)
+    np.testing.assert_allclose(left[:2, 2:], 0.0, atol=1e-15)
+    want = left_enc[2:, 2:] + np.diag([1e-3**2, 2e-3**2, 2e-3**2, 2e-3**2])
+    np.testing.assert_allclose(left[2:, 2:], want, atol=1e-15)
+    assert np.linalg.eigvalsh(out).min() > 0  # well conditioned for a prior

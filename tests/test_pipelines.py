@@ -190,7 +190,7 @@ def scored_full(sim_session):
 
 def test_full_graph_meets_the_stride_rmse_target(scored_full):
     """Issue 6 target on a small session: smoothed stride-frame RMSE (no alignment) ≤ 5 mm per
-    stride. Measured 1.6 and 3.4 mm (online 1.2, 2.8 mm); without the floor in the anchor's
+    stride. Measured 2.0 and 2.4 mm (online 1.0, 3.0 mm); without the floor in the anchor's
     tilt 18.0 and 11.4 mm (the IMU's up vector was 1.4° and 0.8° off)."""
     r, scores = scored_full()
     assert len(scores) == 2
@@ -205,7 +205,7 @@ def test_full_graph_meets_the_stride_rmse_target(scored_full):
 def test_swing_bridged_by_imu_and_kinematics(scored_full):
     """ICP removed for every swing frame (``graph.icp_in_swing: false``): the IMU carries the
     swing; the error at the last frame before the next foot strike stays under 3 cm (issue 6;
-    measured 12.4 and 13.6 mm smoothed)."""
+    measured 12.4 and 10.9 mm smoothed, 16.5 and 15.7 mm online)."""
     r, scores = scored_full(graph={"icp_in_swing": False})
     assert len(scores) == 2
     for sc in scores:

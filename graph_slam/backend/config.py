@@ -122,6 +122,18 @@ class PriorConfig(ConfigModel):
     first_roll_pitch_sigma_rad: float = Field(0.05, gt=0)
     first_yaw_sigma_rad: float = Field(1e-3, gt=0, description="the frame's yaw is defined")
     first_position_sigma_m: float = Field(1e-3, gt=0, description="the frame's origin is defined")
+    anchor_yaw_sigma_rad: float = Field(
+        1e-3,
+        gt=0,
+        description="stride anchor with a known up vector: yaw σ added to the encoders' (the "
+        "foot defines the frame's x)",
+    )
+    anchor_position_sigma_m: float = Field(
+        1e-3,
+        gt=0,
+        description="stride anchor with a known up vector: position σ added to the encoders' "
+        "(the heel defines the origin)",
+    )
     carry_inflation: float = Field(1.0, ge=1, description="multiplies carried covariances")
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"
