@@ -593,6 +593,8 @@ class StrideSLAM:
                 cov_x = cov_x + np.diag(np.r_[np.full(3, 0.05**2), np.full(3, (2.0 * dt) ** 2)])
                 cov_v = cov_v + np.eye(3) * (self.cfg.imu.gravity_m_s2 * dt) ** 2
             infl = pc.carry_inflation if reason == "foot_strike" else pc.missed_strike_inflation
+            if self._stride_start == "first_stride":  # carried from the session's first stride
+                infl *= pc.first_carry_inflation
             bias, cov_bias = nav.bias, cov_b * infl
             if anchor is not None and reason == "foot_strike":
                 pose, cov_pose = factors.camera_pose_to_imu(
