@@ -139,8 +139,10 @@ class PriorConfig(ConfigModel):
         10.0,
         ge=1,
         description="also multiplies the covariances carried out of the session's first stride "
-        "(weak priors, often a fraction of a stride): measured over-confident, its velocity and "
-        "bias pulled the next stride's anchor by 9 mm / 0.44° (full resolution, 1.4 m/s)",
+        "when it began with the foot unloaded (a recording started in swing: weak priors, a "
+        "fraction of a stride, an anchor that assumes the foot on the ground): measured "
+        "over-confident, its velocity and bias pulled the next stride's anchor by 9 mm / 0.44° "
+        "(full resolution, 1.4 m/s)",
     )
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"

@@ -111,6 +111,7 @@ class StrideSLAM:
         self._heel_off = False  # contact_points stance: the heel has left the ground
         self._strike_up_sigma: float | None = None
         self._last_nav = None  # (t_s, NavEstimate, cov_pose, cov_vel, cov_bias) at stride end
+        self._started_loaded = True  # the open stride's first frame had the foot loaded
         self.results = Results()
         self._frame_count = 0
         self._last_frame_t = -np.inf
@@ -361,6 +362,7 @@ class StrideSLAM:
             if kinematics is None:
                 kinematics = self._kinematics_from_joints(t_s, anchor=True)
             flags += self._start_stride(t_s, kinematics)
+            self._started_loaded = bool(foot_loaded)
             k = 0
             if icp is not None:
                 gate = GateDecision(False, "previous_stride (ICP across a foot strike not used)")
@@ -593,8 +595,8 @@ class StrideSLAM:
                 cov_x = cov_x + np.diag(np.r_[np.full(3, 0.05**2), np.full(3, (2.0 * dt) ** 2)])
                 cov_v = cov_v + np.eye(3) * (self.cfg.imu.gravity_m_s2 * dt) ** 2
             infl = pc.carry_inflation if reason == "foot_strike" else pc.missed_strike_inflation
-            if self._stride_start == "first_stride":  # carried from the session's first stride
-                infl *= pc.first_carry_inflation
+            if self._stride_start == "first_stride" and not self._started_loaded:
+                infl *= pc.first_carry_inflation  # out of a first stride begun in the air
             bias, cov_bias = nav.bias, cov_b * infl
             if anchor is not None and reason == "foot_strike":
                 pose, cov_pose = factors.camera_pose_to_imu(
