@@ -296,3 +296,32 @@ def test_build_stride_map_from_camera_clouds_and_poses():
     no_floor = build_stride_map([wall], np.eye(4)[None], config=MappingConfig(voxel_m=0.01))
     assert no_floor.obstacles is None and "near-horizontal" in no_floor.obstacle_error
     assert len(no_floor.fused) > 0
+
+
+def test_a_top_seen_thinly_at_its_far_end_is_not_taken_for_a_shorter_box():
+    """Box2's far 45 % seen only as scattered points 2 cm apart (as from 2 m away), on a 5 mm
+    voxel map: they fall into pieces too small to be obstacles, but still count against the
+    dense part, which alone would pass for a 15 cm deep box."""
+    rng = np.random.default_rng(14)
+    (cx, cy), (d, w, h) = BOXES["Box2"]
+    floor = _floor(rng)
+    floor = floor[~((np.abs(floor[:, 0] - cx) < d / 2) & (np.abs(floor[:, 1] - cy) < w / 2))]
+    x_split = cx - d / 2 + 0.55 * d
+    dense = np.column_stack(
+        [rng.uniform(cx - d / 2, x_split, 20_000), rng.uniform(cy - w / 2, cy + w / 2, 20_000)]
+    )
+    gx, gy = np.meshgrid(
+        np.arange(x_split + 0.02, cx + d / 2, 0.02), np.arange(-w / 2 + 0.005, w / 2, 0.02)
+    )
+    sparse = np.column_stack([gx.ravel(), gy.ravel() + cy])
+    top = np.concatenate([dense, sparse])
+    cloud = np.concatenate([floor, np.column_stack([top, np.full(len(top), h)])])
+    cloud += rng.normal(0, 0.0005, cloud.shape)
+    voxel_map = fuse_clouds([cloud], np.eye(4)[None], voxel_m=0.005).points_m
+    result = extract_obstacles(voxel_map)
+    (box,) = result.obstacles
+    assert box.depth_m == pytest.approx(0.55 * d, abs=0.005)  # what the dense part measures
+    assert box.skip_reason == "top_incomplete" and not box.complete
+    # Joining off (join_gap_cells=0): the scattered points are ignored and the box passes.
+    alone = extract_obstacles(voxel_map, ObstacleConfig(join_gap_cells=0))
+    assert alone.obstacles[0].complete

@@ -10,7 +10,10 @@ Steps:
 2. **Floor frame**: z along the floor normal (up), x the stride x axis projected onto the floor,
    origin the stride origin projected onto the floor. Heights are distances above the floor.
 3. **Boxes**: points higher than ``min_height_m`` are binned on an x–y grid; 8-connected
-   components of occupied cells with at least ``min_cells`` cells are obstacles.
+   components of occupied cells with at least ``min_cells`` cells are obstacles. Components
+   joined across gaps of ``join_gap_cells`` empty cells form a *group*: the small pieces of an
+   obstacle's group (a top seen thinly from afar) are not measured but count in its
+   completeness check (5).
 4. **Dimensions** (thesis Table 3.1 order): *depth* along the box's own axis nearest the
    walking direction x, *width* across it, *height* the top surface above the floor. The *top
    layer* is the component's points within ``top_band_m`` of its top (a high quantile), narrowed
@@ -65,6 +68,11 @@ class ObstacleConfig(ConfigModel):
     """Points at least this high above the floor may belong to an obstacle."""
     cell_m: float = Field(0.01, gt=0)
     min_cells: int = Field(20, ge=1)
+    """Least occupied cells of an obstacle."""
+    join_gap_cells: int = Field(1, ge=0)
+    """Small components up to this many empty cells from an obstacle count in its
+    "points beyond the top" check (a sparsely seen top would otherwise fall apart, its dense
+    part passing for the whole box)."""
     top_band_m: float = Field(0.01, gt=0)
     top_layer_min_m: float = Field(0.005, gt=0)
     """Least half-thickness of the top layer. Voxel-averaged edge cells mix top and side points
@@ -375,13 +383,23 @@ def extract_obstacles(
         return ObstacleMap(floor, (), coverage)
     lo = above[:, :2].min(axis=0)
     ij = np.floor((above[:, :2] - lo) / cfg.cell_m).astype(np.int64)
-    occupied = np.zeros(ij.max(axis=0) + 1, dtype=bool)
+    occupied = np.zeros(ij.max(axis=0) + 1 + cfg.join_gap_cells, dtype=bool)
     occupied[ij[:, 0], ij[:, 1]] = True
     labels, n = ndimage.label(occupied, structure=np.ones((3, 3), dtype=bool))
     point_label = labels[ij[:, 0], ij[:, 1]]
     cells = np.bincount(labels.ravel(), minlength=n + 1)
     components = [k for k in range(1, n + 1) if cells[k] >= cfg.min_cells]
     small = n - len(components)
+    # Groups: components joined across gaps of join_gap_cells. A box's dense part is measured,
+    # but the sparse pieces of its group (a top seen thinly from afar) count against it.
+    group_point = point_label
+    if cfg.join_gap_cells:
+        joined = ndimage.binary_dilation(
+            occupied, structure=np.ones((3, 3), bool), iterations=cfg.join_gap_cells
+        )
+        groups, _ = ndimage.label(joined, structure=np.ones((3, 3), dtype=bool))
+        group_point = groups[ij[:, 0], ij[:, 1]]
+    big = np.isin(point_label, components)
     # Each component's footprint on the coverage grid (for the completeness checks).
     cov_label = np.zeros(coverage.observed.shape, dtype=np.int64)
     footprints = {}
@@ -410,8 +428,11 @@ def extract_obstacles(
         floor_ring = ring & (cov_label == 0)
         floor_seen = float((floor_ring & coverage.observed).sum() / max(1, floor_ring.sum()))
         fill = _top_fill(top[:, :2], yaw, (u0, u1), (v0, v1), coverage.cell_m)
-        qu = q[:, 0] * c + q[:, 1] * s - centre_uv[0]
-        qv = -q[:, 0] * s + q[:, 1] * c - centre_uv[1]
+        # this component and the small pieces of its group (not other obstacles)
+        mine = (point_label == k) | (~big & (group_point == group_point[point_label == k][0]))
+        g = above[mine]
+        qu = g[:, 0] * c + g[:, 1] * s - centre_uv[0]
+        qv = -g[:, 0] * s + g[:, 1] * c - centre_uv[1]
         margin = cfg.beyond_top_margin_m
         beyond = float(
             np.mean((np.abs(qu) > (u1 - u0) / 2 + margin) | (np.abs(qv) > (v1 - v0) / 2 + margin))
