@@ -144,7 +144,7 @@ def register(app: typer.Typer) -> None:
         compare the variants on it and print the tables.
 
         Quarter resolution and two variants by default, aiming at 10 minutes on 2 cores
-        (measured 11.8 min on a loaded machine: docs/benchmarks.md, "Demo (issue 7)").
+        (8.0 min measured idle; docs/benchmarks.md, "Demo (issue 7)").
         """
         from graph_slam.commands._common import progress_bar
         from graph_slam.evaluation.compare import SessionSpec
