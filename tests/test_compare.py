@@ -64,6 +64,8 @@ def test_compare_writes_every_promised_file(report_dir) -> None:
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
     doc = read_metrics_json(out / "metrics.json")
     assert set(doc["variants"]) == {"icp", "imu+kin", "imu+kin smoothed"}
+    assert set(doc["maps"]) == {"icp", "imu+kin", "ground truth"}
+    assert len(doc["maps"]["ground truth"]["strides"]) == 1
     strides = doc["variants"]["imu+kin"]["strides"]
     assert len(strides) == 1 and strides[0]["frames"]["recorded"] > 10
     assert strides[0]["trajectory"]["n_evaluated"] == strides[0]["frames"]["recorded"]
@@ -125,11 +127,49 @@ def test_view_without_display_prints_how_to_open(tmp_path: Path, monkeypatch, ca
     assert f"rerun {tmp_path / 'recording.rrd'}" in capsys.readouterr().out
 
 
-def test_view_and_compare_errors_exit_2(tmp_path: Path, capsys) -> None:
+def test_view_missing_recording_names_the_file(tmp_path: Path, capsys) -> None:
+    """A folder without any .rrd, and a .rrd path that does not exist: exit 2, the file named."""
     with pytest.raises(SystemExit) as exc:
         main(["view", str(tmp_path)])
     assert exc.value.code == 2
-    assert "no recording.rrd" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and f"{tmp_path / 'recording.rrd'}: no such recording" in err
+    with pytest.raises(SystemExit) as exc:
+        main(["view", str(tmp_path / "other.rrd")])
+    assert exc.value.code == 2
+    assert f"{tmp_path / 'other.rrd'}: no such recording" in capsys.readouterr().err
+
+
+def test_view_with_a_display_starts_rerun_detached(tmp_path: Path, monkeypatch, capsys) -> None:
+    """With a display, ``rerun FILE`` is started in its own session (Popen replaced: no viewer)."""
+    import graph_slam.commands.compare as command
+
+    rrd = tmp_path / "recording.rrd"
+    rrd.write_bytes(b"RRF2")
+    exe = tmp_path / "rerun"
+    exe.write_text("#!/bin/sh\n")
+    calls = []
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(command.shutil, "which", lambda name: str(exe))
+    monkeypatch.setattr(command.subprocess, "Popen", lambda *a, **k: calls.append((a, k)))
+    with pytest.raises(SystemExit) as exc:
+        main(["view", str(rrd)])
+    assert exc.value.code == 0
+    assert calls == [(([str(exe), str(rrd)],), {"start_new_session": True})]
+    assert f"opened {rrd}" in capsys.readouterr().out
+
+    # A display but no rerun executable: how to open it, exit 0, nothing started.
+    calls.clear()
+    monkeypatch.setattr(command.shutil, "which", lambda name: None)
+    monkeypatch.setattr(command.sys, "executable", str(tmp_path / "bin" / "python"))
+    with pytest.raises(SystemExit) as exc:
+        main(["view", str(tmp_path)])
+    assert exc.value.code == 0 and calls == []
+    out = capsys.readouterr().out
+    assert "no rerun executable" in out and f"rerun {rrd}" in out
+
+
+def test_compare_errors_exit_2(tmp_path: Path, capsys) -> None:
     with pytest.raises(SystemExit) as exc:
         main(["compare", str(tmp_path / "nope"), "--out", str(tmp_path / "r")])
     assert exc.value.code == 2

@@ -12,11 +12,15 @@ from scipy.spatial.transform import Rotation
 from graph_slam.errors import EvaluationError
 from graph_slam.evaluation import (
     FrameCounts,
+    MapEvaluation,
     StrideEvaluation,
+    TrueBox,
     VariantEvaluation,
+    assess_stride,
+    collect_measurements,
+    count_outcomes,
     frame_counts,
     gait_cycle_percent,
-    match_obstacles,
     metrics_document,
     obstacle_accuracy,
     read_metrics_json,
@@ -24,12 +28,15 @@ from graph_slam.evaluation import (
     stride_trajectory_metrics,
     table_4_1,
     table_4_2,
+    table_box_counts,
     table_rows,
     timing_stats,
     write_metrics_json,
 )
+from graph_slam.evaluation.report import MapStride
 from graph_slam.evaluation.tables import StrideRow, VariantStride
-from graph_slam.mapping import Obstacle
+from graph_slam.mapping import Obstacle, extract_obstacles
+from graph_slam.session.records import SceneObject, SceneTruth
 
 needs_evo = pytest.mark.skipif(
     importlib.util.find_spec("evo") is None, reason="evo (the 'eval' extra) is not installed"
@@ -141,19 +148,104 @@ def test_obstacle_accuracy_of_known_measurements():
         obstacle_accuracy({"Box9": [np.ones(3)]}, truth)
 
 
-def test_match_obstacles_pairs_nearest_centres():
-    def obstacle(x, y):
-        return Obstacle(0.2, 0.2, 0.1, x - 0.1, np.array([x, y]), 100)
+def _box(x, y, reason=None, size=(0.2, 0.2, 0.1)):
+    return Obstacle(*size[:3], x - size[0] / 2, np.array([x, y]), 100, skip_reason=reason)
 
-    found = [obstacle(1.22, -0.3), obstacle(0.61, -0.28), obstacle(3.0, 0.0)]
+
+def test_truth_boxes_in_a_yawed_stride_frame():
+    """A box at world (2, 1) yawed 30°, seen from a stride frame at (1, 1) yawed 90°."""
+    from graph_slam.evaluation import truth_boxes_in_stride
+
+    world_T_box = np.eye(4)
+    world_T_box[:3, :3] = Rotation.from_euler("z", 30, degrees=True).as_matrix()
+    world_T_box[:3, 3] = [2.0, 1.0, 0.05]
+    scene = SceneTruth("s", (SceneObject("Box1#2", world_T_box, np.array([0.2, 0.3, 0.1])),))
+    world_T_stride = np.eye(4)
+    world_T_stride[:3, :3] = Rotation.from_euler("z", 90, degrees=True).as_matrix()
+    world_T_stride[:3, 3] = [1.0, 1.0, 0.0]
+    (box,) = truth_boxes_in_stride(scene, world_T_stride)
+    np.testing.assert_allclose(box.center_xy_m, [0.0, -1.0], atol=1e-12)
+    assert box.yaw_rad == pytest.approx(np.radians(30 - 90))
+    assert box.contains(np.array([[0.0, -1.0], [0.5, -1.0]])).tolist() == [True, False]
+
+
+def test_assess_stride_gives_each_box_in_view_one_outcome():
+    """Measured, skipped (mapping reason), split, missed; off-map boxes are not counted."""
+    from graph_slam.mapping import Coverage, FloorPlane, ObstacleMap
+
     truth = [
-        ("Box1", np.array([0.6, -0.3]), None),
-        ("Box2", np.array([1.2, -0.3]), None),
-        ("Box3", np.array([1.9, -0.4]), None),
+        TrueBox("Box1", np.array([0.6, -0.3]), np.array([0.2, 0.27, 0.19])),
+        TrueBox("Box2", np.array([1.2, -0.3]), np.array([0.27, 0.36, 0.08])),
+        TrueBox("Box3", np.array([1.9, -0.4]), np.array([0.34, 0.44, 0.06])),
+        TrueBox("Box1#2", np.array([2.6, -0.3]), np.array([0.2, 0.27, 0.19])),
+        TrueBox("Box2#2", np.array([3.9, -0.3]), np.array([0.27, 0.36, 0.08])),
     ]
-    matched = match_obstacles(found, truth)
-    assert set(matched) == {"Box1", "Box2"}
-    assert matched["Box1"] is found[1] and matched["Box2"] is found[0]
+    found = [
+        _box(0.62, -0.29),  # Box1, whole
+        _box(1.15, -0.35, "edge_of_map"),  # Box2, cut by the map's edge
+        _box(1.85, -0.5),  # Box3 in two pieces
+        _box(1.95, -0.3),
+        _box(3.0, 0.6),  # in no box's footprint
+    ]
+    # Coverage: the map covers x < 3 m; Box1#2 stands inside it, Box2#2 beyond it.
+    outside = np.zeros((30, 20), bool)
+    outside[15:] = True
+    coverage = Coverage(np.ones((30, 20), bool), outside, np.array([0.0, -1.0]), 0.2)
+    floor = FloorPlane(np.array([0.0, 0.0, 1.0]), 0.0, 1000, 0.001)
+    stride = assess_stride(ObstacleMap(floor, tuple(found), coverage), truth)
+    outcomes = {o.box: (o.status, o.reason) for o in stride.outcomes}
+    assert outcomes == {
+        "Box1": ("measured", None),
+        "Box2": ("skipped", "edge_of_map"),
+        "Box3": ("skipped", "split"),
+        "Box1#2": ("missed", None),
+    }
+    assert stride.unmatched == 1 and stride.measured() == {"Box1": found[0]}
+    counts = count_outcomes([stride, assess_stride(None, truth, error="no floor")])
+    assert counts["measured"] == 1 and counts["missed"] == 1 and counts["no_map"] == 1
+    assert counts["skipped"] == {"edge_of_map": 1, "split": 1} and counts["unmatched"] == 1
+    assert counts["by_box"]["Box1"] == {"measured": 1, "skipped": {}, "missed": 1}
+    assert collect_measurements([stride]) == {"Box1": [pytest.approx(found[0].size_m)]}
+    lines = table_box_counts(counts).splitlines()
+    assert lines[0] == (
+        "| Object | measured | skipped: edge of map | skipped: adjacent | skipped: top in part "
+        "| skipped: floor not seen | skipped: split | missed |"
+    )
+    assert lines[2] == "| Box1 | 1 | 0 | 0 | 0 | 0 | 0 | 1 |"
+    assert lines[-1] == "| all (unmatched obstacles: 1) | 1 | 1 | 0 | 0 | 0 | 1 | 1 |"
+
+
+def test_a_box_cut_by_the_map_edge_is_skipped_end_to_end():
+    """Extraction and assessment together, on a cloud whose map ends inside Box2."""
+    rng = np.random.default_rng(4)
+    floor = np.column_stack(
+        [rng.uniform(-0.2, 1.25, 60_000), rng.uniform(-0.8, 0.4, 60_000), np.zeros(60_000)]
+    )
+    tops = []
+    for (cx, cy), (d, w, h) in [
+        ((0.6, -0.3), (0.2, 0.27, 0.19)),
+        ((1.2, -0.3), (0.27, 0.36, 0.08)),
+    ]:
+        top = np.column_stack(
+            [
+                rng.uniform(cx - d / 2, cx + d / 2, 20_000),
+                rng.uniform(cy - w / 2, cy + w / 2, 20_000),
+            ]
+        )
+        floor = floor[~((np.abs(floor[:, 0] - cx) < d / 2) & (np.abs(floor[:, 1] - cy) < w / 2))]
+        tops.append(np.column_stack([top, np.full(len(top), h)]))
+    cloud = np.concatenate([floor, *tops])
+    cloud = cloud[cloud[:, 0] < 1.25] + rng.normal(0, 0.0005, (len(cloud[cloud[:, 0] < 1.25]), 3))
+    truth = [
+        TrueBox("Box1", np.array([0.6, -0.3]), np.array([0.2, 0.27, 0.19])),
+        TrueBox("Box2", np.array([1.2, -0.3]), np.array([0.27, 0.36, 0.08])),
+    ]
+    stride = assess_stride(extract_obstacles(cloud), truth)
+    by_box = {o.box: o for o in stride.outcomes}
+    assert by_box["Box1"].status == "measured"
+    np.testing.assert_allclose(by_box["Box1"].obstacle.size_m, [0.2, 0.27, 0.19], atol=0.003)
+    assert (by_box["Box2"].status, by_box["Box2"].reason) == ("skipped", "edge_of_map")
+    assert by_box["Box2"].obstacle.depth_m < 0.2  # what was seen of it: not measured
 
 
 def test_table_4_2_layout_of_known_numbers():
@@ -206,10 +298,28 @@ def test_metrics_json_round_trip_and_schema_checks(tmp_path):
             {"Box1": [np.array([0.2, 0.3, 0.1])]}, {"Box1": np.array([0.2, 0.3, 0.1])}
         ),
     )
+    truth = [TrueBox("Box1", np.array([0.6, -0.3]), np.array([0.2, 0.3, 0.1]))]
+    from graph_slam.mapping import Coverage, FloorPlane, ObstacleMap
+
+    coverage = Coverage(np.ones((4, 4), bool), np.zeros((4, 4), bool), np.array([0, -1.0]), 0.5)
+    floor = FloorPlane(np.array([0.0, 0.0, 1.0]), 0.0, 1000, 0.001)
+    box = ObstacleMap(floor, (_box(0.6, -0.3, size=(0.2, 0.3, 0.1)),), coverage)
+    maps = {
+        "ground truth": MapEvaluation(
+            "ground truth", [MapStride(0, "Slow", 1, assess_stride(box, truth))], variant.obstacles
+        )
+    }
     path = write_metrics_json(
-        metrics_document("tiny", {"graph": variant}), tmp_path / "metrics.json"
+        metrics_document("tiny", {"graph": variant}, maps), tmp_path / "metrics.json"
     )
     doc = read_metrics_json(path)
+    truth_map = doc["maps"]["ground truth"]
+    assert truth_map["counts"]["measured"] == 1 and truth_map["counts"]["skipped"] == {}
+    (stride,) = truth_map["strides"]
+    assert (stride["index"], stride["speed"], stride["measured"]) == (0, "Slow", 1)
+    assert stride["boxes"][0]["status"] == "measured"
+    assert stride["boxes"][0]["size_m"] == pytest.approx([0.2, 0.3, 0.1])
+    assert truth_map["obstacles"]["Box1"]["width"]["rmse_m"] == pytest.approx(0.0)
     v = doc["variants"]["graph"]
     assert v["strides"][0]["trajectory"]["rmse_unaligned_m"] == pytest.approx(0.01)
     assert v["summary"]["frames_registered"] == 10
@@ -220,6 +330,13 @@ def test_metrics_json_round_trip_and_schema_checks(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps({**doc, "schema_version": 99}))
     with pytest.raises(EvaluationError, match="schema_version"):
         read_metrics_json(tmp_path / "bad.json")
+    (tmp_path / "bad.json").write_text(json.dumps({**doc, "maps": []}))
+    with pytest.raises(EvaluationError, match="'maps'"):
+        read_metrics_json(tmp_path / "bad.json")
+    # Version 1 files (before the completeness filter; no "maps") are still read.
+    old = {k: v for k, v in doc.items() if k != "maps"}
+    (tmp_path / "v1.json").write_text(json.dumps({**old, "schema_version": 1}))
+    assert read_metrics_json(tmp_path / "v1.json")["schema_version"] == 1
 
 
 def test_gait_cycle_percent_and_stance_mask():

@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from graph_slam.errors import MappingError
 from graph_slam.mapping import (
+    SKIP_REASONS,
     ElevationConfig,
     MappingConfig,
     ObstacleConfig,
@@ -32,30 +33,58 @@ def _pose(rotvec, t) -> np.ndarray:
     return T
 
 
-def _box_scene(rng: np.random.Generator, noise_m: float = 0.0005) -> np.ndarray:
-    """Floor with holes under the boxes, box tops and four side faces, densely sampled."""
-    floor = np.column_stack(
-        [rng.uniform(-0.2, 2.4, 120_000), rng.uniform(-0.8, 0.5, 120_000), np.zeros(120_000)]
+def _box_points(
+    rng: np.random.Generator,
+    centre_xy: tuple[float, float],
+    size: tuple[float, float, float],
+    yaw_rad: float = 0.0,
+    n: int = 30_000,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Top and four side faces of a box (yawed about z), and a mask for its floor footprint."""
+    d, w, h = size
+    top = np.column_stack(
+        [rng.uniform(-d / 2, d / 2, n), rng.uniform(-w / 2, w / 2, n), np.full(n, h)]
     )
+    u = rng.uniform(-0.5, 0.5, (4, n // 4))
+    z = rng.uniform(0, h, (4, n // 4))
+    sides = [
+        np.column_stack([np.full(n // 4, -d / 2), w * u[0], z[0]]),
+        np.column_stack([np.full(n // 4, d / 2), w * u[1], z[1]]),
+        np.column_stack([d * u[2], np.full(n // 4, -w / 2), z[2]]),
+        np.column_stack([d * u[3], np.full(n // 4, w / 2), z[3]]),
+    ]
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    rotation = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    points = np.concatenate([top, *sides]) @ rotation.T + [*centre_xy, 0]
+    return points, rotation
+
+
+def _floor(rng, x_range=(-0.2, 2.4), y_range=(-0.8, 0.5), n=120_000) -> np.ndarray:
+    return np.column_stack([rng.uniform(*x_range, n), rng.uniform(*y_range, n), np.zeros(n)])
+
+
+def _scene(
+    rng: np.random.Generator,
+    boxes: list[tuple[tuple[float, float], tuple[float, float, float], float]],
+    noise_m: float = 0.0005,
+    floor: np.ndarray | None = None,
+) -> np.ndarray:
+    """Floor with holes under the boxes, each box's top and four side faces, densely sampled."""
+    floor = _floor(rng) if floor is None else floor
     keep = np.ones(len(floor), bool)
     parts = []
-    for (cx, cy), (d, w, h) in BOXES.values():
-        keep &= ~((np.abs(floor[:, 0] - cx) < d / 2) & (np.abs(floor[:, 1] - cy) < w / 2))
-        n = 30_000
-        top = np.column_stack(
-            [cx + rng.uniform(-d / 2, d / 2, n), cy + rng.uniform(-w / 2, w / 2, n), np.full(n, h)]
-        )
-        u = rng.uniform(-0.5, 0.5, (4, n // 4))
-        z = rng.uniform(0, h, (4, n // 4))
-        sides = [
-            np.column_stack([np.full(n // 4, cx - d / 2), cy + w * u[0], z[0]]),
-            np.column_stack([np.full(n // 4, cx + d / 2), cy + w * u[1], z[1]]),
-            np.column_stack([cx + d * u[2], np.full(n // 4, cy - w / 2), z[2]]),
-            np.column_stack([cx + d * u[3], np.full(n // 4, cy + w / 2), z[3]]),
-        ]
-        parts += [top, *sides]
+    for centre, size, yaw in boxes:
+        points, rotation = _box_points(rng, centre, size, yaw)
+        local = (floor[:, :2] - centre) @ rotation[:2, :2]
+        keep &= ~((np.abs(local[:, 0]) < size[0] / 2) & (np.abs(local[:, 1]) < size[1] / 2))
+        parts.append(points)
     cloud = np.concatenate([floor[keep], *parts])
     return cloud + rng.normal(0, noise_m, cloud.shape)
+
+
+def _box_scene(rng: np.random.Generator, noise_m: float = 0.0005) -> np.ndarray:
+    """The three boxes of Table 3.1 beside the walking line, square to it."""
+    return _scene(rng, [(c, s, 0.0) for c, s in BOXES.values()], noise_m)
 
 
 def test_obstacles_of_known_boxes_within_2mm():
@@ -66,6 +95,95 @@ def test_obstacles_of_known_boxes_within_2mm():
     for obstacle, ((cx, _), (d, w, h)) in zip(result.obstacles, BOXES.values(), strict=True):
         np.testing.assert_allclose(obstacle.size_m, [d, w, h], atol=0.002)
         assert abs(obstacle.leading_edge_x_m - (cx - d / 2)) < 0.002
+        assert abs(obstacle.yaw_rad) < np.deg2rad(0.3)
+        # seen whole: floor all round, nothing beyond the map near it
+        assert obstacle.complete and obstacle.skip_reason is None
+        assert obstacle.top_fill_fraction > 0.95 and obstacle.floor_seen_fraction > 0.95
+    assert result.complete == result.obstacles
+
+
+def test_a_yawed_box_is_measured_along_its_own_sides():
+    """Box3 turned 20° against the walk: its own depth and width within 2 mm (its bounding
+    extents would be 17 and 11 cm larger), the yaw within 0.3°, the nearest corner as the
+    leading edge."""
+    rng = np.random.default_rng(12)
+    centre, size = (1.2, -0.4), BOXES["Box3"][1]
+    yaw = np.deg2rad(20.0)
+    result = extract_obstacles(_scene(rng, [(centre, size, yaw)]))
+    (box,) = result.obstacles
+    np.testing.assert_allclose(box.size_m, size, atol=0.002)
+    assert box.yaw_rad == pytest.approx(yaw, abs=np.deg2rad(0.3))
+    corners = box.corners_xy_m()
+    half = np.array([size[0], size[1]]) / 2
+    c, s = np.cos(yaw), np.sin(yaw)
+    true_corners = np.array([[sx, sy] for sx, sy in [(-1, -1), (1, -1), (1, 1), (-1, 1)]]) * half
+    true_corners = true_corners @ np.array([[c, s], [-s, c]]) + centre
+    np.testing.assert_allclose(corners, true_corners, atol=0.003)
+    assert box.leading_edge_x_m == pytest.approx(true_corners[:, 0].min(), abs=0.002)
+    assert box.complete
+
+
+def test_partial_boxes_are_kept_with_the_reason_they_are_not_measured():
+    """Four ways a stride map holds only part of a box; a whole box beside them is measured.
+
+    * cut by the map's edge: the map (floor and box) ends at x = 2.0 through Box3;
+    * touching another box: Box1 with a 10 cm cube 2.5 cm from its side;
+    * top incomplete: Box2 with the far 60 % of its top unseen (sides and floor all there);
+    * no floor seen around it: a box in a 6 cm wide unobserved ring, floor beyond it.
+    """
+    rng = np.random.default_rng(13)
+    whole = ((0.6, 0.25), (0.2, 0.2, 0.1), 0.0)
+    cut = ((1.9, -0.4), BOXES["Box3"][1], 0.0)
+    pair = [
+        ((0.6, -0.3), BOXES["Box1"][1], 0.0),
+        ((0.6, -0.3 - 0.1334 - 0.025 - 0.05), (0.1,) * 3, 0.0),
+    ]
+    ringed = ((1.4, 0.25), (0.2, 0.2, 0.08), 0.0)
+    cloud = _scene(rng, [whole, cut, *pair, ringed])
+    # Box2's top: only its near 40 % seen.
+    box2, _ = _box_points(rng, (1.2, -0.35), BOXES["Box2"][1])
+    box2 = box2[~((box2[:, 2] > 0.07) & (box2[:, 0] > 1.2 - 0.2667 / 2 + 0.4 * 0.2667))]
+    floor_under_box2 = (np.abs(cloud[:, 0] - 1.2) < 0.1334) & (np.abs(cloud[:, 1] + 0.35) < 0.178)
+    cloud = np.concatenate([cloud[~floor_under_box2 | (cloud[:, 2] > 0.01)], box2])
+    # The ring around the ringed box: no floor within 6 cm of it.
+    ring = (
+        (np.abs(cloud[:, 0] - 1.4) < 0.16)
+        & (np.abs(cloud[:, 1] - 0.25) < 0.16)
+        & (cloud[:, 2] < 0.005)
+    )
+    cloud = cloud[~ring & (cloud[:, 0] < 2.0)]
+
+    result = extract_obstacles(cloud)
+    by_centre = {
+        name: min(result.obstacles, key=lambda o: np.linalg.norm(o.center_xy_m - xy))
+        for name, xy in [
+            ("whole", (0.6, 0.25)),
+            ("cut", (1.85, -0.4)),
+            ("box1", (0.6, -0.3)),
+            ("box2", (1.15, -0.35)),
+            ("ringed", (1.4, 0.25)),
+        ]
+    }
+    assert len(result.obstacles) == 6
+    assert by_centre["whole"].complete
+    np.testing.assert_allclose(by_centre["whole"].size_m, [0.2, 0.2, 0.1], atol=0.002)
+    assert by_centre["cut"].skip_reason == "edge_of_map"
+    assert by_centre["box1"].skip_reason == "adjacent"
+    assert by_centre["box2"].skip_reason == "top_incomplete"
+    assert by_centre["ringed"].skip_reason == "floor_not_seen"
+    assert by_centre["ringed"].floor_seen_fraction < 0.1
+    for o in result.obstacles:
+        assert (o.skip_reason is None) == o.complete
+        assert o.skip_reason is None or (o.skip_reason in SKIP_REASONS and o.skip_detail)
+    assert result.complete == (by_centre["whole"],)
+    # The coverage grid: the area beyond x = 2.0 is outside the map, the ring is a hole in it.
+    assert result.coverage.is_outside(
+        np.array([[2.3, 0.0], [1.0, 0.0], [1.4, 0.25 + 0.13]])
+    ).tolist() == [
+        True,
+        False,
+        False,
+    ]
 
 
 def test_obstacles_on_a_fused_5mm_voxel_map_within_2_5mm():
@@ -178,3 +296,32 @@ def test_build_stride_map_from_camera_clouds_and_poses():
     no_floor = build_stride_map([wall], np.eye(4)[None], config=MappingConfig(voxel_m=0.01))
     assert no_floor.obstacles is None and "near-horizontal" in no_floor.obstacle_error
     assert len(no_floor.fused) > 0
+
+
+def test_a_top_seen_thinly_at_its_far_end_is_not_taken_for_a_shorter_box():
+    """Box2's far 45 % seen only as scattered points 2 cm apart (as from 2 m away), on a 5 mm
+    voxel map: they fall into pieces too small to be obstacles, but still count against the
+    dense part, which alone would pass for a 15 cm deep box."""
+    rng = np.random.default_rng(14)
+    (cx, cy), (d, w, h) = BOXES["Box2"]
+    floor = _floor(rng)
+    floor = floor[~((np.abs(floor[:, 0] - cx) < d / 2) & (np.abs(floor[:, 1] - cy) < w / 2))]
+    x_split = cx - d / 2 + 0.55 * d
+    dense = np.column_stack(
+        [rng.uniform(cx - d / 2, x_split, 20_000), rng.uniform(cy - w / 2, cy + w / 2, 20_000)]
+    )
+    gx, gy = np.meshgrid(
+        np.arange(x_split + 0.02, cx + d / 2, 0.02), np.arange(-w / 2 + 0.005, w / 2, 0.02)
+    )
+    sparse = np.column_stack([gx.ravel(), gy.ravel() + cy])
+    top = np.concatenate([dense, sparse])
+    cloud = np.concatenate([floor, np.column_stack([top, np.full(len(top), h)])])
+    cloud += rng.normal(0, 0.0005, cloud.shape)
+    voxel_map = fuse_clouds([cloud], np.eye(4)[None], voxel_m=0.005).points_m
+    result = extract_obstacles(voxel_map)
+    (box,) = result.obstacles
+    assert box.depth_m == pytest.approx(0.55 * d, abs=0.005)  # what the dense part measures
+    assert box.skip_reason == "top_incomplete" and not box.complete
+    # Joining off (join_gap_cells=0): the scattered points are ignored and the box passes.
+    alone = extract_obstacles(voxel_map, ObstacleConfig(join_gap_cells=0))
+    assert alone.obstacles[0].complete

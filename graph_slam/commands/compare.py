@@ -66,12 +66,31 @@ def _print_report(report) -> None:
     typer.echo("Summary (medians over strides)\n")
     typer.echo(summary_table(report))
     for name, table in report.tables_4_1.items():
-        typer.echo(f"Table 4.1, obstacle dimensions (mm), map from {name}\n")
+        typer.echo(f"Table 4.1, obstacle dimensions (mm), boxes seen whole, map from {name}\n")
         typer.echo(table)
+        if name in report.box_counts:
+            typer.echo("Strides in which each box was measured, skipped (seen in part) or missed\n")
+            typer.echo(report.box_counts[name])
     typer.echo(
         f"report: {report.out / 'report.md'} ({len(report.files)} files, {report.wall_s:.0f} s)"
     )
     typer.echo(f"3D view: graph-slam view {report.out}")
+
+
+def _demo_strides(text: str | None, scale: float) -> list[int]:
+    """Strides per speed (slow, normal, fast): from ``--strides`` or the scaled 9/9/7."""
+    from graph_slam.errors import ConfigError
+
+    if text is None:
+        if not scale > 0:
+            raise ConfigError(f"--strides-scale: must be > 0, got {scale}")
+        return [max(1, round(n * scale)) for _, _, n in DEMO_SPEEDS]
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != len(DEMO_SPEEDS) or not all(p.isdigit() and int(p) >= 1 for p in parts):
+        raise ConfigError(
+            f"--strides: {text!r} must be three whole numbers >= 1 (slow,normal,fast), e.g. 1,1,1"
+        )
+    return [int(p) for p in parts]
 
 
 def has_display(env: dict[str, str] | None = None) -> bool:
@@ -102,6 +121,13 @@ def register(app: typer.Typer) -> None:
         strides_scale: Annotated[
             float, typer.Option(help="Multiply the 9/9/7 strides (e.g. 0.34 → 3/3/2).")
         ] = 1.0,
+        strides: Annotated[
+            str | None,
+            typer.Option(
+                help="Strides per speed as SLOW,NORMAL,FAST (e.g. 1,1,1); overrides "
+                "--strides-scale."
+            ),
+        ] = None,
         full_resolution: Annotated[
             bool, typer.Option(help="Simulate 848×480 instead of quarter resolution (slow).")
         ] = False,
@@ -110,33 +136,36 @@ def register(app: typer.Typer) -> None:
             typer.Option(help="Variants to compare (all four: icp,icp+imu,imu+kin,icp+imu+kin)."),
         ] = DEMO_VARIANTS,
         seed: Annotated[int, typer.Option(help="Simulator seed.")] = 1,
+        config: Annotated[
+            Path | None, typer.Option(help="CompareConfig YAML (pipeline:, mapping:, ...).")
+        ] = None,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
 
         Quarter resolution and two variants by default, aiming at 10 minutes on 2 cores
-        (measured 11.8 min on a loaded machine: docs/benchmarks.md, "Demo (issue 7)").
+        (8.0 min measured idle; docs/benchmarks.md, "Demo (issue 7)").
         """
         from graph_slam.commands._common import progress_bar
         from graph_slam.evaluation.compare import SessionSpec
         from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
         t0 = time.perf_counter()
-        cfg = _load_compare_config(None, variants)
+        counts = _demo_strides(strides, strides_scale)
+        cfg = _load_compare_config(config, variants)
         out.mkdir(parents=True, exist_ok=True)
         specs = []
-        for speed, label, n in DEMO_SPEEDS:
-            strides = max(1, round(n * strides_scale))
+        for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):
             sim_cfg = SimConfig(
                 scene="thesis-boxes",
                 speed_m_s=SPEEDS_M_S[speed],
-                strides=strides,
+                strides=n_strides,
                 seed=seed,
                 drops="bursty",
                 fast=not full_resolution,
                 quicklook=False,
             )
-            with progress_bar(f"simulating {label.lower()} ({strides} strides)") as update:
+            with progress_bar(f"simulating {label.lower()} ({n_strides} strides)") as update:
                 path = simulate(sim_cfg, out / "sessions" / speed, overwrite=True, progress=update)
             specs.append(SessionSpec(path.path, label))
         t_sim = time.perf_counter() - t0
@@ -164,7 +193,7 @@ def register(app: typer.Typer) -> None:
             rrd = found[0] if found else rrd
         if not rrd.is_file():
             raise EvaluationError(
-                f"{run_dir}: no recording.rrd here (run graph-slam compare first)"
+                f"{rrd}: no such recording (run graph-slam compare or demo to write it)"
             )
         exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
         if not has_display() or not Path(exe).exists():
@@ -175,5 +204,11 @@ def register(app: typer.Typer) -> None:
             )
             typer.echo(f"{why}; open the recording on a machine with a display:\n  rerun {rrd}")
             return
-        subprocess.Popen([exe, str(rrd)], start_new_session=True)
+        try:
+            subprocess.Popen([exe, str(rrd)], start_new_session=True)
+        except OSError as err:
+            raise EvaluationError(
+                f"{exe}: cannot start the rerun viewer ({err}); open the recording by hand: "
+                f"rerun {rrd}"
+            ) from None
         typer.echo(f"opened {rrd} in the rerun viewer")

@@ -9,15 +9,21 @@ this package.
 from graph_slam.evaluation.counts import FrameCounts, frame_counts
 from graph_slam.evaluation.obstacles import (
     DIMENSIONS,
+    BoxOutcome,
     DimensionStats,
+    StrideObstacles,
+    TrueBox,
+    assess_stride,
+    assign_obstacles,
     base_name,
     collect_measurements,
-    match_obstacles,
+    count_outcomes,
     obstacle_accuracy,
     truth_boxes_in_stride,
 )
 from graph_slam.evaluation.report import (
     SCHEMA_VERSION,
+    MapEvaluation,
     StrideEvaluation,
     VariantEvaluation,
     metrics_document,
@@ -25,7 +31,13 @@ from graph_slam.evaluation.report import (
     table_rows,
     write_metrics_json,
 )
-from graph_slam.evaluation.tables import StrideRow, VariantStride, table_4_1, table_4_2
+from graph_slam.evaluation.tables import (
+    StrideRow,
+    VariantStride,
+    table_4_1,
+    table_4_2,
+    table_box_counts,
+)
 from graph_slam.evaluation.timing import TimingStats, timing_stats
 from graph_slam.evaluation.trajectory import (
     StrideTrajectoryMetrics,
@@ -37,19 +49,25 @@ from graph_slam.evaluation.trajectory import (
 __all__ = [
     "DIMENSIONS",
     "SCHEMA_VERSION",
+    "BoxOutcome",
     "DimensionStats",
     "FrameCounts",
+    "MapEvaluation",
     "StrideEvaluation",
+    "StrideObstacles",
     "StrideRow",
     "StrideTrajectoryMetrics",
     "TimingStats",
+    "TrueBox",
     "VariantEvaluation",
     "VariantStride",
+    "assess_stride",
+    "assign_obstacles",
     "base_name",
     "collect_measurements",
+    "count_outcomes",
     "frame_counts",
     "gait_cycle_percent",
-    "match_obstacles",
     "metrics_document",
     "obstacle_accuracy",
     "read_metrics_json",
@@ -57,6 +75,7 @@ __all__ = [
     "stride_trajectory_metrics",
     "table_4_1",
     "table_4_2",
+    "table_box_counts",
     "table_rows",
     "timing_stats",
     "truth_boxes_in_stride",

@@ -96,9 +96,14 @@ def plot_map_top_view(
     colors_rgb: np.ndarray | None = None,
     obstacles: Sequence[Obstacle] = (),
     title: str = "stride map, top view",
+    truth_boxes: Sequence = (),
 ) -> Path:
-    """Map points seen from above (stride frame), obstacle footprints outlined."""
-    from matplotlib.patches import Rectangle
+    """Map points seen from above (stride frame), obstacle footprints outlined.
+
+    Boxes seen whole: solid red (measured); seen in part: dashed magenta with the skip reason;
+    ``truth_boxes`` (:class:`~graph_slam.evaluation.obstacles.TrueBox`): dotted black.
+    """
+    from matplotlib.patches import Polygon
 
     fig, (ax,) = _figure()
     colors = None if colors_rgb is None else np.asarray(colors_rgb) / 255.0
@@ -109,9 +114,36 @@ def plot_map_top_view(
         c=colors if colors is not None else points_m[:, 2],
         linewidths=0,
     )
+    labelled = set()
+
+    def outline(corners, label, **style):
+        first = label not in labelled
+        labelled.add(label)
+        ax.add_patch(
+            Polygon(corners, closed=True, fill=False, label=label if first else None, **style)
+        )
+
+    lo, hi = points_m[:, :2].min(axis=0), points_m[:, :2].max(axis=0)
+    for box in truth_boxes:
+        if not ((box.center_xy_m >= lo - 0.3) & (box.center_xy_m <= hi + 0.3)).all():
+            continue  # far along the course: off this map
+        hd, hw = np.asarray(box.size_m[:2]) / 2
+        c, s = np.cos(box.yaw_rad), np.sin(box.yaw_rad)
+        local = np.array([[-hd, -hw], [hd, -hw], [hd, hw], [-hd, hw]])
+        outline(
+            local @ np.array([[c, s], [-s, c]]) + box.center_xy_m,
+            "true box",
+            ec="k",
+            lw=1.0,
+            ls=":",
+        )
     for o in obstacles:
-        x0, y0 = o.center_xy_m - [o.depth_m / 2, o.width_m / 2]
-        ax.add_patch(Rectangle((x0, y0), o.depth_m, o.width_m, fill=False, ec="r", lw=1.5))
+        if o.complete:
+            outline(o.corners_xy_m(), "measured (seen whole)", ec="r", lw=1.5)
+        else:
+            outline(o.corners_xy_m(), "seen in part (skipped)", ec="m", lw=1.2, ls="--")
+            x, y = o.corners_xy_m().max(axis=0)
+            ax.annotate(o.skip_reason, (x, y), fontsize="x-small", color="m")
     ax.plot([0], [0], "k^", ms=8, label="foot (stride origin)")
     ax.set_xlabel("x (m, walking direction)")
     ax.set_ylabel("y (m)")

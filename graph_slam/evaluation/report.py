@@ -1,10 +1,10 @@
 """The numbers of an evaluation, per variant and stride, and their ``metrics.json`` form.
 
-Schema (``schema_version`` 1; every length in metres, every time in seconds; NaN is written as
+Schema (``schema_version`` 2; every length in metres, every time in seconds; NaN is written as
 ``null``; documented in docs/evaluation.md)::
 
     {
-      "schema": "graph_slam.metrics", "schema_version": 1,
+      "schema": "graph_slam.metrics", "schema_version": 2,
       "session": str,
       "variants": {
         "<variant>": {
@@ -22,8 +22,28 @@ Schema (``schema_version`` 1; every length in metres, every time in seconds; NaN
           "timing": null | {"n", "median_s", "p95_s", "mean_s", "max_s"},
           "obstacles": {"<box>": {"depth"|"width"|"height": {"n", "truth_m", "mean_m", "std_m", "rmse_m"}}}
         }
+      },
+      "maps": {
+        "<variant> | ground truth": {
+          "poses": "smoothed" | "online" | "ground truth",
+          "counts": {"measured": int, "skipped": {"<reason>": int}, "missed": int,
+                     "unmatched": int, "no_map": int,
+                     "by_box": {"<box>": {"measured": int, "skipped": {"<reason>": int}, "missed": int}}},
+          "obstacles": {"<box>": {"depth"|"width"|"height": {...}}},
+          "strides": [
+            {"index": int, "speed": str, "number": int,
+             "measured": int, "skipped": {...}, "missed": int, "unmatched": int, "no_map": int,
+             "error": null | str,
+             "boxes": [{"box": str, "status": "measured"|"skipped"|"missed", "reason": null | str,
+                        "detail": str, "size_m": null | [depth, width, height],
+                        "leading_edge_x_m": null | float, "yaw_rad": null | float}]}
+          ]
+        }
       }
     }
+
+Version 1 (before the completeness filter) had no ``maps`` and measured every box, whole or
+not; :func:`read_metrics_json` reads both.
 """
 
 from __future__ import annotations
@@ -38,13 +58,14 @@ import numpy as np
 
 from graph_slam.errors import EvaluationError
 from graph_slam.evaluation.counts import FrameCounts
-from graph_slam.evaluation.obstacles import DimensionStats
+from graph_slam.evaluation.obstacles import DimensionStats, StrideObstacles, count_outcomes
 from graph_slam.evaluation.tables import StrideRow, VariantStride
 from graph_slam.evaluation.timing import TimingStats
 from graph_slam.evaluation.trajectory import StrideTrajectoryMetrics
 
 SCHEMA = "graph_slam.metrics"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,6 +129,49 @@ class VariantEvaluation:
         }
 
 
+@dataclass(frozen=True, eq=False)
+class MapStride:
+    """One stride's box outcomes in one map source."""
+
+    index: int
+    speed: str
+    number: int
+    obstacles: StrideObstacles
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "index": self.index,
+            "speed": self.speed,
+            "number": self.number,
+            **self.obstacles.to_dict(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class MapEvaluation:
+    """The boxes found in one source's stride maps (a variant's poses, or the true poses)."""
+
+    poses: str
+    """Which poses fused the maps: ``smoothed``, ``online`` or ``ground truth``."""
+    strides: list[MapStride]
+    accuracy: dict[str, dict[str, DimensionStats]] = field(default_factory=dict)
+    """Table 4.1 figures over the measured (whole) boxes."""
+
+    def counts(self) -> dict[str, Any]:
+        return count_outcomes([s.obstacles for s in self.strides])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "poses": self.poses,
+            "counts": self.counts(),
+            "obstacles": {
+                box: {dim: s.to_dict() for dim, s in dims.items()}
+                for box, dims in self.accuracy.items()
+            },
+            "strides": [s.to_dict() for s in self.strides],
+        }
+
+
 def table_rows(variants: dict[str, VariantEvaluation], aligned: bool = True) -> list[StrideRow]:
     """Table 4.2 rows (frames recorded from the first variant; RMSE aligned by default)."""
     if not variants:
@@ -128,12 +192,17 @@ def table_rows(variants: dict[str, VariantEvaluation], aligned: bool = True) -> 
     return rows
 
 
-def metrics_document(session: str, variants: dict[str, VariantEvaluation]) -> dict[str, Any]:
+def metrics_document(
+    session: str,
+    variants: dict[str, VariantEvaluation],
+    maps: dict[str, MapEvaluation] | None = None,
+) -> dict[str, Any]:
     return {
         "schema": SCHEMA,
         "schema_version": SCHEMA_VERSION,
         "session": session,
         "variants": {name: v.to_dict() for name, v in variants.items()},
+        "maps": {name: m.to_dict() for name, m in (maps or {}).items()},
     }
 
 
@@ -165,12 +234,15 @@ def read_metrics_json(path: str | Path) -> dict[str, Any]:
         raise EvaluationError(f"{path}: cannot read metrics JSON ({err})") from None
     if not isinstance(document, dict) or document.get("schema") != SCHEMA:
         raise EvaluationError(f"{path}: field 'schema' must be {SCHEMA!r}")
-    if document.get("schema_version") != SCHEMA_VERSION:
+    if document.get("schema_version") not in READABLE_VERSIONS:
         raise EvaluationError(
-            f"{path}: field 'schema_version' is {document.get('schema_version')!r}; this reader knows {SCHEMA_VERSION}"
+            f"{path}: field 'schema_version' is {document.get('schema_version')!r}; this reader "
+            f"knows {', '.join(map(str, READABLE_VERSIONS))}"
         )
     if not isinstance(document.get("variants"), dict):
         raise EvaluationError(
             f"{path}: field 'variants' must be a mapping of variant name to metrics"
         )
+    if document["schema_version"] >= 2 and not isinstance(document.get("maps"), dict):
+        raise EvaluationError(f"{path}: field 'maps' must be a mapping of map source to boxes")
     return document

@@ -5,6 +5,8 @@
   frames registered, frames bridged and trajectory RMSE (metres, 3 decimals).
 - :func:`table_4_1` (thesis Table 4.1): per box, mean, standard deviation and RMSE of width, depth
   and height in millimetres (mean and std without decimals, RMSE with one, as the thesis).
+- :func:`table_box_counts` (beside Table 4.1): per box, the strides in which it was measured,
+  skipped (per reason: only boxes seen whole are measured) and missed.
 
 Missing values (NaN, None) print as an en dash.
 """
@@ -14,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from graph_slam.evaluation.obstacles import DimensionStats
 
@@ -103,4 +106,50 @@ def table_4_1(stats: Mapping[str, Mapping[str, DimensionStats]]) -> str:
                     _num(s.rmse_m * 1000, ".1f"),
                 ]
         body.append(cells)
+    return _markdown(header, body, right_from=1)
+
+
+SKIP_COLUMNS = (
+    ("edge_of_map", "edge of map"),
+    ("adjacent", "adjacent"),
+    ("top_incomplete", "top in part"),
+    ("floor_not_seen", "floor not seen"),
+    ("split", "split"),
+)
+"""Skip reasons as Table 4.1's companion shows them (any other reason gets its own column)."""
+
+
+def table_box_counts(counts: Mapping[str, Any]) -> str:
+    """Per box: strides in which it was measured, skipped (per reason) and missed.
+
+    ``counts`` is :func:`graph_slam.evaluation.obstacles.count_outcomes`'s result; a last row
+    gives the totals with the obstacles that matched no box (``unmatched``).
+    """
+    by_box = counts.get("by_box", {})
+    reasons = [r for r, _ in SKIP_COLUMNS]
+    extra = sorted(
+        {r for b in by_box.values() for r in b["skipped"] if r not in reasons}
+        | {r for r in counts.get("skipped", {}) if r not in reasons}
+    )
+    labels = dict(SKIP_COLUMNS)
+    columns = reasons + extra
+    header = ["Object", "measured", *[f"skipped: {labels.get(r, r)}" for r in columns], "missed"]
+    body = []
+    for name, box in by_box.items():
+        body.append(
+            [
+                name,
+                str(box["measured"]),
+                *[str(box["skipped"].get(r, 0)) for r in columns],
+                str(box["missed"]),
+            ]
+        )
+    body.append(
+        [
+            f"all (unmatched obstacles: {counts.get('unmatched', 0)})",
+            str(counts.get("measured", 0)),
+            *[str(counts.get("skipped", {}).get(r, 0)) for r in columns],
+            str(counts.get("missed", 0)),
+        ]
+    )
     return _markdown(header, body, right_from=1)

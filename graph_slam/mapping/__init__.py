@@ -7,6 +7,8 @@ functions serve the online poses, the smoothed poses and any pipeline.
 from graph_slam.mapping.elevation import ElevationConfig, ElevationGrid, elevation_grid
 from graph_slam.mapping.fusion import FusedMap, fuse_clouds, voxel_keys
 from graph_slam.mapping.obstacles import (
+    SKIP_REASONS,
+    Coverage,
     FloorPlane,
     Obstacle,
     ObstacleConfig,
@@ -17,6 +19,8 @@ from graph_slam.mapping.obstacles import (
 from graph_slam.mapping.stride_map import MappingConfig, StrideMap, build_stride_map
 
 __all__ = [
+    "SKIP_REASONS",
+    "Coverage",
     "ElevationConfig",
     "ElevationGrid",
     "FloorPlane",

@@ -162,24 +162,30 @@ class RerunLogger:
         rr = self._rr
         if not obstacles:
             return
+        from scipy.spatial.transform import Rotation
+
         centers = np.array([[*o.center_xy_m, o.height_m / 2] for o in obstacles])
         sizes = np.array([[o.depth_m, o.width_m, o.height_m] for o in obstacles])
-        rotation = None
+        stride_T_floor = np.eye(4)
         if floor_T_stride is not None:
             stride_T_floor = np.linalg.inv(np.asarray(floor_T_stride, dtype=np.float64))
-            centers = centers @ stride_T_floor[:3, :3].T + stride_T_floor[:3, 3]
-            from scipy.spatial.transform import Rotation
-
-            q_xyzw = Rotation.from_matrix(stride_T_floor[:3, :3]).as_quat()
-            rotation = [rr.Quaternion(xyzw=q_xyzw)] * len(obstacles)
+        centers = centers @ stride_T_floor[:3, :3].T + stride_T_floor[:3, 3]
+        rotations = [
+            Rotation.from_matrix(
+                stride_T_floor[:3, :3] @ Rotation.from_euler("z", o.yaw_rad).as_matrix()
+            ).as_quat()
+            for o in obstacles
+        ]
         self._rec.log(
             OBSTACLES,
             rr.Boxes3D(
                 centers=centers,
                 sizes=sizes,
-                quaternions=rotation,
+                quaternions=[rr.Quaternion(xyzw=q) for q in rotations],
+                colors=[(230, 40, 40) if o.complete else (200, 0, 200) for o in obstacles],
                 labels=[
                     f"{o.depth_m * 1000:.0f}×{o.width_m * 1000:.0f}×{o.height_m * 1000:.0f} mm"
+                    + ("" if o.complete else f" (part: {o.skip_reason})")
                     for o in obstacles
                 ],
             ),
