@@ -6,10 +6,9 @@ errors of the full graph vs the thesis baseline on the same frames, the IMU+kine
 the next foot strike, the baseline's registered-frame counts per stride (thesis Table 4.2) and
 the per-frame processing time.
 
-Truth stride frame: the ground-truth camera pose at the stride's first frame carried to the foot
-by the encoders (``world_T_foot = world_T_camera · foot_T_camera(q)⁻¹``); origin at the foot
-frame's origin (the heel contact point), z up, x the horizontal projection of the sole's x axis
-(the definition in ``kinematics.stride_frame``). Only strides that start at a load-cell foot
+Truth stride frame: :func:`graph_slam.evaluation.compare.truth_world_T_stride` (the
+ground-truth camera pose at the stride's first frame carried to the foot by the encoders; heel
+origin, z up, x the horizontal projection of the sole's x axis), as the comparison report. Only strides that start at a load-cell foot
 strike and end at the next are scored.
 """
 
@@ -22,20 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from graph_slam.evaluation.compare import truth_world_T_stride
 from graph_slam.pipelines import VARIANTS, PipelineConfig, PipelineResults, run_session
-
-
-def truth_world_T_stride(world_T_camera: np.ndarray, foot_T_camera: np.ndarray) -> np.ndarray:
-    """The stride frame from the true camera pose and the foot: heel origin, z up, yaw of x."""
-    world_T_foot = world_T_camera @ np.linalg.inv(foot_T_camera)
-    x = world_T_foot[:3, 0].copy()
-    x[2] = 0.0
-    x /= np.linalg.norm(x)
-    z = np.array([0.0, 0.0, 1.0])
-    out = np.eye(4)
-    out[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    out[:3, 3] = world_T_foot[:3, 3]
-    return out
 
 
 @dataclass
