@@ -100,6 +100,11 @@ class RegistrationConfig(ConfigModel):
         description="a Gauss-Newton step at the solution longer than this = not converged",
     )
     max_final_step_rad: float = Field(0.004, gt=0)
+    check_convergence: bool = Field(
+        True,
+        description="raise NOT_CONVERGED when the step at the solution exceeds the limits above; "
+        "False returns Open3D's result as it is (the step is still reported: final_step_m)",
+    )
     degeneracy_threshold: float = Field(
         0.01,
         gt=0,

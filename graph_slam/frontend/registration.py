@@ -513,7 +513,9 @@ def register(
     information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
     timing["information"] = time.perf_counter() - t0
     count = len(corr)
-    if analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad:
+    if config.check_convergence and (
+        analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad
+    ):
         raise RegistrationError(
             RegistrationFailure.NOT_CONVERGED,
             f"a Gauss-Newton step at the solution still moves {analysis.step_m * 1e3:.2f} mm, "
