@@ -111,19 +111,12 @@ def test_information_left_to_right_adjoint():
 
 
 def test_nan_imu_session_finishes_flagged(sim_session, tmp_path):
+    from graph_slam.session.format import IMU_COLUMNS
     from graph_slam.session.io import read_numeric_csv, write_numeric_csv
 
     copy = tmp_path / "nan"
     shutil.copytree(sim_session, copy)
-    cols = [
-        "t_s",
-        "gyro_x_rad_s",
-        "gyro_y_rad_s",
-        "gyro_z_rad_s",
-        "accel_x_m_s2",
-        "accel_y_m_s2",
-        "accel_z_m_s2",
-    ]
+    cols = list(IMU_COLUMNS)
     imu = read_numeric_csv(copy / "imu.csv", cols)
     # the reader refuses NaN in a file: feed the pipeline a NaN-laden stream directly
     from graph_slam.pipelines.inputs import leg_model_for, session_streams

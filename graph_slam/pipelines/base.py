@@ -6,8 +6,27 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from graph_slam.frontend.config import CloudConfig, RegistrationConfig
 from graph_slam.pipelines.results import FrameOutput, PipelineResults
-from graph_slam.session.records import RgbdFrame
+from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+
+
+def sensor_registration(reg: RegistrationConfig, has_color: bool) -> RegistrationConfig:
+    """``reg`` for the session's camera: colored ICP falls back to point-to-plane without
+    colour (a depth-only sensor such as the Pico Flexx)."""
+    if not has_color and reg.method == "colored":
+        return reg.model_copy(update={"method": "point_to_plane"})
+    return reg
+
+
+def frame_cloud(
+    frame: RgbdFrame, intrinsics: CameraIntrinsics, config: CloudConfig, has_color: bool
+):
+    """The frame's cloud in the camera frame (colours dropped for a depth-only sensor)."""
+    from graph_slam.frontend import depth_to_cloud
+
+    cloud, _ = depth_to_cloud(frame, intrinsics, config)
+    return cloud if has_color else type(cloud)(cloud.points_m)
 
 
 @runtime_checkable

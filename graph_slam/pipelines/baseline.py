@@ -22,7 +22,8 @@ import time
 import numpy as np
 
 from graph_slam.errors import RegistrationError
-from graph_slam.frontend import LocalMap, build_pyramid, depth_to_cloud, register
+from graph_slam.frontend import LocalMap, build_pyramid, register
+from graph_slam.pipelines.base import frame_cloud, sensor_registration
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.inputs import gravity_up, imu_up_in_model
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
@@ -46,9 +47,7 @@ class ThesisBaseline:
     ) -> None:
         self.cfg = config
         bc = config.baseline
-        reg = bc.registration
-        if not has_color and reg.method == "colored":
-            reg = reg.model_copy(update={"method": "point_to_plane"})
+        reg = sensor_registration(bc.registration, has_color)
         self.registration = reg
         self.intrinsics = intrinsics
         self.camera_T_imu = np.asarray(camera_T_imu, float)
@@ -106,9 +105,7 @@ class ThesisBaseline:
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         t0 = time.perf_counter()
         index = len(self.results.frames)
-        cloud, _ = depth_to_cloud(frame, self.intrinsics, self.cfg.cloud)
-        if not self.has_color:
-            cloud = type(cloud)(cloud.points_m)
+        cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
         pose: np.ndarray | None = None
         fitness = float("nan")
         if self._pending_strike:

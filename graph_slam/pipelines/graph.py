@@ -14,8 +14,9 @@ import numpy as np
 from graph_slam.backend import StrideSLAM
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
-from graph_slam.frontend import build_pyramid, depth_to_cloud, register
+from graph_slam.frontend import build_pyramid, register
 from graph_slam.frontend.registration import RegistrationResult, adjoint
+from graph_slam.pipelines.base import frame_cloud, sensor_registration
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
@@ -95,9 +96,7 @@ class GraphPipeline:
         self.variant = config.variant
         self.intrinsics = intrinsics
         self.use_icp = config.backend.factors["icp"]
-        reg = config.graph.registration
-        if not has_color and reg.method == "colored":
-            reg = reg.model_copy(update={"method": "point_to_plane"})
+        reg = sensor_registration(config.graph.registration, has_color)
         self.registration = reg
         self.has_color = has_color
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
@@ -176,9 +175,7 @@ class GraphPipeline:
         cloud = None
         skip = not (self.cfg.graph.icp_in_swing or foot_loaded)
         if self.use_icp and not skip:
-            cloud, _ = depth_to_cloud(frame, self.intrinsics, self.cfg.cloud)
-            if not self.has_color:
-                cloud = type(cloud)(cloud.points_m)
+            cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
             if self._prev is not None and not self._new_stride:
                 prev_index, prev_pyramid, _, _ = self._prev
                 try:
