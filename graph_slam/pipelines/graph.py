@@ -103,7 +103,6 @@ class GraphPipeline:
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, pyramid, pose, t
         self._prev2: tuple[np.ndarray, float] | None = None
-        self._new_stride = True
         self.streams = None  # inputs.Streams, set by run_session (gravity at foot strikes)
         self.leg_model = leg_model
         self.camera_T_imu = np.asarray(camera_T_imu, float)
@@ -119,7 +118,6 @@ class GraphPipeline:
         """Note the strike; the stride is closed at the next frame (or at ``finish``), whose
         depth gives the floor for the new anchor's tilt (:meth:`_strike_with_up`)."""
         self._pending_strike = float(t_s)
-        self._new_stride = True
 
     def _strike_with_up(self, t_frame_s: float, cloud):
         """Close the stride at the pending strike. The new anchor's up vector (IMU frame at the
@@ -176,7 +174,7 @@ class GraphPipeline:
         skip = not (self.cfg.graph.icp_in_swing or foot_loaded)
         if self.use_icp and not skip:
             cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
-            if self._prev is not None and not self._new_stride:
+            if self._prev is not None and self._pending_strike is None:  # same stride
                 prev_index, prev_pyramid, _, _ = self._prev
                 try:
                     r = register(cloud, prev_pyramid, self.registration, self._guess(frame.t_s))
@@ -195,7 +193,6 @@ class GraphPipeline:
             if fit is not None:
                 floor_flag = (f"floor:{fit.reason}",)
         t1 = time.perf_counter()
-        self._new_stride = False
         est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
         t2 = time.perf_counter()
         if est.k == 0:
