@@ -3,7 +3,7 @@
     python examples/stride_slam_synthetic.py [--variant icp+imu+kin] [--seeds 5] [--swing-icp-drop 1.0]
 
 ICP (1 mm, 1 mrad per frame) and leg kinematics (5 mm, 0.5°) are simulated from the ground
-truth (graph_slam.backend.simulate); in swing every registration fails by default (the
+truth (graph_slam.sim.measurements); in swing every registration fails by default (the
 thesis's failure mode). Prints per-stride camera-position RMSE in the stride frame (online =
 iSAM2, causal; smoothed = batch LM at the stride's end) and timings.
 """
@@ -16,8 +16,8 @@ import time
 import numpy as np
 
 from graph_slam.backend import BackendConfig, StrideSLAM
-from graph_slam.backend.simulate import simulate_measurements
 from graph_slam.session.synthetic import SyntheticConfig, synthetic_streams
+from graph_slam.sim.measurements import simulate_measurements
 
 
 def run_one(variant: str, seed: int, swing_icp_drop: float, duration_s: float):

@@ -1,5 +1,5 @@
 """StrideSLAM on the analytic synthetic session (exact IMU, ground truth) with simulated ICP
-and kinematic measurements (graph_slam.backend.simulate): known answers with stated
+and kinematic measurements (graph_slam.sim.measurements): known answers with stated
 tolerances, bias convergence, failure handling."""
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from graph_slam.backend import BackendConfig, StrideSLAM
-from graph_slam.backend.simulate import simulate_measurements
 from graph_slam.backend.stride_graph import StrideGraph
 from graph_slam.errors import ConfigError, EstimationError
 from graph_slam.session.synthetic import SyntheticConfig, synthetic_streams
+from graph_slam.sim.measurements import simulate_measurements
 
 
 def run(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graph_slam.bench.pipelines import (
+from graph_slam.bench.accuracy import (
     BRIDGE,
     SessionScore,
     StrideScore,

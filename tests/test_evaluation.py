@@ -35,8 +35,8 @@ from graph_slam.evaluation import (
 )
 from graph_slam.evaluation.report import MapStride
 from graph_slam.evaluation.tables import StrideRow, VariantStride
-from graph_slam.mapping import Obstacle, extract_obstacles
 from graph_slam.session.records import SceneObject, SceneTruth
+from graph_slam.terrain import Obstacle, extract_obstacles
 
 needs_evo = pytest.mark.skipif(
     importlib.util.find_spec("evo") is None, reason="evo (the 'eval' extra) is not installed"
@@ -171,7 +171,7 @@ def test_truth_boxes_in_a_yawed_stride_frame():
 
 def test_assess_stride_gives_each_box_in_view_one_outcome():
     """Measured, skipped (mapping reason), split, missed; off-map boxes are not counted."""
-    from graph_slam.mapping import Coverage, FloorPlane, ObstacleMap
+    from graph_slam.terrain import Coverage, FloorPlane, ObstacleMap
 
     truth = [
         TrueBox("Box1", np.array([0.6, -0.3]), np.array([0.2, 0.27, 0.19])),
@@ -299,7 +299,7 @@ def test_metrics_json_round_trip_and_schema_checks(tmp_path):
         ),
     )
     truth = [TrueBox("Box1", np.array([0.6, -0.3]), np.array([0.2, 0.3, 0.1]))]
-    from graph_slam.mapping import Coverage, FloorPlane, ObstacleMap
+    from graph_slam.terrain import Coverage, FloorPlane, ObstacleMap
 
     coverage = Coverage(np.ones((4, 4), bool), np.zeros((4, 4), bool), np.array([0, -1.0]), 0.5)
     floor = FloorPlane(np.array([0.0, 0.0, 1.0]), 0.0, 1000, 0.001)

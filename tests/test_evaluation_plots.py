@@ -6,7 +6,7 @@ import numpy as np
 from PIL import Image
 
 from graph_slam.evaluation import plots
-from graph_slam.mapping import ElevationConfig, Obstacle, elevation_grid
+from graph_slam.terrain import ElevationConfig, Obstacle, elevation_grid
 
 
 def _png_size(path) -> tuple[int, int]:

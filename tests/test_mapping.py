@@ -1,4 +1,4 @@
-"""graph_slam.mapping: fusion on a fixed grid, the elevation grid of a step, boxes within 2 mm."""
+"""graph_slam.terrain: fusion on a fixed grid, the elevation grid of a step, boxes within 2 mm."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from graph_slam.errors import MappingError
-from graph_slam.mapping import (
+from graph_slam.terrain import (
     SKIP_REASONS,
     ElevationConfig,
     MappingConfig,

@@ -30,8 +30,8 @@ def results(sim_session):
 
 
 def test_every_variant_through_one_interface(sim_session, results):
-    from graph_slam.pipelines.inputs import leg_model_for
     from graph_slam.session import open_session
+    from graph_slam.strides.streams import leg_model_for
 
     s = open_session(sim_session)
     leg = leg_model_for(s.calibration.thigh_T_camera)
@@ -119,8 +119,8 @@ def test_nan_imu_session_finishes_flagged(sim_session, tmp_path):
     cols = list(IMU_COLUMNS)
     imu = read_numeric_csv(copy / "imu.csv", cols)
     # the reader refuses NaN in a file: feed the pipeline a NaN-laden stream directly
-    from graph_slam.pipelines.inputs import leg_model_for, session_streams
     from graph_slam.session import open_session
+    from graph_slam.strides.streams import leg_model_for, session_streams
 
     s = open_session(copy)
     st = session_streams(s, "load_cell")
@@ -150,9 +150,9 @@ def test_imu_kin_follows_the_truth(sim_session):
     heel by up to 19 cm before toe-off) and were rejected as inconsistent. With contact-point
     stance factors (heel, then toe) every scored stride stays within 6 cm (measured 19 and
     38 mm smoothed RMSE; before: 1.8 and 2.3 m)."""
-    from graph_slam.bench.pipelines import score
-    from graph_slam.pipelines.inputs import leg_model_for
+    from graph_slam.bench.accuracy import score
     from graph_slam.session import open_session
+    from graph_slam.strides.streams import leg_model_for
 
     s = open_session(sim_session)
     r = run_session(s, PipelineConfig(variant="imu+kin"))
@@ -167,9 +167,9 @@ def test_imu_kin_follows_the_truth(sim_session):
 @pytest.fixture(scope="session")
 def scored_full(sim_session):
     """The full graph on the whole session (2 scored strides), default configuration."""
-    from graph_slam.bench.pipelines import score
-    from graph_slam.pipelines.inputs import leg_model_for
+    from graph_slam.bench.accuracy import score
     from graph_slam.session import open_session
+    from graph_slam.strides.streams import leg_model_for
 
     s = open_session(sim_session)
     leg = leg_model_for(s.calibration.thigh_T_camera)

@@ -18,8 +18,8 @@ from graph_slam.planar.config import FeatureConfig, IcpConfig, PlanarConfig
 from graph_slam.planar.evaluation import position_errors_m, step_errors_m
 from graph_slam.planar.features import extract_lines, roughness
 from graph_slam.planar.icp import register
-from graph_slam.planar.run import run_speed
 from graph_slam.planar.scanner import Scan, simulate_scan
+from graph_slam.planar.study import run_speed
 from graph_slam.planar.terrain import build_terrain, cast_rays
 from graph_slam.planar.trajectory import heel_T_sensor, simulate_gait
 from graph_slam.planar.trilateration import trilaterate

@@ -6,8 +6,8 @@ import sys
 
 import numpy as np
 
-from graph_slam.mapping import Obstacle
 from graph_slam.session.records import CameraIntrinsics
+from graph_slam.terrain import Obstacle
 from graph_slam.viz import NullLogger, RerunLogger, make_logger
 
 

@@ -45,7 +45,7 @@ def simulate_bench(
     fast: Annotated[bool, typer.Option("--fast", help="Quarter resolution.")] = False,
 ) -> None:
     """Wall time of the simulator (target: 25 strides of D455 at 90 Hz in < 3 min, 2 cores)."""
-    from graph_slam.bench.simulate import run_simulate_bench
+    from graph_slam.bench.simulator import run_simulate_bench
     from graph_slam.commands._common import progress_bar
     from graph_slam.sim import SimConfig
 

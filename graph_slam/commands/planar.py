@@ -29,7 +29,7 @@ def register(app: typer.Typer) -> None:
         from graph_slam.config import load_config
         from graph_slam.planar.config import PlanarConfig
         from graph_slam.planar.evaluation import table_markdown
-        from graph_slam.planar.run import n_steps, run_planar
+        from graph_slam.planar.study import n_steps, run_planar
 
         cfg = load_config(PlanarConfig, config)
         if seed is not None:

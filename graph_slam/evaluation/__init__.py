@@ -6,8 +6,7 @@ imports it, lazily, when trajectory metrics are computed. Nothing in the estimat
 this package.
 """
 
-from graph_slam.evaluation.counts import FrameCounts, frame_counts
-from graph_slam.evaluation.obstacles import (
+from graph_slam.evaluation.boxes import (
     DIMENSIONS,
     BoxOutcome,
     DimensionStats,
@@ -21,6 +20,7 @@ from graph_slam.evaluation.obstacles import (
     obstacle_accuracy,
     truth_boxes_in_stride,
 )
+from graph_slam.evaluation.counts import FrameCounts, frame_counts
 from graph_slam.evaluation.report import (
     SCHEMA_VERSION,
     MapEvaluation,

@@ -29,13 +29,13 @@ from pydantic import Field
 
 from graph_slam.config import ConfigModel, write_config
 from graph_slam.errors import EvaluationError
-from graph_slam.evaluation.counts import FrameCounts
-from graph_slam.evaluation.obstacles import (
+from graph_slam.evaluation.boxes import (
     assess_stride,
     collect_measurements,
     obstacle_accuracy,
     truth_boxes_in_stride,
 )
+from graph_slam.evaluation.counts import FrameCounts
 from graph_slam.evaluation.report import (
     MapEvaluation,
     MapStride,
@@ -47,8 +47,8 @@ from graph_slam.evaluation.report import (
 )
 from graph_slam.evaluation.tables import table_4_1, table_4_2, table_box_counts
 from graph_slam.evaluation.timing import timing_stats
-from graph_slam.mapping.stride_map import MappingConfig
 from graph_slam.pipelines import VARIANTS, PipelineConfig, PipelineVariant
+from graph_slam.terrain.stride_map import MappingConfig
 
 log = logging.getLogger(__name__)
 
@@ -236,7 +236,7 @@ class _StrideTruth:
 def _session_truth(session, results, first_global: int, label: str) -> list[_StrideTruth]:
     """Reference poses in each complete stride's true frame, stance mask, gait-cycle %."""
     from graph_slam.evaluation.trajectory import gait_cycle_percent, stance_mask
-    from graph_slam.pipelines.inputs import leg_model_for
+    from graph_slam.strides.streams import leg_model_for
 
     gt = session.ground_truth
     if gt is None:
@@ -502,8 +502,8 @@ def _write_trajectories(folder: Path, session, results, truths) -> list[Path]:
 def _maps_and_views(out, session, label, results, truths, cfg, matches, truth_sizes, logger, t0):
     """Per stride: fuse the map of every variant (and the truth), match boxes, write PLY, log."""
     from graph_slam.evaluation import plots
-    from graph_slam.mapping.stride_map import build_stride_map
     from graph_slam.session.adapters.ply import write_ply
+    from graph_slam.terrain.stride_map import build_stride_map
 
     files: list[Path] = []
     scene = session.scene

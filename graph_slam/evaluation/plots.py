@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from graph_slam.evaluation.obstacles import DIMENSIONS
-from graph_slam.mapping.elevation import ElevationGrid
-from graph_slam.mapping.obstacles import Obstacle
+from graph_slam.evaluation.boxes import DIMENSIONS
+from graph_slam.terrain.elevation import ElevationGrid
+from graph_slam.terrain.obstacles import Obstacle
 
 
 def _figure(ncols: int = 1, width_in: float = 6.0, height_in: float = 4.5):
@@ -101,7 +101,7 @@ def plot_map_top_view(
     """Map points seen from above (stride frame), obstacle footprints outlined.
 
     Boxes seen whole: solid red (measured); seen in part: dashed magenta with the skip reason;
-    ``truth_boxes`` (:class:`~graph_slam.evaluation.obstacles.TrueBox`): dotted black.
+    ``truth_boxes`` (:class:`~graph_slam.evaluation.boxes.TrueBox`): dotted black.
     """
     from matplotlib.patches import Polygon
 

@@ -57,8 +57,8 @@ from typing import Any
 import numpy as np
 
 from graph_slam.errors import EvaluationError
+from graph_slam.evaluation.boxes import DimensionStats, StrideObstacles, count_outcomes
 from graph_slam.evaluation.counts import FrameCounts
-from graph_slam.evaluation.obstacles import DimensionStats, StrideObstacles, count_outcomes
 from graph_slam.evaluation.tables import StrideRow, VariantStride
 from graph_slam.evaluation.timing import TimingStats
 from graph_slam.evaluation.trajectory import StrideTrajectoryMetrics

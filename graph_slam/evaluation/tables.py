@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from graph_slam.evaluation.obstacles import DimensionStats
+from graph_slam.evaluation.boxes import DimensionStats
 
 DASH = "–"
 
@@ -122,7 +122,7 @@ SKIP_COLUMNS = (
 def table_box_counts(counts: Mapping[str, Any]) -> str:
     """Per box: strides in which it was measured, skipped (per reason) and missed.
 
-    ``counts`` is :func:`graph_slam.evaluation.obstacles.count_outcomes`'s result; a last row
+    ``counts`` is :func:`graph_slam.evaluation.boxes.count_outcomes`'s result; a last row
     gives the totals with the obstacles that matched no box (``unmatched``).
     """
     by_box = counts.get("by_box", {})

@@ -23,11 +23,11 @@ import numpy as np
 
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import LocalMap, build_pyramid, register
-from graph_slam.pipelines.base import frame_cloud, sensor_registration
 from graph_slam.pipelines.config import PipelineConfig
-from graph_slam.pipelines.inputs import gravity_up, imu_up_in_model
+from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+from graph_slam.strides.streams import gravity_up, imu_up_in_model
 
 log = logging.getLogger(__name__)
 

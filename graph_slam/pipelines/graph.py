@@ -16,8 +16,8 @@ from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import build_pyramid, register
 from graph_slam.frontend.registration import RegistrationResult, adjoint
-from graph_slam.pipelines.base import frame_cloud, sensor_registration
 from graph_slam.pipelines.config import PipelineConfig
+from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
@@ -126,7 +126,7 @@ class GraphPipeline:
         lies near it (:mod:`graph_slam.frontend.floor`). Returns the floor fit (None: not
         tried — no IMU up vector, no depth or the floor disabled)."""
         from graph_slam.frontend.floor import fit_floor, fuse_up
-        from graph_slam.pipelines.inputs import gravity_up
+        from graph_slam.strides.streams import gravity_up
 
         t_strike, self._pending_strike = self._pending_strike, None
         up = sigma = None

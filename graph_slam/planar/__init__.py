@@ -7,6 +7,6 @@ pose accumulation, trilateration) and by a per-stride Pose2 factor graph. Entry 
 """
 
 from graph_slam.planar.config import PlanarConfig
-from graph_slam.planar.run import PlanarResult, run_planar
+from graph_slam.planar.study import PlanarResult, run_planar
 
 __all__ = ["PlanarConfig", "PlanarResult", "run_planar"]

@@ -5,6 +5,6 @@ ground truth; ``graph-slam simulate`` is its command. See docs/simulator.md.
 """
 
 from graph_slam.sim.config import SPEEDS_M_S, MotionConfig, SimConfig
-from graph_slam.sim.run import SimResult, prepare, simulate
+from graph_slam.sim.recording import SimResult, prepare, simulate
 
 __all__ = ["SPEEDS_M_S", "MotionConfig", "SimConfig", "SimResult", "prepare", "simulate"]

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from graph_slam.sim.run import Simulation
+    from graph_slam.sim.recording import Simulation
 
 
 def quicklook(

@@ -19,8 +19,8 @@ from typing import Protocol
 import numpy as np
 
 from graph_slam.errors import GraphSlamError
-from graph_slam.mapping.obstacles import Obstacle
 from graph_slam.session.records import CameraIntrinsics
+from graph_slam.terrain.obstacles import Obstacle
 
 WORLD = "world"
 STRIDE = "world/stride"

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from graph_slam.errors import SessionError
-from graph_slam.pipelines.base import Pipeline
 from graph_slam.pipelines.config import PipelineConfig
-from graph_slam.pipelines.inputs import leg_model_for, session_streams
+from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
+from graph_slam.strides.streams import leg_model_for, session_streams
 
 log = logging.getLogger(__name__)
 
@@ -29,7 +29,7 @@ def make_pipeline(
 ) -> Pipeline:
     """The variant's pipeline: ``icp`` = the thesis baseline, else the factor graph."""
     if config.variant == "icp":
-        from graph_slam.pipelines.baseline import ThesisBaseline
+        from graph_slam.pipelines.protocolline import ThesisBaseline
 
         return ThesisBaseline(config, intrinsics, camera_T_imu, leg_model, has_color)
     from graph_slam.pipelines.graph import GraphPipeline

@@ -60,7 +60,7 @@ class SessionScore:
 
 def score(session, results: PipelineResults, leg_model) -> list[StrideScore]:
     """Per full stride: errors of the online and smoothed ``stride_T_camera`` vs the truth."""
-    from graph_slam.pipelines.inputs import session_streams
+    from graph_slam.strides.streams import session_streams
 
     gt = session.ground_truth
     if gt is None:
@@ -133,8 +133,8 @@ def run_pipelines_bench(
 
     ``on_variant(session_score, variant)`` is called as soon as a variant is scored (the CLI
     prints its lines then: a full run takes many minutes)."""
-    from graph_slam.pipelines.inputs import leg_model_for
     from graph_slam.session import open_session
+    from graph_slam.strides.streams import leg_model_for
 
     scores = []
     for speed, path in sessions.items():

@@ -4,9 +4,9 @@ Inputs are plain arrays (camera-frame clouds and ``stride_T_camera`` poses), so 
 functions serve the online poses, the smoothed poses and any pipeline.
 """
 
-from graph_slam.mapping.elevation import ElevationConfig, ElevationGrid, elevation_grid
-from graph_slam.mapping.fusion import FusedMap, fuse_clouds, voxel_keys
-from graph_slam.mapping.obstacles import (
+from graph_slam.terrain.elevation import ElevationConfig, ElevationGrid, elevation_grid
+from graph_slam.terrain.fusion import FusedMap, fuse_clouds, voxel_keys
+from graph_slam.terrain.obstacles import (
     SKIP_REASONS,
     Coverage,
     FloorPlane,
@@ -16,7 +16,7 @@ from graph_slam.mapping.obstacles import (
     extract_obstacles,
     fit_floor,
 )
-from graph_slam.mapping.stride_map import MappingConfig, StrideMap, build_stride_map
+from graph_slam.terrain.stride_map import MappingConfig, StrideMap, build_stride_map
 
 __all__ = [
     "SKIP_REASONS",

@@ -6,7 +6,7 @@ footprint, grown by a margin, holds its centre) and gives every box in view one 
 
 * ``measured``: exactly one obstacle, seen whole (``Obstacle.complete``);
 * ``skipped`` with a reason: the mapping's (``edge_of_map``, ``adjacent``, ``top_incomplete``,
-  ``floor_not_seen``; :data:`graph_slam.mapping.SKIP_REASONS`) or ``split`` (the box came out
+  ``floor_not_seen``; :data:`graph_slam.terrain.SKIP_REASONS`) or ``split`` (the box came out
   as several obstacles);
 * ``missed``: no obstacle, although the box stands wholly inside the mapped area.
 
@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from graph_slam.errors import EvaluationError
-from graph_slam.mapping.obstacles import Obstacle, ObstacleMap
 from graph_slam.session.records import SceneTruth
+from graph_slam.terrain.obstacles import Obstacle, ObstacleMap
 
 DIMENSIONS = ("depth", "width", "height")
 """Order of ``size_m`` (thesis Table 3.1): depth along x (walking direction), width y, height z."""
