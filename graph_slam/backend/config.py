@@ -8,17 +8,13 @@ from typing import Any, Literal
 from pydantic import Field, model_validator
 
 from graph_slam.config import ConfigModel
+from graph_slam.variants import GRAPH_VARIANTS, Variant
 
 RobustKernel = Literal["none", "huber", "cauchy", "tukey"]
-Variant = Literal["icp+imu+kin", "icp+imu", "imu+kin", "icp"]
 
-#: Which factor families each variant uses. ``icp`` (the thesis baseline: ICP accumulation
-#: and trilateration, no graph) is run by the pipelines layer, not by this back end.
-VARIANT_FACTORS: dict[str, dict[str, bool]] = {
-    "icp+imu+kin": {"icp": True, "imu": True, "kin": True},
-    "icp+imu": {"icp": True, "imu": True, "kin": False},
-    "imu+kin": {"icp": False, "imu": True, "kin": True},
-}
+#: Which factor families each graph variant uses. ``icp`` (the thesis baseline: ICP
+#: accumulation, no graph) is run by the pipelines layer, not by this back end.
+VARIANT_FACTORS: dict[str, dict[str, bool]] = {v.value: v.factors for v in GRAPH_VARIANTS}
 
 
 class ImuNoiseConfig(ConfigModel):
@@ -153,7 +149,7 @@ class PriorConfig(ConfigModel):
 class BackendConfig(ConfigModel):
     """The per-stride graph back end."""
 
-    variant: Variant = "icp+imu+kin"
+    variant: Variant = Variant.ICP_IMU_KIN
     imu: ImuNoiseConfig = ImuNoiseConfig()
     gate: GateConfig = GateConfig()
     kinematics: KinematicFactorConfig = KinematicFactorConfig()
@@ -170,7 +166,7 @@ class BackendConfig(ConfigModel):
 
         if self.variant not in VARIANT_FACTORS:
             raise ConfigError(
-                f"field 'variant': {self.variant!r} is the thesis baseline (no factor graph); "
+                f"field 'variant': '{self.variant}' is the thesis baseline (no factor graph); "
                 "run it through the pipelines layer (graph_slam.pipelines), not StrideSLAM"
             )
         return self

@@ -29,6 +29,11 @@ class FrameEstimate:
     covariance: np.ndarray | None = None
     """6×6 marginal covariance of ``stride_T_camera`` (camera local, rotation first)."""
 
+    @property
+    def stride_start(self) -> bool:
+        """The frame opened a stride (its first state, the anchor)."""
+        return self.k == 0
+
 
 @dataclass(eq=False)
 class StrideSummary:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,15 +28,30 @@ from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
-from graph_slam.strides.streams import gravity_up, imu_up_in_model
+from graph_slam.strides.streams import imu_up_in_model
+from graph_slam.variants import Variant
 
 log = logging.getLogger(__name__)
+
+
+@dataclass
+class _OpenStride:
+    """The baseline's state within one stride."""
+
+    t0_s: float
+    frames: list[int] = field(default_factory=list)
+    poses: list[np.ndarray] = field(default_factory=list)
+    n_registered: int = 0
+    stop_reason: str | None = None
+    """Why registration stopped (None: it goes on)."""
+    odometry: np.ndarray | None = None
+    """The last registered ``stride_T_camera`` (the next registration's initial guess)."""
 
 
 class ThesisBaseline:
     """Variant ``icp``: the thesis's reset-and-register pipeline (see the module docstring)."""
 
-    variant = "icp"
+    variant = Variant.ICP
 
     def __init__(
         self,
@@ -53,21 +69,21 @@ class ThesisBaseline:
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.leg_model = leg_model
         self.has_color = has_color
-        self._imu: list[tuple[np.ndarray, np.ndarray]] = []
-        self.streams = None  # inputs.Streams, set by run_session (gravity at resets)
+        from graph_slam.pipelines.graph import make_gravity, make_terrain
+
+        self.gravity = make_gravity(config)
+        self.terrain = make_terrain(config, intrinsics)
         self._joints: list[np.ndarray] = []
-        self.results = PipelineResults(variant="icp", config=config.model_dump(mode="json"))
+        self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._map: LocalMap | None = None
-        self._stride: dict | None = None
+        self._stride: _OpenStride | None = None
         self._pending_strike = False
         self._world_T_stride = np.eye(4)
 
     # ------------------------------------------------------------------ streams
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
-        t = np.ravel(t_s)
-        a = np.asarray(accel_m_s2, float).reshape(-1, 3)
-        good = np.isfinite(t) & np.isfinite(a).all(axis=1)
-        self._imu.append((t[good], a[good]))
+        """The IMU serves the reset's gravity (roll and pitch) only."""
+        self.gravity.add_imu(t_s, gyro_rad_s, accel_m_s2)
 
     def add_joints(self, t_s, knee_rad, ankle_rad) -> None:
         block = np.column_stack([np.ravel(t_s), np.ravel(knee_rad), np.ravel(ankle_rad)])
@@ -75,6 +91,7 @@ class ThesisBaseline:
 
     def foot_strike(self, t_s: float) -> None:
         self._close_stride()
+        self.gravity.foot_strike(t_s)
         self._pending_strike = True
 
     # ------------------------------------------------------------------ reset
@@ -90,11 +107,9 @@ class ThesisBaseline:
             return None, "no encoder sample around the foot strike"
         q = np.array([np.interp(t_s, j[:, 0], j[:, 1]), np.interp(t_s, j[:, 0], j[:, 2])])
         up = None
-        if self.streams is not None:
-            w = self.streams.window_before(t_s, self.cfg.gravity_window_s)
-            g = gravity_up(self.streams, t_s, w)
-            if g is not None:
-                up = imu_up_in_model(self.leg_model, self.camera_T_imu, g)
+        g = self.gravity.up_at(t_s, self.gravity.window_before(t_s))
+        if g is not None:
+            up = imu_up_in_model(self.leg_model, self.camera_T_imu, g)
         try:
             anchor = stride_T_camera(self.leg_model, q, up_in_imu=up)
         except KinematicsError as err:
@@ -113,22 +128,25 @@ class ThesisBaseline:
             self._start_stride(frame.t_s)
             pose, status = self._reset_pose(frame.t_s)
             if pose is None:
-                self._stride["stop_reason"] = f"no odometry reset ({status})"
-                status = f"not_registered: {self._stride['stop_reason']}"
+                self._stride.stop_reason = f"no odometry reset ({status})"
+                status = f"not_registered: {self._stride.stop_reason}"
             else:
                 self._map.insert(cloud, pose)
-                self._stride["odometry"] = pose
+                self._stride.odometry = pose
         elif self._stride is None:
             status = "not_registered: before the first foot strike"
-        elif self._stride["stop_reason"] is not None:
-            status = f"not_registered: stopped ({self._stride['stop_reason']})"
+        elif self._stride.stop_reason is not None:
+            status = f"not_registered: stopped ({self._stride.stop_reason})"
         else:
             pose, status, fitness = self._register(cloud)
         if pose is not None:
-            self._stride["n_registered"] += 1
+            self._stride.n_registered += 1
         if self._stride is not None:
-            self._stride["frames"].append(index)
-            self._stride["poses"].append(np.full((4, 4), np.nan) if pose is None else pose)
+            self._stride.frames.append(index)
+            self._stride.poses.append(np.full((4, 4), np.nan) if pose is None else pose)
+        t1 = time.perf_counter()
+        if self._stride is not None:
+            self.terrain.add_frame(index, frame)
         out = FrameOutput(
             frame_index=index,
             stride_index=len(self.results.strides) if self._stride is not None else -1,
@@ -137,9 +155,10 @@ class ThesisBaseline:
             world_T_camera=None if pose is None else self._world_T_stride @ pose,
             status=status,
             foot_loaded=foot_loaded,
-            frontend_s=time.perf_counter() - t0,
+            frontend_s=t1 - t0,
             backend_s=0.0,
             fitness=fitness,
+            terrain_s=time.perf_counter() - t1,
         )
         self.results.frames.append(out)
         return out
@@ -149,52 +168,42 @@ class ThesisBaseline:
         s = self._stride
         target = build_pyramid(self._map.cloud(), self.registration)
         try:
-            r = register(cloud, target, self.registration, s["odometry"])
+            r = register(cloud, target, self.registration, s.odometry)
         except RegistrationError as err:
             fitness = float("nan") if err.fitness is None else float(err.fitness)
             reason = f"{err.reason.value}: {err.detail}"
             if bc.stop_on_any_failure or (np.isfinite(fitness) and fitness < bc.stop_fitness):
-                s["stop_reason"] = reason
+                s.stop_reason = reason
             return None, f"not_registered: {reason}", fitness
         if r.fitness < bc.stop_fitness:
-            s["stop_reason"] = f"low_fitness: fitness {r.fitness:.3f} < {bc.stop_fitness}"
-            return None, f"not_registered: {s['stop_reason']}", r.fitness
-        s["odometry"] = r.target_T_source
+            s.stop_reason = f"low_fitness: fitness {r.fitness:.3f} < {bc.stop_fitness}"
+            return None, f"not_registered: {s.stop_reason}", r.fitness
+        s.odometry = r.target_T_source
         self._map.insert(cloud, r.target_T_source)
         return r.target_T_source, "registered", r.fitness
 
     # ------------------------------------------------------------------ strides
     def _start_stride(self, t_s: float) -> None:
         self._map = LocalMap(self.cfg.baseline.map_voxel_m, with_colors=self.has_color)
-        self._stride = {
-            "t0": t_s,
-            "frames": [],
-            "poses": [],
-            "n_registered": 0,
-            "stop_reason": None,
-            "odometry": None,
-        }
+        self._stride = _OpenStride(t0_s=t_s)
 
     def _close_stride(self) -> None:
         s = self._stride
         if s is None:
             return
-        points = colors = None
-        if self.cfg.baseline.keep_maps and self._map is not None and len(self._map):
-            c = self._map.cloud()
-            points, colors = c.points_m, c.colors
+        index = len(self.results.strides)
+        poses = np.array(s.poses).reshape(-1, 4, 4)
         self.results.strides.append(
             StrideOutput(
-                index=len(self.results.strides),
+                index=index,
                 start="foot_strike",
                 world_T_stride=self._world_T_stride.copy(),
-                frame_indices=list(s["frames"]),
-                smoothed_stride_T_camera=np.array(s["poses"]).reshape(-1, 4, 4),
-                n_registered=s["n_registered"],
-                flags=("registration_stopped",) if s["stop_reason"] else (),
-                map_points_m=points,
-                map_colors=colors,
-                stop_reason=s["stop_reason"],
+                frame_indices=list(s.frames),
+                smoothed_stride_T_camera=poses,
+                n_registered=s.n_registered,
+                flags=("registration_stopped",) if s.stop_reason else (),
+                stop_reason=s.stop_reason,
+                terrain=self.terrain.close_stride(index, s.frames, poses, None),
             )
         )
         self._stride = None

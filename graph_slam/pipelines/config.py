@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any
 
 from pydantic import Field, model_validator
 
@@ -15,8 +15,13 @@ from graph_slam.frontend.config import (
     RegistrationConfig,
 )
 from graph_slam.frontend.floor import FloorConfig
+from graph_slam.terrain.builder import TerrainConfig
+from graph_slam.variants import Variant
 
-PipelineVariant = Literal["icp", "icp+imu", "imu+kin", "icp+imu+kin"]
+VARIANT_NAMES = frozenset(v.value for v in Variant)
+
+PipelineVariant = Variant
+"""Former name of :class:`graph_slam.variants.Variant` (kept for imports)."""
 
 
 def _graph_registration() -> RegistrationConfig:
@@ -58,7 +63,6 @@ class BaselineConfig(ConfigModel):
     map_voxel_m: float = Field(
         0.01, gt=0, description="fusion: running mean per voxel of a grid fixed in the stride frame"
     )
-    keep_maps: bool = Field(True, description="keep each stride's fused map in the results")
 
 
 class GraphFrontendConfig(ConfigModel):
@@ -80,13 +84,15 @@ class GraphFrontendConfig(ConfigModel):
 
 
 class PipelineConfig(ConfigModel):
-    """Everything ``run_session`` needs: the variant, front end, back end, baseline, events."""
+    """Everything ``run_session`` needs: the variant, front end, back end, baseline, events,
+    terrain. ``backend.variant`` follows ``variant`` (set from it when the config is built)."""
 
-    variant: PipelineVariant = "icp+imu+kin"
+    variant: Variant = Variant.ICP_IMU_KIN
     cloud: CloudConfig = CloudConfig()
     graph: GraphFrontendConfig = GraphFrontendConfig()
     baseline: BaselineConfig = BaselineConfig()
     backend: BackendConfig = BackendConfig()
+    terrain: TerrainConfig = TerrainConfig()
     event_source: str | None = Field(
         "load_cell",
         description="events.csv source used to cut strides (None: every source in the file)",
@@ -124,10 +130,20 @@ class PipelineConfig(ConfigModel):
     )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
 
-    @model_validator(mode="after")
-    def _sync_backend_variant(self) -> PipelineConfig:
-        if self.variant not in ("icp", self.backend.variant):
-            object.__setattr__(
-                self, "backend", self.backend.model_copy(update={"variant": self.variant})
-            )
-        return self
+    @model_validator(mode="before")
+    @classmethod
+    def _backend_variant_follows(cls, data: Any) -> Any:
+        """The graph's factor set is the variant's: ``backend.variant`` is derived, never
+        set apart (the baseline leaves the back end's default, which it does not use)."""
+        if not isinstance(data, dict):
+            return data
+        name = data.get("variant", Variant.ICP_IMU_KIN)
+        variant = Variant(name) if name in VARIANT_NAMES else None
+        if variant is None or variant.is_baseline:
+            return data
+        backend = data.get("backend", {})
+        if isinstance(backend, BackendConfig):
+            backend = backend.model_copy(update={"variant": variant})
+        elif isinstance(backend, dict):
+            backend = {**backend, "variant": variant}
+        return {**data, "backend": backend}

@@ -15,7 +15,7 @@ from graph_slam.backend import StrideSLAM
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import build_pyramid, register
-from graph_slam.frontend.registration import RegistrationResult, adjoint
+from graph_slam.frontend.registration import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
@@ -24,42 +24,20 @@ from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 log = logging.getLogger(__name__)
 
 
-def information_left_to_right(target_T_source: np.ndarray, information_left: np.ndarray):
-    """Information of ``target_T_source`` in left (target-frame) coordinates
-    ``Exp(ξ_L)·T`` → right (source-frame) coordinates ``T·Exp(ξ_R)``.
-
-    ``ξ_L = Ad(T) ξ_R`` so ``I_R = Ad(T)ᵀ I_L Ad(T)`` (rotation first, GTSAM order).
-    """
-    ad = adjoint(np.asarray(target_T_source, float))
-    return ad.T @ np.asarray(information_left, float) @ ad
-
-
-def icp_measurement(
-    result: RegistrationResult,
-    source_index: int,
-    target_index: int,
-    convention: str = "right",
-) -> IcpMeasurement:
+def icp_measurement(result: RegistrationResult, source_index: int, target_index: int):
     """The back end's record of a front-end registration.
 
     The front end (``RegistrationResult``) reports its information in GTSAM's tangent space
-    of ``BetweenFactor<Pose3>``: right perturbation, source frame — what ``IcpMeasurement``
-    wants, so ``convention="right"`` passes it through; ``"left"`` converts with the adjoint.
-    The degeneracy report's eigenvectors are in scaled coordinates about the cloud's centre,
-    so they are not passed: the back end's gate takes the eigen-decomposition of the
+    of ``BetweenFactor<Pose3>`` (right perturbation, source frame), as ``IcpMeasurement``
+    wants. The degeneracy report's eigenvectors are in scaled coordinates about the cloud's
+    centre, so they are not passed: the back end's gate takes the eigen-decomposition of the
     information itself.
     """
-    if convention == "right":
-        info = result.information
-    elif convention == "left":
-        info = information_left_to_right(result.target_T_source, result.information)
-    else:
-        raise ValueError(f"convention: 'right' or 'left', got {convention!r}")
     return IcpMeasurement(
         source_index=source_index,
         target_index=target_index,
         target_T_source=result.target_T_source,
-        information=info,
+        information=result.information,
         fitness=result.fitness,
         inlier_rmse_m=result.inlier_rmse_m,
         correspondences=result.correspondences,
@@ -82,7 +60,7 @@ def failed_icp_measurement(err: RegistrationError, source_index: int, target_ind
 
 
 class GraphPipeline:
-    """Front end + :class:`StrideSLAM` (see the module docstring)."""
+    """Front end + :class:`StrideSLAM` + the up vector at foot strikes + the terrain maps."""
 
     def __init__(
         self,
@@ -96,20 +74,20 @@ class GraphPipeline:
         self.variant = config.variant
         self.intrinsics = intrinsics
         self.use_icp = config.backend.factors["icp"]
-        reg = sensor_registration(config.graph.registration, has_color)
-        self.registration = reg
+        self.registration = sensor_registration(config.graph.registration, has_color)
         self.has_color = has_color
+        self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
+        self.gravity = make_gravity(config)
+        self.terrain = make_terrain(config, intrinsics)
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, pyramid, pose, t
         self._prev2: tuple[np.ndarray, float] | None = None
-        self.streams = None  # inputs.Streams, set by run_session (gravity at foot strikes)
-        self.leg_model = leg_model
-        self.camera_T_imu = np.asarray(camera_T_imu, float)
         self._pending_strike: float | None = None
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
+        self.gravity.add_imu(t_s, gyro_rad_s, accel_m_s2)
 
     def add_joints(self, t_s, knee_rad, ankle_rad) -> None:
         self.slam.add_joints(t_s, knee_rad, ankle_rad)
@@ -118,27 +96,26 @@ class GraphPipeline:
         """Note the strike; the stride is closed at the next frame (or at ``finish``), whose
         depth gives the floor for the new anchor's tilt (:meth:`_strike_with_up`)."""
         self._pending_strike = float(t_s)
+        self.gravity.foot_strike(t_s)
 
     def _strike_with_up(self, t_frame_s: float, cloud):
         """Close the stride at the pending strike. The new anchor's up vector (IMU frame at the
         new stride's first frame): the gyro-rotated accelerometer mean over about one stride
-        (:func:`inputs.gravity_up`), fused with the floor plane in this frame's depth when one
-        lies near it (:mod:`graph_slam.frontend.floor`). Returns the floor fit (None: not
-        tried — no IMU up vector, no depth or the floor disabled)."""
+        (:class:`graph_slam.strides.gravity.GravityEstimator`), fused with the floor plane in
+        this frame's depth when one lies near it (:mod:`graph_slam.frontend.floor`). Returns
+        the floor fit (None: not tried — no IMU up vector, no depth or the floor disabled)."""
         from graph_slam.frontend.floor import fit_floor, fuse_up
-        from graph_slam.strides.streams import gravity_up
 
         t_strike, self._pending_strike = self._pending_strike, None
-        up = sigma = None
-        if self.streams is not None:
-            window = self.streams.window_before(t_strike, self.cfg.gravity_window_s)
-            up = gravity_up(self.streams, t_frame_s, window)
-            span = 0.0 if self.streams.imu_t_s is None else t_frame_s - self.streams.imu_t_s[0]
-            if (
-                self.cfg.gravity_sigma_rad is not None
-                and min(window, span) >= self.cfg.gravity_min_window_s
-            ):
-                sigma = self.cfg.gravity_sigma_rad
+        window = self.gravity.window_before(t_strike)
+        up = self.gravity.up_at(t_frame_s, window)
+        sigma = None
+        if (
+            up is not None
+            and self.cfg.gravity_sigma_rad is not None
+            and min(window, self.gravity.history_s(t_frame_s)) >= self.cfg.gravity_min_window_s
+        ):
+            sigma = self.cfg.gravity_sigma_rad
         fcfg = self.cfg.graph.floor
         fit = None
         if up is not None and cloud is not None and fcfg.enabled:
@@ -164,29 +141,33 @@ class GraphPipeline:
         xi = gtsam.Pose3.Logmap(gtsam.Pose3(np.linalg.inv(pose0) @ pose1))
         return gtsam.Pose3.Expmap(xi * (t_s - t1) / max(t1 - t0, 1e-6)).matrix()
 
+    def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool):
+        """The frame's cloud, its registration to the previous frame (same stride) and its
+        pyramid (the next frame's target). Returns ``(cloud, icp, pyramid, fitness)``."""
+        if not self.use_icp or not (self.cfg.graph.icp_in_swing or foot_loaded):
+            return None, None, None, float("nan")
+        cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
+        icp, fitness = None, float("nan")
+        if self._prev is not None and self._pending_strike is None:  # same stride
+            prev_index, prev_pyramid, _, _ = self._prev
+            try:
+                r = register(cloud, prev_pyramid, self.registration, self._guess(frame.t_s))
+                icp, fitness = icp_measurement(r, index, prev_index), r.fitness
+            except RegistrationError as err:
+                icp = failed_icp_measurement(err, index, prev_index)
+                fitness = icp.fitness
+        try:
+            pyramid = build_pyramid(cloud, self.registration)
+        except RegistrationError:
+            pyramid = None
+        return cloud, icp, pyramid, fitness
+
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
+        """Register → (at a new stride) up vector and floor → graph update → keep the frame's
+        map cloud; strides the back end closed get their terrain maps."""
         t0 = time.perf_counter()
         index = len(self.results.frames)
-        icp = None
-        pyramid = None
-        fitness = float("nan")
-        cloud = None
-        skip = not (self.cfg.graph.icp_in_swing or foot_loaded)
-        if self.use_icp and not skip:
-            cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
-            if self._prev is not None and self._pending_strike is None:  # same stride
-                prev_index, prev_pyramid, _, _ = self._prev
-                try:
-                    r = register(cloud, prev_pyramid, self.registration, self._guess(frame.t_s))
-                    icp = icp_measurement(r, index, prev_index)
-                    fitness = r.fitness
-                except RegistrationError as err:
-                    icp = failed_icp_measurement(err, index, prev_index)
-                    fitness = icp.fitness
-            try:
-                pyramid = build_pyramid(cloud, self.registration)
-            except RegistrationError:
-                pyramid = None
+        cloud, icp, pyramid, fitness = self._register(frame, index, foot_loaded)
         floor_flag: tuple[str, ...] = ()
         if self._pending_strike is not None:
             fit = self._strike_with_up(frame.t_s, cloud)
@@ -195,22 +176,16 @@ class GraphPipeline:
         t1 = time.perf_counter()
         est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
         t2 = time.perf_counter()
-        if est.k == 0:
-            self._prev2 = None
-        elif self._prev is not None:
-            self._prev2 = (self._prev[2], self._prev[3])
-        self._prev = (index, pyramid, est.stride_T_camera, frame.t_s)
-        if pyramid is None:  # nothing to register the next frame against
-            self._prev = None
-            self._prev2 = None
-        status = "reset" if est.k == 0 else "estimated"
+        self._remember(index, pyramid, est, frame.t_s)
+        self._close_strides()  # those closed by this frame (a strike, or a missed one)
+        self.terrain.add_frame(index, frame)
         out = FrameOutput(
             frame_index=index,
             stride_index=est.stride_index,
             t_s=float(frame.t_s),
             stride_T_camera=est.stride_T_camera,
             world_T_camera=est.world_T_camera,
-            status=status,
+            status="reset" if est.stride_start else "estimated",
             foot_loaded=foot_loaded,
             frontend_s=t1 - t0,
             backend_s=t2 - t1,
@@ -218,19 +193,29 @@ class GraphPipeline:
             flags=est.flags
             + floor_flag
             + ((f"icp:{est.gate.reason}",) if est.gate is not None else ()),
+            terrain_s=time.perf_counter() - t2,
+            estimate=est,
         )
         self.results.frames.append(out)
         return out
 
-    def finish(self) -> PipelineResults:
-        t0 = time.perf_counter()
-        if self._pending_strike is not None:  # a strike after the last frame
-            self.slam.foot_strike(self._pending_strike)
-            self._pending_strike = None
-        res = self.slam.finish()
-        log.debug("final smoothing %.3f s", time.perf_counter() - t0)
-        self.results.backend = res
-        for s in res.strides:
+    def _remember(self, index: int, pyramid, est, t_s: float) -> None:
+        """The registration target and the constant-velocity history for the next frame."""
+        if est.stride_start:
+            self._prev2 = None
+        elif self._prev is not None:
+            self._prev2 = (self._prev[2], self._prev[3])
+        self._prev = (index, pyramid, est.stride_T_camera, t_s)
+        if pyramid is None:  # nothing to register the next frame against
+            self._prev = None
+            self._prev2 = None
+
+    def _close_strides(self) -> None:
+        """A :class:`StrideOutput` (with its terrain) for every stride the back end closed."""
+        for s in self.slam.results.strides[len(self.results.strides) :]:
+            terrain = self.terrain.close_stride(
+                s.index, s.frame_indices, s.online_stride_T_camera, s.smoothed_stride_T_camera
+            )
             self.results.strides.append(
                 StrideOutput(
                     index=s.index,
@@ -240,8 +225,18 @@ class GraphPipeline:
                     smoothed_stride_T_camera=s.smoothed_stride_T_camera,
                     n_registered=s.n_icp_accepted,
                     flags=s.flags,
+                    terrain=terrain,
+                    summary=s,
                 )
             )
+
+    def finish(self) -> PipelineResults:
+        if self._pending_strike is not None:  # a strike after the last frame
+            self.slam.foot_strike(self._pending_strike)
+            self._pending_strike = None
+        res = self.slam.finish()
+        self._close_strides()
+        self.results.backend = res
         if self.cfg.backend.covariances:
             self.results.covariances = np.array(
                 [
@@ -249,12 +244,27 @@ class GraphPipeline:
                     for f in res.frames
                 ]
             )
-        n = len(self.results.frames)
         self.results.counts = {
-            "frames": n,
+            "frames": len(self.results.frames),
             "with_pose": int(sum(f.has_pose for f in self.results.frames)),
             "icp_accepted": int(sum(s.n_icp_accepted for s in res.strides)),
             "icp_rejected": int(sum(s.n_icp_rejected for s in res.strides)),
             **{f"imu_{k}": v for k, v in res.imu_counts.items()},
         }
         return self.results
+
+
+def make_gravity(config: PipelineConfig):
+    """The up-vector component of a pipeline (:mod:`graph_slam.strides.gravity`)."""
+    from graph_slam.strides.gravity import GravityEstimator
+
+    return GravityEstimator(default_window_s=config.gravity_window_s)
+
+
+def make_terrain(config: PipelineConfig, intrinsics: CameraIntrinsics):
+    """The terrain-map component of a pipeline (:mod:`graph_slam.terrain.builder`)."""
+    from graph_slam.terrain.builder import TerrainBuilder
+
+    return TerrainBuilder(
+        config.terrain, intrinsics, config.cloud.min_depth_m, config.cloud.max_depth_m
+    )

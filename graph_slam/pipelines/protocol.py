@@ -9,6 +9,7 @@ import numpy as np
 from graph_slam.frontend.config import CloudConfig, RegistrationConfig
 from graph_slam.pipelines.results import FrameOutput, PipelineResults
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+from graph_slam.variants import Variant
 
 
 def sensor_registration(reg: RegistrationConfig, has_color: bool) -> RegistrationConfig:
@@ -31,10 +32,14 @@ def frame_cloud(
 
 @runtime_checkable
 class Pipeline(Protocol):
-    """A SLAM pipeline fed in time order: sensor streams first (any chunking), then per frame
-    ``foot_strike`` (when one happened since the previous frame) and ``add_frame``."""
+    """A SLAM pipeline fed in time order: sensor streams (any chunking), per frame
+    ``foot_strike`` (when one happened since the previous frame) and ``add_frame``.
 
-    variant: str
+    Every input arrives through these methods (no attribute is set from outside): the IMU
+    reaches the estimator and the up-vector component by ``add_imu`` alone. Each closed
+    stride carries its terrain maps (``StrideOutput.terrain``)."""
+
+    variant: Variant
 
     def add_imu(self, t_s: np.ndarray, gyro_rad_s: np.ndarray, accel_m_s2: np.ndarray) -> None:
         """IMU samples on the camera clock (IMU frame)."""

@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from graph_slam.variants import Variant
+
+if TYPE_CHECKING:
+    from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
+    from graph_slam.terrain.builder import StrideTerrain
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,6 +35,10 @@ class FrameOutput:
     backend_s: float
     fitness: float = float("nan")
     flags: tuple[str, ...] = ()
+    terrain_s: float = 0.0
+    """Time spent keeping the frame's map cloud (the stride's maps are fused at its close)."""
+    estimate: FrameEstimate | None = None
+    """The back end's own record of the frame (graph variants)."""
 
     @property
     def has_pose(self) -> bool:
@@ -37,7 +47,8 @@ class FrameOutput:
 
 @dataclass(eq=False)
 class StrideOutput:
-    """One stride: its frames, smoothed poses (graph variants) and the map (baseline)."""
+    """One stride: its frames, smoothed poses (graph variants; the baseline's are its online
+    ones) and its terrain maps."""
 
     index: int
     start: str
@@ -47,22 +58,24 @@ class StrideOutput:
     """len(frame_indices)×4×4; NaN where the pipeline has no pose."""
     n_registered: int
     flags: tuple[str, ...] = ()
-    map_points_m: np.ndarray | None = None
-    """Baseline: the fused global map in the stride frame (N×3)."""
-    map_colors: np.ndarray | None = None
     stop_reason: str | None = None
+    """Baseline: why registration stopped in this stride (None: it did not)."""
+    terrain: StrideTerrain | None = None
+    """The stride's terrain maps from its online and smoothed poses (``terrain.enabled``)."""
+    summary: StrideSummary | None = None
+    """The back end's own record of the stride (graph variants)."""
 
 
 @dataclass(eq=False)
 class PipelineResults:
     """Everything one ``run_session`` produced."""
 
-    variant: str
+    variant: Variant
     frames: list[FrameOutput] = field(default_factory=list)
     strides: list[StrideOutput] = field(default_factory=list)
     covariances: np.ndarray | None = None
     """N×6×6 online marginal covariances (camera local, rotation first), on request."""
-    backend: Any = None
+    backend: Results | None = None
     """The back end's own :class:`graph_slam.backend.Results` (graph variants)."""
     config: dict[str, Any] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
@@ -116,9 +129,13 @@ class PipelineResults:
     def smoothed_world_T_camera(self) -> np.ndarray:
         return self._smoothed(True)
 
+    def poses(self, kind: str) -> np.ndarray:
+        """``stride_T_camera`` of every frame, ``kind`` ``online`` or ``smoothed``."""
+        return self.online_stride_T_camera if kind == "online" else self.smoothed_stride_T_camera
+
     def timings_ms(self) -> dict[str, float]:
         """Median and 95th percentile of the per-frame processing time (front + back end)."""
-        total = np.array([f.frontend_s + f.backend_s for f in self.frames]) * 1e3
+        total = np.array([f.frontend_s + f.backend_s + f.terrain_s for f in self.frames]) * 1e3
         if total.size == 0:
             return {"median": float("nan"), "p95": float("nan")}
         return {"median": float(np.median(total)), "p95": float(np.percentile(total, 95))}

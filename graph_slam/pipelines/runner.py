@@ -62,7 +62,6 @@ def run_session(
     leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
     has_color = bool(session.manifest.sensors.camera.has_color)
     pipe = make_pipeline(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
-    pipe.streams = streams  # gravity at foot strikes (both pipeline kinds)
     if streams.imu_t_s is not None:
         pipe.add_imu(streams.imu_t_s, streams.gyro_rad_s, streams.accel_m_s2)
     if streams.joints_t_s is not None:
@@ -71,9 +70,8 @@ def run_session(
     strikes = list(streams.foot_strikes_s)
     t_prev = -np.inf
     for i, frame in enumerate(session.iter_frames(0, n)):
-        new = [t for t in strikes if t_prev < t <= frame.t_s]
-        if new:
-            pipe.foot_strike(new[-1])
+        for t_strike in (t for t in strikes if t_prev < t <= frame.t_s):
+            pipe.foot_strike(t_strike)
         pipe.add_frame(frame, streams.foot_loaded(frame.t_s))
         t_prev = frame.t_s
         if progress is not None:
