@@ -22,9 +22,9 @@ FAST_CONFIG = {
             "registration": {
                 "levels": [{"voxel_m": 0.04, "max_correspondence_m": 0.04, "max_iterations": 15}]
             }
-        }
+        },
+        "terrain": {"pixel_step": 2},
     },
-    "map_pixel_step": 2,
     "rrd_frame_step": 10,
 }
 
@@ -103,7 +103,7 @@ def test_truth_stride_frame_known_answer() -> None:
     # Foot pitched 20° toe-up, yawed 30°, heel at (1, 2, 0); camera 1 m above the heel.
     from scipy.spatial.transform import Rotation
 
-    from graph_slam.evaluation.compare import truth_world_T_stride
+    from graph_slam.strides.reference import truth_world_T_stride
 
     world_T_foot = np.eye(4)
     world_T_foot[:3, :3] = Rotation.from_euler("ZY", [30, -20], degrees=True).as_matrix()

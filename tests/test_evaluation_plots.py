@@ -1,12 +1,12 @@
-"""graph_slam.evaluation.plots: every figure is written as a readable PNG of the expected size."""
+"""graph_slam.viz.plots: every figure is written as a readable PNG of the expected size."""
 
 from __future__ import annotations
 
 import numpy as np
 from PIL import Image
 
-from graph_slam.evaluation import plots
 from graph_slam.terrain import ElevationConfig, Obstacle, elevation_grid
+from graph_slam.viz import plots
 
 
 def _png_size(path) -> tuple[int, int]:

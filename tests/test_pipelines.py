@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import shutil
 
-import gtsam
 import numpy as np
 import pytest
 

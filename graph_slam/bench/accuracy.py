@@ -6,7 +6,7 @@ errors of the full graph vs the thesis baseline on the same frames, the IMU+kine
 the next foot strike, the baseline's registered-frame counts per stride (thesis Table 4.2) and
 the per-frame processing time.
 
-Truth stride frame: :func:`graph_slam.evaluation.compare.truth_world_T_stride` (the
+Truth stride frame: :func:`graph_slam.strides.reference.truth_world_T_stride` (the
 ground-truth camera pose at the stride's first frame carried to the foot by the encoders; heel
 origin, z up, x the horizontal projection of the sole's x axis), as the comparison report. Only strides that start at a load-cell foot
 strike and end at the next are scored.
@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from graph_slam.evaluation.compare import truth_world_T_stride
 from graph_slam.pipelines import VARIANTS, PipelineConfig, PipelineResults, run_session
 
 
@@ -59,34 +58,19 @@ class SessionScore:
 
 
 def score(session, results: PipelineResults, leg_model) -> list[StrideScore]:
-    """Per full stride: errors of the online and smoothed ``stride_T_camera`` vs the truth."""
+    """Per complete stride (:func:`graph_slam.strides.reference.stride_references`, strides
+    cut at the load cell's events): errors of the online and smoothed ``stride_T_camera``."""
+    from graph_slam.strides.reference import stride_references
     from graph_slam.strides.streams import session_streams
 
-    gt = session.ground_truth
-    if gt is None:
-        raise ValueError(f"{session.path}: no ground truth")
-    t_gt = np.asarray(gt.t_s)
-    world_T_camera = np.asarray(gt.parent_T_child)
-    streams = session_streams(session, "load_cell")
+    events = session_streams(session, "load_cell").events
+    refs = stride_references(session, results.t_s, results.strides, events, leg_model)
     online = results.online_stride_T_camera
     smoothed = results.smoothed_stride_T_camera
     out = []
-    for s in results.strides:
-        idx = np.asarray(s.frame_indices)
-        if s.start != "foot_strike" or idx.size < 2:
-            continue
-        t = results.t_s[idx]
-        nxt = streams.foot_strikes_s[streams.foot_strikes_s > t[-1]]
-        if nxt.size == 0 or (results.t_s.size > idx[-1] + 1 and False):
-            continue
-        if idx[-1] + 1 >= len(results.frames):
-            continue  # the session ended inside this stride
-        gi = np.searchsorted(t_gt, t)
-        if not np.allclose(t_gt[np.clip(gi, 0, t_gt.size - 1)], t, atol=1e-6):
-            raise ValueError(f"{session.path}: ground truth not at the frame times")
-        q0 = streams.q_at(t[0])
-        w_T_s = truth_world_T_stride(world_T_camera[gi[0]], leg_model.foot_T_camera(q0))
-        truth = np.linalg.inv(w_T_s) @ world_T_camera[gi]
+    for ref in refs:
+        idx = ref.frame_indices
+        truth = ref.stride_T_camera
         e_on = np.linalg.norm(online[idx, :3, 3] - truth[:, :3, 3], axis=1)
         e_sm = np.linalg.norm(smoothed[idx, :3, 3] - truth[:, :3, 3], axis=1)
         loaded = np.array([results.frames[i].foot_loaded for i in idx])
@@ -94,7 +78,7 @@ def score(session, results: PipelineResults, leg_model) -> list[StrideScore]:
         has = np.isfinite(e_sm)
         out.append(
             StrideScore(
-                index=s.index,
+                index=ref.stride_index,
                 n_frames=idx.size,
                 n_swing=int(swing.sum()),
                 online_rmse_m=float(np.sqrt(np.nanmean(e_on**2))) if has.any() else np.nan,
@@ -117,10 +101,12 @@ False), as if every swing registration failed; scored at the next foot strike.""
 
 
 def variant_config(name: str) -> PipelineConfig:
-    """The pipeline configuration of a benchmark row (a variant or :data:`BRIDGE`)."""
+    """The pipeline configuration of a benchmark row (a variant or :data:`BRIDGE`); no
+    terrain maps (this benchmark scores poses only)."""
+    terrain = {"enabled": False}
     if name == BRIDGE:
-        return PipelineConfig(variant="icp+imu+kin", graph={"icp_in_swing": False})
-    return PipelineConfig(variant=name)
+        return PipelineConfig(variant="icp+imu+kin", graph={"icp_in_swing": False}, terrain=terrain)
+    return PipelineConfig(variant=name, terrain=terrain)
 
 
 def run_pipelines_bench(

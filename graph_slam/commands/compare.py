@@ -23,21 +23,14 @@ DEMO_VARIANTS = "icp,icp+imu+kin"
 
 
 def _parse_variants(text: str) -> list[str]:
-    from graph_slam.errors import ConfigError
-    from graph_slam.pipelines import VARIANTS
+    from graph_slam.variants import parse_variants
 
-    names = [v.strip() for v in text.split(",") if v.strip()]
-    bad = [v for v in names if v not in VARIANTS]
-    if bad or not names:
-        raise ConfigError(
-            f"--variants: {', '.join(bad) or '(empty)'} not known; choose from {', '.join(VARIANTS)}"
-        )
-    return names
+    return [str(v) for v in parse_variants(text)]
 
 
 def _load_compare_config(path: Path | None, variants: str | None):
     from graph_slam.config import load_config
-    from graph_slam.evaluation.compare import CompareConfig
+    from graph_slam.report import CompareConfig
 
     cfg = load_config(CompareConfig, path)
     if variants is not None:
@@ -49,14 +42,14 @@ def _load_compare_config(path: Path | None, variants: str | None):
 
 def _run_compare(sessions, out: Path, cfg):
     from graph_slam.commands._common import progress_bar
-    from graph_slam.evaluation.compare import compare
+    from graph_slam.report import compare
 
     with progress_bar("running variants") as update:
         return compare(sessions, out, cfg, progress=update)
 
 
 def _print_report(report) -> None:
-    from graph_slam.evaluation.compare import summary_table
+    from graph_slam.report import summary_table
 
     typer.echo("\nTable 4.2 (online poses; RMSE after SE(3) alignment, m)\n")
     typer.echo(report.table_4_2_online)
@@ -108,7 +101,8 @@ def register(app: typer.Typer) -> None:
             typer.Option(help="Comma-separated: icp,icp+imu,imu+kin,icp+imu+kin (default all)."),
         ] = None,
         config: Annotated[
-            Path | None, typer.Option(help="CompareConfig YAML (pipeline:, mapping:, ...).")
+            Path | None,
+            typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
         ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
@@ -137,7 +131,8 @@ def register(app: typer.Typer) -> None:
         ] = DEMO_VARIANTS,
         seed: Annotated[int, typer.Option(help="Simulator seed.")] = 1,
         config: Annotated[
-            Path | None, typer.Option(help="CompareConfig YAML (pipeline:, mapping:, ...).")
+            Path | None,
+            typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
         ] = None,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
@@ -147,7 +142,7 @@ def register(app: typer.Typer) -> None:
         (8.0 min measured idle; docs/benchmarks.md, "Demo (issue 7)").
         """
         from graph_slam.commands._common import progress_bar
-        from graph_slam.evaluation.compare import SessionSpec
+        from graph_slam.report import SessionSpec
         from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
         t0 = time.perf_counter()

@@ -1,0 +1,287 @@
+"""``compare``: run the thesis baseline and the factor-graph variants on sessions, write a report.
+
+:func:`compare` reads as its steps. For every session (one walking speed each):
+
+1. run every variant (``graph_slam.pipelines.run_session``): poses, and each stride's terrain
+   maps from its online and smoothed poses;
+2. build the reference of every complete stride (:func:`graph_slam.strides.reference.
+   stride_references`) — skipped, with scoring, when the session has no ground truth;
+3. score every stride and key (a variant's online or smoothed poses) and every stride's map
+   (the graph's smoothed poses, the baseline's online ones, and a map fused with the true
+   poses) against the scene's boxes;
+4. write TUM trajectories, PLY maps, plots and the rerun recording (:mod:`.views`).
+
+Then ``metrics.json``, ``report.md`` (thesis Tables 4.2 and 4.1) and the resolved config.
+The report folder's layout is documented in docs/evaluation.md.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydantic import Field
+
+from graph_slam.config import ConfigModel, write_config
+from graph_slam.errors import EvaluationError
+from graph_slam.evaluation.boxes import collect_measurements, obstacle_accuracy
+from graph_slam.evaluation.report import (
+    MapEvaluation,
+    MapStride,
+    StrideEvaluation,
+    VariantEvaluation,
+    metrics_document,
+    table_rows,
+    write_metrics_json,
+)
+from graph_slam.evaluation.tables import table_4_1, table_4_2, table_box_counts
+from graph_slam.evaluation.timing import timing_stats
+from graph_slam.pipelines import PipelineConfig
+from graph_slam.report.keys import Kind, MapSource, RunKey, run_keys
+from graph_slam.report.scoring import SessionRun, score_maps, score_session, stride_maps
+from graph_slam.variants import VARIANTS, Variant
+
+log = logging.getLogger(__name__)
+
+ProgressCallback = Callable[[int, int], None]
+SPEED_CLASSES = ((0.95, "Slow"), (1.25, "Normal"), (float("inf"), "Fast"))
+"""Walking speed label from the measured speed (m/s): below 0.95 slow, below 1.25 normal."""
+
+
+class CompareConfig(ConfigModel):
+    """What ``compare`` runs and how much it writes. The terrain maps (voxel size, depth range,
+    pixel step) are the pipeline's: ``pipeline.terrain``."""
+
+    variants: list[Variant] = Field(
+        default_factory=lambda: list(VARIANTS), min_length=1, description="variants to run"
+    )
+    pipeline: PipelineConfig = PipelineConfig()
+    match_margin_m: float = Field(
+        0.05,
+        gt=0,
+        description="an obstacle belongs to the scene box whose footprint grown by this holds "
+        "its centre",
+    )
+    truth_map: bool = Field(
+        True, description="also fuse each stride with the true poses (mapping-only accuracy)"
+    )
+    rrd: bool = Field(True, description="write recording.rrd (rerun)")
+    rrd_frame_step: int = Field(3, ge=1, description="log every n-th frame's images to the .rrd")
+    rrd_image_step: int = Field(
+        2, ge=1, le=8, description="subsample the .rrd's depth/colour images by this factor"
+    )
+    plot_maps_per_session: int = Field(
+        1,
+        ge=0,
+        description="map/elevation plots (last variant and true poses) for the first n strides "
+        "of each session",
+    )
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """A session folder and, optionally, its walking-speed label (else from the ground truth)."""
+
+    path: Path
+    speed: str | None = None
+
+
+@dataclass
+class CompareReport:
+    """What :func:`compare` wrote and measured."""
+
+    out: Path
+    variants: dict[str, VariantEvaluation]
+    table_4_2_online: str
+    table_4_2_smoothed: str
+    tables_4_1: dict[str, str]
+    box_counts: dict[str, str] = field(default_factory=dict)
+    """Per map source: boxes measured, skipped (per reason) and missed (markdown)."""
+    maps: dict[str, MapEvaluation] = field(default_factory=dict)
+    files: list[Path] = field(default_factory=list)
+    wall_s: float = 0.0
+    sessions: list[str] = field(default_factory=list)
+    unscored: list[str] = field(default_factory=list)
+    """Sessions run without scoring (no ground truth)."""
+
+
+@dataclass
+class _Study:
+    """Scores gathered over the sessions, by typed key."""
+
+    keys: list[RunKey]
+    sources: list[MapSource]
+    strides: dict[RunKey, list[StrideEvaluation]] = field(default_factory=dict)
+    durations: dict[RunKey, list[float]] = field(default_factory=dict)
+    maps: dict[MapSource, list[MapStride]] = field(default_factory=dict)
+    truth_sizes: dict[str, np.ndarray] = field(default_factory=dict)
+    curves: dict[Variant, list] = field(default_factory=dict)
+    toe_pcts: list[float] = field(default_factory=list)
+    n_strides: int = 0
+
+    @classmethod
+    def empty(cls, cfg: CompareConfig) -> _Study:
+        keys = run_keys(cfg.variants)
+        sources = [MapSource(Variant(v)) for v in cfg.variants]
+        sources += [MapSource()] if cfg.truth_map else []
+        return cls(
+            keys,
+            sources,
+            {k: [] for k in keys},
+            {k: [] for k in keys},
+            {s: [] for s in sources},
+            curves={Variant(v): [] for v in cfg.variants},
+        )
+
+
+def speed_label(speed_m_s: float) -> str:
+    for limit, label in SPEED_CLASSES:
+        if speed_m_s < limit:
+            return label
+    return SPEED_CLASSES[-1][1]
+
+
+def _speed_of(spec: SessionSpec, session) -> str:
+    """The spec's label, else from the ground truth's mean horizontal speed, else ``unknown``."""
+    if spec.speed is not None:
+        return spec.speed
+    gt = session.ground_truth
+    if gt is None or len(gt.t_s) < 2:
+        return "unknown"
+    p = np.asarray(gt.parent_T_child)[:, :2, 3]
+    t = np.asarray(gt.t_s)
+    return speed_label(float(np.linalg.norm(p[-1] - p[0]) / max(t[-1] - t[0], 1e-9)))
+
+
+def compare(
+    sessions: Sequence[str | Path | SessionSpec],
+    out: str | Path,
+    config: CompareConfig | None = None,
+    progress: ProgressCallback | None = None,
+) -> CompareReport:
+    """Run every variant on every session and write the report folder ``out``."""
+    from graph_slam.report import views
+
+    t_start = time.perf_counter()
+    cfg = config or CompareConfig()
+    specs, opened = _open_sessions(sessions)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files: list[Path] = [write_config(cfg, out / "config.yaml")]
+    tick = _progress(progress, sum(len(cfg.variants) * s.n_frames for s in opened))
+    study = _Study.empty(cfg)
+    logger = views.make_logger(out / "recording.rrd" if cfg.rrd else None)
+    t_offset = 0.0
+    unscored = []
+    for spec, session in zip(specs, opened, strict=True):
+        run = _run_variants(session, _speed_of(spec, session), cfg, tick, study.n_strides)
+        if not run.references:
+            unscored.append(session.name)
+        run.maps = [stride_maps(run, ref, study.sources, cfg.pipeline) for ref in run.references]
+        _score(run, study, cfg)
+        files += views.write_trajectories(out / "trajectories" / session.name, run)
+        files += views.write_maps_and_views(out, run, cfg, logger, t_offset)
+        study.n_strides += len(run.references)
+        t_offset += float(session.frame_times_s[-1]) + 1.0 if session.n_frames else 0.0
+    logger.close()
+    files += [out / "recording.rrd"] if cfg.rrd else []
+    report = _tables(out, cfg, study, [s.name for s in opened], unscored)
+    files.append(
+        write_metrics_json(
+            metrics_document(", ".join(report.sessions), report.variants, report.maps),
+            out / "metrics.json",
+        )
+    )
+    files += views.write_plots(out, study)
+    report.files = files
+    report.wall_s = time.perf_counter() - t_start
+    files.append(views.write_report_md(out / "report.md", report, cfg))
+    return report
+
+
+def _open_sessions(sessions):
+    """Open every session first: a bad one stops the run before any work."""
+    from graph_slam.session import open_session
+
+    specs = [s if isinstance(s, SessionSpec) else SessionSpec(Path(s)) for s in sessions]
+    if not specs:
+        raise EvaluationError("compare: no session given")
+    return specs, [open_session(s.path) for s in specs]
+
+
+def _progress(progress: ProgressCallback | None, total: int) -> ProgressCallback:
+    done = 0
+
+    def tick(_: int, __: int) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    return tick
+
+
+def _run_variants(session, label: str, cfg: CompareConfig, tick, first_stride: int) -> SessionRun:
+    """Step 1 and 2: every variant's results, and the references (none without ground truth)."""
+    from graph_slam.pipelines import run_session
+
+    results = {}
+    for v in cfg.variants:
+        pcfg = PipelineConfig.model_validate({**cfg.pipeline.model_dump(), "variant": v})
+        results[Variant(v)] = run_session(session, pcfg, progress=tick)
+    return SessionRun.build(session, label, results, cfg.pipeline, first_stride)
+
+
+def _score(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
+    """Step 3: trajectories and frame counts per stride and key; maps against the boxes."""
+    for key, evaluations in score_session(run).items():
+        study.strides[key] += evaluations
+    for key in study.keys:
+        res = run.results[key.variant]
+        study.durations[key] += [f.frontend_s + f.backend_s + f.terrain_s for f in res.frames]
+    for variant, curve in run.error_curves().items():
+        study.curves[variant] += curve
+    study.toe_pcts += [ref.toe_off_pct for ref in run.references]
+    for source, strides in score_maps(run, study.sources, cfg.match_margin_m).items():
+        study.maps[source] += strides
+    for name, size in run.truth_sizes().items():
+        study.truth_sizes.setdefault(name, size)
+
+
+def _tables(out: Path, cfg: CompareConfig, study: _Study, sessions, unscored) -> CompareReport:
+    """The thesis tables from the gathered scores."""
+    maps = {
+        str(source): MapEvaluation(
+            poses=str(source.poses),
+            strides=strides,
+            accuracy=obstacle_accuracy(
+                collect_measurements([m.obstacles for m in strides]), study.truth_sizes
+            ),
+        )
+        for source, strides in study.maps.items()
+    }
+    variants = {
+        str(key): VariantEvaluation(
+            strides=study.strides[key],
+            timing=timing_stats(np.asarray(study.durations[key])) if study.durations[key] else None,
+            obstacles=maps[str(key.variant)].accuracy,
+        )
+        for key in study.keys
+    }
+    online = {str(k): variants[str(k)] for k in study.keys if k.kind is Kind.ONLINE}
+    smoothed = {str(k): variants[str(k)] for k in study.keys if k.kind is Kind.SMOOTHED}
+    return CompareReport(
+        out=out,
+        variants=variants,
+        table_4_2_online=table_4_2(table_rows(online), list(online)),
+        table_4_2_smoothed=table_4_2(table_rows(smoothed), list(smoothed)) if smoothed else "",
+        tables_4_1={s.title: table_4_1(maps[str(s)].accuracy) for s in study.sources},
+        box_counts={s.title: table_box_counts(maps[str(s)].counts()) for s in study.sources},
+        maps=maps,
+        sessions=list(sessions),
+        unscored=list(unscored),
+    )
