@@ -178,3 +178,29 @@ def test_compare_errors_exit_2(tmp_path: Path, capsys) -> None:
         main(["compare", str(tmp_path), "--out", str(tmp_path / "r"), "--variants", "icp,slam"])
     assert exc.value.code == 2
     assert "slam" in capsys.readouterr().err
+
+
+def test_compare_without_ground_truth_runs_and_skips_scoring(tiny_session: Path, tmp_path) -> None:
+    """A recording without ground truth still gets its trajectories and maps; the tables
+    leave it out and the report says so (before: AttributeError in the speed label)."""
+    import shutil
+
+    import yaml
+
+    from graph_slam.report import CompareConfig, compare
+
+    copy = tmp_path / "no_gt"
+    shutil.copytree(tiny_session, copy)
+    manifest = yaml.safe_load((copy / "session.yaml").read_text())
+    manifest["files"]["ground_truth"] = None
+    manifest["files"]["ground_truth_hf"] = None
+    (copy / "session.yaml").write_text(yaml.safe_dump(manifest))
+    cfg = CompareConfig.model_validate({**FAST_CONFIG, "rrd": False})
+    report = compare([copy], tmp_path / "report", cfg)
+    assert report.unscored == report.sessions and len(report.sessions) == 1
+    assert all(not v.strides for v in report.variants.values())
+    names = {p.name for p in report.files}
+    assert "icp_online.tum" in names and "imu_kin_smoothed.tum" in names
+    assert "ground_truth.tum" not in names
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert f"Not scored (no ground truth): {report.sessions[0]}" in md

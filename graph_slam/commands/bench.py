@@ -108,7 +108,7 @@ def pipelines_bench(
 ) -> None:
     """Issue 5/6 figures: every variant on simulated sessions (RMSE, swing, counts, timing),
     and the bridging experiment (no ICP in swing). Prints each variant as it finishes."""
-    from graph_slam.bench import pipelines as bp
+    from graph_slam.bench import accuracy as bp
 
     names = tuple(v.strip() for v in variants.split(",") if v.strip())
     known = (*bp.VARIANTS, bp.BRIDGE)

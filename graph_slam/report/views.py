@@ -150,9 +150,13 @@ def write_plots(out: Path, study) -> list[Path]:
     toe = np.asarray(study.toe_pcts, dtype=float)
     toe_pct = float(np.nanmean(toe)) if np.isfinite(toe).any() else None
     curves = {str(v): c for v, c in study.curves.items()}
-    files = [
-        plots.plot_error_over_gait_cycle(out / "plots" / "error_gait_cycle.png", curves, toe_pct)
-    ]
+    files = []
+    if any(curves.values()):  # nothing to draw when no session was scored
+        files.append(
+            plots.plot_error_over_gait_cycle(
+                out / "plots" / "error_gait_cycle.png", curves, toe_pct
+            )
+        )
     for source, strides in study.maps.items():
         measured = collect_measurements([s.obstacles for s in strides])
         if measured:
