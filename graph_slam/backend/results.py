@@ -28,6 +28,8 @@ class FrameEstimate:
     update_s: float
     covariance: np.ndarray | None = None
     """6×6 marginal covariance of ``stride_T_camera`` (camera local, rotation first)."""
+    stride_start: bool = False
+    """True for a stride's first state (``k == 0``: the anchor, no ICP across the strike)."""
 
 
 @dataclass(eq=False)

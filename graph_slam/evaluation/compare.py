@@ -236,7 +236,7 @@ class _StrideTruth:
 def _session_truth(session, results, first_global: int, label: str) -> list[_StrideTruth]:
     """Reference poses in each complete stride's true frame, stance mask, gait-cycle %."""
     from graph_slam.evaluation.trajectory import gait_cycle_percent, stance_mask
-    from graph_slam.strides.streams import leg_model_for
+    from graph_slam.strides.kinematics import leg_model_for
 
     gt = session.ground_truth
     if gt is None:

@@ -27,7 +27,8 @@ from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
-from graph_slam.strides.streams import gravity_up, imu_up_in_model
+from graph_slam.strides.kinematics import imu_up_in_model
+from graph_slam.strides.streams import gravity_up
 
 log = logging.getLogger(__name__)
 
