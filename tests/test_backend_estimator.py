@@ -79,6 +79,10 @@ def test_full_graph_recovers_truth_with_icp_lost_in_swing():
     assert np.max(full[:, 0]) < 0.012, err
     # Strides 1.. start from a foot strike with an anchor; gate reasons are recorded.
     assert [s.start for s in res.strides][:2] == ["first_stride", "foot_strike"]
+    # each stride's first state is marked (the pipelines' reset frames)
+    assert [f.frame_index for f in res.frames if f.stride_start] == [
+        s.frame_indices[0] for s in res.strides
+    ]
     reasons = res.gate_reasons
     assert any(r is not None and r.startswith("registration_failed") for r in reasons)
     assert sum(r == "ok" for r in reasons) > 50
