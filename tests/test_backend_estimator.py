@@ -79,6 +79,10 @@ def test_full_graph_recovers_truth_with_icp_lost_in_swing():
     assert np.max(full[:, 0]) < 0.012, err
     # Strides 1.. start from a foot strike with an anchor; gate reasons are recorded.
     assert [s.start for s in res.strides][:2] == ["first_stride", "foot_strike"]
+    # each stride's first state is marked (the pipelines' reset frames)
+    assert [f.frame_index for f in res.frames if f.stride_start] == [
+        s.frame_indices[0] for s in res.strides
+    ]
     reasons = res.gate_reasons
     assert any(r is not None and r.startswith("registration_failed") for r in reasons)
     assert sum(r == "ok" for r in reasons) > 50
@@ -218,7 +222,7 @@ def test_isam2_gets_only_new_factors():
     slam.add_imu(t, np.zeros((t.size, 3)), np.tile([0, 0, 9.81], (t.size, 1)))
     for tf in (0.0, 0.1, 0.2):
         slam.add_frame(tf)
-    g = slam._graph
+    g = slam.strides.graph  # the open stride's graph
     assert g.graph.size() == 3 + 2
     assert g.isam.getFactorsUnsafe().size() == g.graph.size()
     p = g.estimate.atPose3(gtsam.symbol_shorthand.X(2))
@@ -280,8 +284,8 @@ def test_foot_strike_up_in_imu_sets_the_anchor_gravity():
 def test_tilt_covariance_replaces_roll_pitch_about_the_stride_origin():
     """``foot_strike(up_sigma_rad=σ)``: the anchor's tilt about the stride x/y axes (through the
     heel) gets σ, independent of the rest; yaw and position keep the kinematics' covariance."""
-    from graph_slam.backend.estimator import tilt_covariance
-    from graph_slam.backend.factors import adjoint
+    from graph_slam.strides.kinematics import tilt_covariance
+    from kinematics.conversions import adjoint_rot_first as adjoint
 
     rng = np.random.default_rng(3)
     a = rng.normal(size=(6, 6))
@@ -303,8 +307,8 @@ def test_anchor_covariance_is_the_encoders_plus_tilt():
     """With a known up vector the anchor is uncertain by the encoders' FK error, the up vector's
     tilt and a small floor on yaw and position (the foot defines the stride frame); no contact
     noise. Checked in stride-frame (left) coordinates."""
-    from graph_slam.backend.estimator import anchor_covariance
-    from graph_slam.backend.factors import adjoint
+    from graph_slam.strides.kinematics import anchor_covariance
+    from kinematics.conversions import adjoint_rot_first as adjoint
 
     rng = np.random.default_rng(4)
     j = rng.normal(size=(6, 2)) * 0.3

@@ -232,3 +232,19 @@ def test_contact_point_jacobian_matches_numerical():
     a, b = f.linearize(values).jacobian()
     np.testing.assert_allclose(a, h / 0.004, atol=1e-6)
     np.testing.assert_allclose(b, -err / 0.004, atol=1e-9)
+
+
+def test_factors_use_the_canonical_adjoint_gtsam_convention():
+    """``kinematics.conversions.adjoint_rot_first`` (the one adjoint) is GTSAM's
+    ``Pose3.AdjointMap`` (rotation first): the camera<->IMU covariance transport agrees."""
+    from kinematics.conversions import adjoint_rot_first
+
+    pose = random_pose(RNG)
+    np.testing.assert_allclose(adjoint_rot_first(pose.matrix()), pose.AdjointMap(), atol=1e-12)
+    a = RNG.normal(size=(6, 6))
+    cov = a @ a.T
+    ad = gtsam.Pose3(CAMERA_T_IMU).AdjointMap()
+    np.testing.assert_allclose(
+        factors.imu_cov_to_camera(cov, CAMERA_T_IMU), ad @ cov @ ad.T, atol=1e-10
+    )
+    assert not hasattr(factors, "adjoint")  # no second copy in the back end

@@ -29,7 +29,7 @@ def results(sim_session):
 
 def test_every_variant_through_one_interface(sim_session, results):
     from graph_slam.session import open_session
-    from graph_slam.strides.streams import leg_model_for
+    from graph_slam.strides.kinematics import leg_model_for
 
     s = open_session(sim_session)
     leg = leg_model_for(s.calibration.thigh_T_camera)
@@ -105,7 +105,8 @@ def test_nan_imu_session_finishes_flagged(sim_session, tmp_path):
     imu = read_numeric_csv(copy / "imu.csv", cols)
     # the reader refuses NaN in a file: feed the pipeline a NaN-laden stream directly
     from graph_slam.session import open_session
-    from graph_slam.strides.streams import leg_model_for, session_streams
+    from graph_slam.strides.kinematics import leg_model_for
+    from graph_slam.strides.streams import session_streams
 
     s = open_session(copy)
     st = session_streams(s, "load_cell")
@@ -137,7 +138,7 @@ def test_imu_kin_follows_the_truth(sim_session):
     38 mm smoothed RMSE; before: 1.8 and 2.3 m)."""
     from graph_slam.bench.accuracy import score
     from graph_slam.session import open_session
-    from graph_slam.strides.streams import leg_model_for
+    from graph_slam.strides.kinematics import leg_model_for
 
     s = open_session(sim_session)
     r = run_session(s, PipelineConfig(variant="imu+kin"))
@@ -154,7 +155,7 @@ def scored_full(sim_session):
     """The full graph on the whole session (2 scored strides), default configuration."""
     from graph_slam.bench.accuracy import score
     from graph_slam.session import open_session
-    from graph_slam.strides.streams import leg_model_for
+    from graph_slam.strides.kinematics import leg_model_for
 
     s = open_session(sim_session)
     leg = leg_model_for(s.calibration.thigh_T_camera)

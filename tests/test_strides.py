@@ -23,7 +23,9 @@ def _spinning_imu(rate_hz=200.0, duration_s=2.0, omega=(0.0, 0.0, 2.0), up=(0.0,
     # body_R_world(t) = Exp(-ω t); the world up vector seen in the body frame
     up_world = np.asarray(up)
     tilt = Rotation.from_rotvec([0.3, 0.0, 0.0])  # up not along the spin axis
-    a = np.array([(Rotation.from_rotvec(-np.asarray(omega) * tk) * tilt).apply(up_world) for tk in t])
+    a = np.array(
+        [(Rotation.from_rotvec(-np.asarray(omega) * tk) * tilt).apply(up_world) for tk in t]
+    )
     return t, w, a, tilt
 
 

@@ -19,11 +19,7 @@ import numpy as np
 from graph_slam.backend import noise
 from graph_slam.backend.keys import B, V, X
 from graph_slam.backend.noise import RobustKernel
-
-
-def adjoint(a_T_b: np.ndarray) -> np.ndarray:
-    """6×6 adjoint of a pose, rotation first (equals ``gtsam.Pose3.AdjointMap``)."""
-    return gtsam.Pose3(np.asarray(a_T_b, float)).AdjointMap()
+from kinematics.conversions import adjoint_rot_first
 
 
 def camera_pose_to_imu(
@@ -31,13 +27,13 @@ def camera_pose_to_imu(
 ) -> tuple[gtsam.Pose3, np.ndarray]:
     """The IMU pose and its covariance (IMU local coordinates) from a camera pose."""
     stride_T_imu = gtsam.Pose3(np.asarray(stride_T_camera, float) @ camera_T_imu)
-    ad = adjoint(np.linalg.inv(camera_T_imu))
+    ad = adjoint_rot_first(np.linalg.inv(camera_T_imu))
     return stride_T_imu, ad @ cov_camera @ ad.T
 
 
 def imu_cov_to_camera(cov_imu: np.ndarray, camera_T_imu: np.ndarray) -> np.ndarray:
     """Covariance of ``stride_T_imu`` (IMU local) → of ``stride_T_camera`` (camera local)."""
-    ad = adjoint(camera_T_imu)
+    ad = adjoint_rot_first(camera_T_imu)
     return ad @ cov_imu @ ad.T
 
 
@@ -106,7 +102,7 @@ def icp_between_factor(
     """
     imu_T_camera = np.linalg.inv(camera_T_imu)
     meas = gtsam.Pose3(imu_T_camera @ np.asarray(target_T_source, float) @ camera_T_imu)
-    r_imu = np.asarray(sqrt_info_camera, float) @ adjoint(camera_T_imu)
+    r_imu = np.asarray(sqrt_info_camera, float) @ adjoint_rot_first(camera_T_imu)
     model = noise.robust(noise.sqrt_information(r_imu), kernel, robust_k)
     return gtsam.BetweenFactorPose3(X(k_target), X(k_source), meas, model)
 

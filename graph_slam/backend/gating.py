@@ -13,17 +13,24 @@ Rules, checked in this order (the first that fails is the recorded reason):
    ``ok_projected``) with the number of dropped directions recorded.
 
 Fitness alone is never trusted (a flat floor slid sideways registers with fitness 1.0).
+
+:class:`RegistrationGate` (built by :func:`make_registration_gate`) applies these rules to the
+estimator's frames and turns an accepted registration into its ICP between-factor.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 
-from graph_slam.backend.config import GateConfig
+from graph_slam.backend import factors
+from graph_slam.backend.config import BackendConfig, GateConfig
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.backend.noise import sqrt_of_information
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,3 +96,51 @@ def gate_icp(meas: IcpMeasurement, cfg: GateConfig) -> GateDecision:
     info = cfg.information_scale * 0.5 * (info + info.T)
     reason = "ok" if rank == 6 else f"ok_projected ({6 - rank} degenerate direction(s) dropped)"
     return GateDecision(True, reason, rank, dropped, info, sqrt_of_information(info))
+
+
+class RegistrationGate:
+    """ICP measurement -> ``BetweenFactorPose3`` or a rejection, within one stride.
+
+    Knows which frames belong to the open stride (``frame index -> k``): a registration whose
+    source is not this frame, or whose target is not an earlier frame of the stride, is
+    rejected before :func:`gate_icp`'s rules.
+    """
+
+    def __init__(self, cfg: GateConfig, camera_T_imu: np.ndarray):
+        self.cfg = cfg
+        self.camera_T_imu = np.asarray(camera_T_imu, float)
+        self.frame_to_k: dict[int, int] = {}
+
+    def start_stride(self) -> None:
+        self.frame_to_k = {}
+
+    def add_frame(self, index: int, k: int) -> None:
+        """Frame ``index`` is state ``k`` of the open stride (a target for later frames)."""
+        self.frame_to_k[index] = k
+
+    def factor(self, icp: IcpMeasurement, index: int, k: int) -> tuple[GateDecision, object]:
+        """The decision on ``icp`` for frame ``index`` (state ``k``) and its factor or None."""
+        if icp.source_index != index:
+            reason = f"source_index {icp.source_index} is not this frame ({index})"
+            return GateDecision(False, reason), None
+        if icp.target_index not in self.frame_to_k or icp.target_index >= index:
+            return GateDecision(False, "target frame not in this stride"), None
+        decision = gate_icp(icp, self.cfg)
+        if not decision.accepted:
+            log.info("frame %d: ICP rejected (%s)", index, decision.reason)
+            return decision, None
+        f = factors.icp_between_factor(
+            self.frame_to_k[icp.target_index],
+            k,
+            icp.target_T_source,
+            decision.sqrt_information,
+            self.camera_T_imu,
+            self.cfg.robust_kernel,
+            self.cfg.robust_k,
+        )
+        return decision, f
+
+
+def make_registration_gate(config: BackendConfig, camera_T_imu: np.ndarray) -> RegistrationGate:
+    """The registration gate of :class:`~graph_slam.backend.estimator.StrideSLAM`."""
+    return RegistrationGate(config.gate, camera_T_imu)

@@ -28,11 +28,8 @@ class FrameEstimate:
     update_s: float
     covariance: np.ndarray | None = None
     """6×6 marginal covariance of ``stride_T_camera`` (camera local, rotation first)."""
-
-    @property
-    def stride_start(self) -> bool:
-        """The frame opened a stride (its first state, the anchor)."""
-        return self.k == 0
+    stride_start: bool = False
+    """True for a stride's first state (``k == 0``: the anchor, no ICP across the strike)."""
 
 
 @dataclass(eq=False)

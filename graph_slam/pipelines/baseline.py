@@ -28,7 +28,8 @@ from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
-from graph_slam.strides.streams import imu_up_in_model
+from graph_slam.strides.joints import JointBuffer
+from graph_slam.strides.kinematics import imu_up_in_model
 from graph_slam.variants import Variant
 
 log = logging.getLogger(__name__)
@@ -73,7 +74,7 @@ class ThesisBaseline:
 
         self.gravity = make_gravity(config)
         self.terrain = make_terrain(config, intrinsics)
-        self._joints: list[np.ndarray] = []
+        self.joints = JointBuffer(leg_model)
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._map: LocalMap | None = None
         self._stride: _OpenStride | None = None
@@ -86,8 +87,8 @@ class ThesisBaseline:
         self.gravity.add_imu(t_s, gyro_rad_s, accel_m_s2)
 
     def add_joints(self, t_s, knee_rad, ankle_rad) -> None:
-        block = np.column_stack([np.ravel(t_s), np.ravel(knee_rad), np.ravel(ankle_rad)])
-        self._joints.append(block[np.isfinite(block).all(axis=1)])
+        """Encoder samples for the reset (checked and counted by :class:`JointBuffer`)."""
+        self.joints.add(t_s, knee_rad, ankle_rad)
 
     def foot_strike(self, t_s: float) -> None:
         self._close_stride()
@@ -100,12 +101,11 @@ class ThesisBaseline:
         from kinematics.errors import KinematicsError
         from kinematics.stride_frame import stride_T_camera
 
-        if not self._joints:
+        if not self.joints.t_s.size:
             return None, "no joint encoders"
-        j = np.concatenate(self._joints)
-        if not j[0, 0] <= t_s <= j[-1, 0]:
+        q = self.joints.q_at(t_s)
+        if q is None:
             return None, "no encoder sample around the foot strike"
-        q = np.array([np.interp(t_s, j[:, 0], j[:, 1]), np.interp(t_s, j[:, 0], j[:, 2])])
         up = None
         g = self.gravity.up_at(t_s, self.gravity.window_before(t_s))
         if g is not None:

@@ -12,7 +12,8 @@ from graph_slam.errors import SessionError
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
-from graph_slam.strides.streams import leg_model_for, session_streams
+from graph_slam.strides.kinematics import leg_model_for
+from graph_slam.strides.streams import session_streams
 
 log = logging.getLogger(__name__)
 

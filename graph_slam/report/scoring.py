@@ -39,8 +39,9 @@ class SessionRun:
     def build(
         cls, session, label: str, results, pipeline: PipelineConfig, first_stride: int
     ) -> SessionRun:
+        from graph_slam.strides.kinematics import leg_model_for
         from graph_slam.strides.reference import stride_references
-        from graph_slam.strides.streams import leg_model_for, session_streams
+        from graph_slam.strides.streams import session_streams
 
         refs: list[StrideReference] = []
         if session.ground_truth is not None:

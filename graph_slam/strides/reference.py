@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graph_slam.errors import EvaluationError
+from graph_slam.strides.joints import interp_q
 from graph_slam.strides.streams import StrideEvents
 
 
@@ -139,7 +140,11 @@ def stride_references(
         gi = np.clip(np.searchsorted(t_gt, t), 0, t_gt.size - 1)
         if not np.allclose(t_gt[gi], t, atol=1e-6):
             raise EvaluationError(f"{session.path}: groundtruth.txt is not at the frame times")
-        q0 = np.array([np.interp(t[0], t_joint, q_rad[:, j]) for j in range(2)])
+        q0 = interp_q(float(t[0]), t_joint, q_rad)
+        if q0 is None:
+            raise EvaluationError(
+                f"{session.path}: joints.csv has no sample around the stride start t={t[0]:.3f} s"
+            )
         w_T_s = truth_world_T_stride(world_T_camera[gi[0]], leg_model.foot_T_camera(q0))
         out.append(
             StrideReference(

@@ -1,19 +1,18 @@
 """Session streams as the pipelines use them: time offsets applied, strides cut at events
 (one rule: :func:`stride_events`).
 
-Also the leg model matching a session's calibration and the thesis's odometry reset at foot
-strike (encoders -> ``foot_T_camera``, IMU gravity for roll and pitch).
+The up vector at a foot strike is :mod:`graph_slam.strides.gravity`'s; the leg model matching
+a calibration and the IMU's up vector in it are :mod:`graph_slam.strides.kinematics`'s.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from graph_slam.errors import ConfigError, SessionError
+from graph_slam.errors import SessionError
 
 log = logging.getLogger(__name__)
 
@@ -91,15 +90,13 @@ class Streams:
         return self.events.foot_loaded(t_s)
 
     def q_at(self, t_s: float) -> np.ndarray | None:
-        """Knee and ankle angles (rad) at ``t_s``, linear between samples; None outside."""
-        if self.joints_t_s is None or not self.joints_t_s[0] <= t_s <= self.joints_t_s[-1]:
+        """Knee and ankle angles (rad) at ``t_s`` (:func:`~graph_slam.strides.joints.interp_q`);
+        None outside the samples."""
+        from graph_slam.strides.joints import interp_q
+
+        if self.joints_t_s is None:
             return None
-        return np.array(
-            [
-                np.interp(t_s, self.joints_t_s, self.knee_rad),
-                np.interp(t_s, self.joints_t_s, self.ankle_rad),
-            ]
-        )
+        return interp_q(t_s, self.joints_t_s, np.column_stack([self.knee_rad, self.ankle_rad]))
 
 
 def session_streams(session, event_source: str | None) -> Streams:
@@ -117,46 +114,3 @@ def session_streams(session, event_source: str | None) -> Streams:
         ankle_rad=None if joints is None else np.asarray(joints.q_rad)[:, 1],
         events=stride_events(session.events, event_source, f"{session.path}/events.csv"),
     )
-
-
-def leg_model_for(thigh_T_camera: np.ndarray, mount_pitch_deg: float | None = None):
-    """The ``LegModel`` whose camera mount matches the calibration's ``thigh_T_camera``.
-
-    With ``mount_pitch_deg`` None the pitch is fitted (30-45°); the fitted mount must reproduce
-    the calibration within 1 mm / 1 mrad, else :class:`ConfigError`.
-    """
-    from scipy.optimize import minimize_scalar
-
-    from kinematics.leg_model import LegModel
-    from kinematics.leg_params import LegParams
-
-    def model(pitch_rad: float) -> LegModel:
-        return LegModel(LegParams(mount_pitch_down_rad=pitch_rad))
-
-    def mismatch(m) -> float:
-        d = np.linalg.inv(m.thigh_T_frame("camera_optical")) @ thigh_T_camera
-        return float(np.linalg.norm(d[:3, 3]) + np.linalg.norm(d[:3, :3] - np.eye(3)))
-
-    if mount_pitch_deg is not None:
-        return model(math.radians(mount_pitch_deg))
-    fit = minimize_scalar(
-        lambda p: mismatch(model(p)),
-        bounds=(math.radians(30), math.radians(45)),
-        method="bounded",
-        options={"xatol": 1e-9},
-    )
-    best = model(float(fit.x))
-    if mismatch(best) > 1e-3:
-        raise ConfigError(
-            "calibration.thigh_T_camera: no leg-model camera mount (pitch 30-45°, default "
-            f"geometry) reproduces it (mismatch {mismatch(best):.3g}); set mount_pitch_deg"
-        )
-    return best
-
-
-def imu_up_in_model(model, camera_T_imu: np.ndarray, up_in_imu: np.ndarray) -> np.ndarray:
-    """The session IMU's up vector expressed in the leg model's ``imu`` frame (via the camera)."""
-    model_camera_R_imu = (
-        np.linalg.inv(model.thigh_T_frame("camera_optical")) @ model.thigh_T_frame("imu")
-    )[:3, :3]
-    return model_camera_R_imu.T @ camera_T_imu[:3, :3] @ up_in_imu

@@ -1,0 +1,239 @@
+"""Leg kinematics for the estimator: encoders -> camera pose in the stride frame, contact points.
+
+:class:`LegKinematics` (a :class:`kinematics.leg_model.LegModel`, a :class:`~graph_slam.
+strides.joints.JointBuffer` and the session's ``camera_T_imu``) answers, for a time ``t_s``:
+
+* :meth:`LegKinematics.anchor` — the stride's anchor at its first frame:
+  :func:`kinematics.stride_frame.stride_T_camera` with the IMU's up vector carried into the
+  model's IMU frame (:func:`imu_up_in_model`); with an up σ its covariance is
+  :func:`anchor_covariance`. It remembers the struck foot's ``stride_T_foot``;
+* :meth:`LegKinematics.foot_pose` — the ``foot_pose`` stance measurement: that foot held,
+  ``stride_T_foot · foot_T_camera(q)``;
+* :meth:`LegKinematics.contact_geometry` — ``imu_T_foot`` and ``foot_p_toe`` for the
+  ``contact_points`` stance model.
+
+Each returns None (logged) when no measurement exists: no model, ``t_s`` outside the buffered
+encoder samples, or a ``KinematicsError`` (e.g. a joint outside its limits).
+
+Also here: :func:`leg_model_for` (the leg model matching a calibration).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from graph_slam.errors import ConfigError
+from graph_slam.strides.joints import JointBuffer
+from kinematics.conversions import adjoint_rot_first
+
+if TYPE_CHECKING:  # the record lives with the back end that checks and consumes it
+    from graph_slam.backend.measurements import KinematicMeasurement
+
+log = logging.getLogger(__name__)
+
+
+def leg_model_for(thigh_T_camera: np.ndarray, mount_pitch_deg: float | None = None):
+    """The ``LegModel`` whose camera mount matches the calibration's ``thigh_T_camera``.
+
+    With ``mount_pitch_deg`` None the pitch is fitted (30-45°); the fitted mount must reproduce
+    the calibration within 1 mm / 1 mrad, else :class:`ConfigError`.
+    """
+    from scipy.optimize import minimize_scalar
+
+    from kinematics.leg_model import LegModel
+    from kinematics.leg_params import LegParams
+
+    def model(pitch_rad: float) -> LegModel:
+        return LegModel(LegParams(mount_pitch_down_rad=pitch_rad))
+
+    def mismatch(m) -> float:
+        d = np.linalg.inv(m.thigh_T_frame("camera_optical")) @ thigh_T_camera
+        return float(np.linalg.norm(d[:3, 3]) + np.linalg.norm(d[:3, :3] - np.eye(3)))
+
+    if mount_pitch_deg is not None:
+        return model(math.radians(mount_pitch_deg))
+    fit = minimize_scalar(
+        lambda p: mismatch(model(p)),
+        bounds=(math.radians(30), math.radians(45)),
+        method="bounded",
+        options={"xatol": 1e-9},
+    )
+    best = model(float(fit.x))
+    if mismatch(best) > 1e-3:
+        raise ConfigError(
+            "calibration.thigh_T_camera: no leg-model camera mount (pitch 30-45°, default "
+            f"geometry) reproduces it (mismatch {mismatch(best):.3g}); set mount_pitch_deg"
+        )
+    return best
+
+
+def imu_up_in_model(model, camera_T_imu: np.ndarray, up_in_imu: np.ndarray) -> np.ndarray:
+    """The session IMU's up vector expressed in the leg model's ``imu`` frame (via the camera)."""
+    model_camera_R_imu = (
+        np.linalg.inv(model.thigh_T_frame("camera_optical")) @ model.thigh_T_frame("imu")
+    )[:3, :3]
+    return model_camera_R_imu.T @ camera_T_imu[:3, :3] @ up_in_imu
+
+
+def tilt_covariance(stride_T_camera: np.ndarray, cov: np.ndarray, sigma_rad: float) -> np.ndarray:
+    """``cov`` (camera local, rotation first) with its tilt about the stride frame's x and y axes
+    (through the stride origin) replaced by an independent σ ``sigma_rad``: with the stride
+    frame's z from the IMU's up vector the camera's tilt error is that vector's error."""
+    ad = adjoint_rot_first(stride_T_camera)  # right (camera) -> left (stride) coordinates
+    left = ad @ cov @ ad.T
+    left[:2, :] = 0.0
+    left[:, :2] = 0.0
+    left[0, 0] = left[1, 1] = sigma_rad**2
+    inv = np.linalg.inv(ad)
+    return inv @ left @ inv.T
+
+
+def anchor_covariance(
+    stride_T_camera: np.ndarray,
+    encoder_cov: np.ndarray,
+    up_sigma_rad: float,
+    yaw_sigma_rad: float,
+    position_sigma_m: float,
+) -> np.ndarray:
+    """The anchor's covariance (camera local, rotation first) when the up vector is known.
+
+    The stride frame *is* the foot at the strike (origin at the heel, x along the foot) with z
+    up: relative to it the camera is uncertain only by the encoders' FK error
+    (``encoder_cov``), the up vector's tilt error (``up_sigma_rad``, about the stride x/y axes
+    through the heel) and a small floor on yaw and position (``yaw_sigma_rad``,
+    ``position_sigma_m``) that keeps the prior well conditioned. Where the foot landed in the
+    world (the contact noise of the kinematics module) does not move the camera in this frame.
+    Measured without this (the contact noise's 2° yaw and 1 cm in the anchor): the smoother
+    turned whole strides by up to 1° of yaw to fit a carried-over velocity (24 mm at the stride's
+    end, full-resolution normal-speed session).
+    """
+    ad = adjoint_rot_first(stride_T_camera)
+    floor = np.diag(np.r_[0.0, 0.0, yaw_sigma_rad**2, np.full(3, position_sigma_m**2)])
+    inv = np.linalg.inv(ad)
+    cov = np.asarray(encoder_cov, float) + inv @ floor @ inv.T
+    return tilt_covariance(stride_T_camera, cov, up_sigma_rad)
+
+
+@dataclass(frozen=True, eq=False)
+class ContactGeometry:
+    """The foot in the IMU frame at one time: ``imu_T_foot`` (foot = heel frame, x along the
+    sole) and the toe in the foot frame ``foot_p_toe`` (m)."""
+
+    imu_T_foot: np.ndarray
+    foot_p_toe: np.ndarray
+
+
+class LegKinematics:
+    """Encoders + leg model -> the estimator's kinematic measurements (module docstring)."""
+
+    def __init__(
+        self,
+        model,
+        camera_T_imu: np.ndarray,
+        joints: JointBuffer,
+        anchor_yaw_sigma_rad: float = 1e-3,
+        anchor_position_sigma_m: float = 1e-3,
+    ):
+        self.model = model
+        self.camera_T_imu = np.asarray(camera_T_imu, float)
+        self.joints = joints
+        self.anchor_yaw_sigma_rad = anchor_yaw_sigma_rad
+        self.anchor_position_sigma_m = anchor_position_sigma_m
+        self.stride_T_foot: np.ndarray | None = None
+        """The struck foot (rotation only) of the last anchor computed from the encoders."""
+
+    def add_joints(self, t_s, knee_rad, ankle_rad) -> int:
+        """Buffer encoder samples (rad); returns how many were accepted."""
+        return self.joints.add(t_s, knee_rad, ankle_rad)
+
+    def q_at(self, t_s: float) -> np.ndarray | None:
+        """``[knee, ankle]`` at ``t_s`` when a model exists and ``t_s`` is inside the samples."""
+        return None if self.model is None else self.joints.q_at(t_s)
+
+    def anchor(
+        self, t_s: float, up_in_imu: np.ndarray | None, up_sigma_rad: float | None = None
+    ) -> KinematicMeasurement | None:
+        """The camera in the new stride's frame at ``t_s`` (``up_in_imu``: session IMU frame,
+        None: the model's nominal heel-strike pitch). ``up_sigma_rad`` given: the covariance
+        is :func:`anchor_covariance` (no contact noise), else the kinematics' heel-strike one."""
+        from graph_slam.backend.measurements import KinematicMeasurement
+        from kinematics.errors import KinematicsError
+        from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2, stride_T_camera
+
+        q = self.q_at(t_s)
+        if q is None:
+            return None
+        try:
+            up = (
+                None
+                if up_in_imu is None
+                else imu_up_in_model(self.model, self.camera_T_imu, up_in_imu)
+            )
+            a = stride_T_camera(self.model, q, up_in_imu=up)
+            self.stride_T_foot = a.stride_T_foot
+            cov = a.covariance
+            if up_sigma_rad is not None:
+                cov = anchor_covariance(
+                    a.stride_T_camera,
+                    self.model.camera_covariance(q, DEFAULT_ENCODER_VAR_RAD2),
+                    up_sigma_rad,
+                    self.anchor_yaw_sigma_rad,
+                    self.anchor_position_sigma_m,
+                )
+            return KinematicMeasurement(a.stride_T_camera, cov)
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
+            return None
+
+    def foot_pose(self, t_s: float) -> KinematicMeasurement | None:
+        """``foot_pose`` stance: the struck foot held, the camera from the encoders at ``t_s``."""
+        from graph_slam.backend.measurements import KinematicMeasurement
+        from kinematics.errors import KinematicsError
+        from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2
+
+        q = self.q_at(t_s)
+        if q is None or self.stride_T_foot is None:
+            return None
+        try:
+            cov = self.model.camera_covariance(q, DEFAULT_ENCODER_VAR_RAD2, contact="foot_flat")
+            return KinematicMeasurement(self.stride_T_foot @ self.model.foot_T_camera(q), cov)
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
+            return None
+
+    def contact_geometry(self, t_s: float) -> ContactGeometry | None:
+        """Heel frame and toe point from the encoders at ``t_s`` (``contact_points`` stance)."""
+        from kinematics.errors import KinematicsError
+
+        q = self.q_at(t_s)
+        if q is None:
+            return None
+        try:
+            imu_T_foot = np.linalg.inv(self.model.foot_T_imu(q))
+            foot_p_toe = self.model.frame_T_frame("heel", "toe", q)[:3, 3]
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
+            return None
+        return ContactGeometry(imu_T_foot, foot_p_toe)
+
+
+def make_leg_kinematics(
+    leg_model,
+    camera_T_imu: np.ndarray,
+    anchor_yaw_sigma_rad: float = 1e-3,
+    anchor_position_sigma_m: float = 1e-3,
+) -> LegKinematics:
+    """A :class:`LegKinematics` whose joint buffer validates against ``leg_model`` (None: no
+    model; :meth:`LegKinematics.add_joints` still buffers, every measurement is None)."""
+    return LegKinematics(
+        leg_model,
+        camera_T_imu,
+        JointBuffer(leg_model),
+        anchor_yaw_sigma_rad,
+        anchor_position_sigma_m,
+    )

@@ -1,0 +1,70 @@
+"""Stride start priors on hand-made states: carried covariances and their inflations, the
+anchor's rotation of the velocity, the first stride's gravity alignment."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from graph_slam.backend import KinematicMeasurement
+from graph_slam.backend.config import PriorConfig
+from graph_slam.backend.stride_chain import carried_priors, first_stride_priors
+
+PC = PriorConfig(carry_inflation=2.0, missed_strike_inflation=4.0, first_carry_inflation=10.0)
+ROT = gtsam.Rot3.Rz(0.3)
+PRED = gtsam.NavState(gtsam.Pose3(ROT, np.array([1.0, 2.0, 0.5])), np.array([1.0, 0.0, 0.0]))
+COV_X = np.eye(6) * 1e-4
+COV_V = np.diag([1.0, 2.0, 3.0]) * 1e-3
+COV_B = np.eye(6) * 1e-6
+BIAS = gtsam.imuBias.ConstantBias(np.array([0.1, 0, 0]), np.zeros(3))
+ANCHOR = KinematicMeasurement(np.eye(4), np.eye(6) * 1e-5)  # camera = IMU here
+
+
+def carried(reason, anchor=ANCHOR, unloaded_first=False):
+    return carried_priors(
+        PC, np.eye(4), reason, PRED, COV_X, COV_V, BIAS, COV_B, anchor, unloaded_first
+    )
+
+
+def test_foot_strike_with_anchor_rotates_velocity_into_the_new_frame():
+    p = carried("foot_strike")
+    new_R_old = ROT.matrix().T  # anchor orientation identity
+    np.testing.assert_allclose(p.velocity_m_s, new_R_old @ [1.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(p.cov_velocity, new_R_old @ COV_V @ new_R_old.T * 2.0)
+    np.testing.assert_allclose(p.cov_bias, COV_B * 2.0)
+    np.testing.assert_allclose(p.cov_pose, ANCHOR.covariance)
+    np.testing.assert_allclose(p.old_stride_T_imu, PRED.pose().matrix())  # world chains
+    assert p.flags == []
+    np.testing.assert_allclose(p.bias.vector(), BIAS.vector())
+
+
+def test_inflations_first_unloaded_missed_and_no_anchor():
+    p = carried("foot_strike", unloaded_first=True)  # out of a first stride begun in the air
+    np.testing.assert_allclose(p.cov_bias, COV_B * 20.0)
+    p = carried("missed_foot_strike")  # continue in the old frame
+    assert p.old_stride_T_imu is None and p.flags == []
+    np.testing.assert_allclose(p.stride_T_imu.matrix(), PRED.pose().matrix())
+    np.testing.assert_allclose(p.cov_pose, COV_X * 4.0)
+    np.testing.assert_allclose(p.cov_velocity, COV_V * 4.0)
+    p = carried("missed_foot_strike", unloaded_first=True)
+    np.testing.assert_allclose(p.cov_pose, COV_X * 40.0)
+    p = carried("foot_strike", anchor=None, unloaded_first=True)  # strike without anchor
+    assert p.flags == ["no_anchor"] and p.old_stride_T_imu is None
+    np.testing.assert_allclose(p.cov_pose, COV_X * 4.0)  # missed-strike inflation only
+    np.testing.assert_allclose(p.cov_bias, COV_B * 4.0)
+
+
+def test_first_stride_priors_gravity_aligned_or_anchor():
+    pc = PriorConfig()
+    tilt = gtsam.Rot3.Rx(0.2).matrix()
+    p = first_stride_priors(pc, np.eye(4), None, tilt.T @ [0.0, 0.0, 9.81])
+    assert p.flags == ["no_anchor"]
+    np.testing.assert_allclose(
+        p.stride_T_imu.rotation().matrix() @ tilt.T @ [0, 0, 1], [0, 0, 1], atol=1e-12
+    )
+    assert np.isclose(p.cov_velocity[0, 0], pc.first_velocity_sigma_m_s**2)
+    assert np.isclose(p.cov_bias[0, 0], pc.first_accel_bias_sigma_m_s2**2)
+    assert np.isclose(p.cov_bias[5, 5], pc.first_gyro_bias_sigma_rad_s**2)
+    assert first_stride_priors(pc, np.eye(4), None, None).flags == ["no_anchor_no_gravity"]
+    p = first_stride_priors(pc, np.eye(4), ANCHOR, None)
+    assert p.flags == [] and np.allclose(p.cov_pose, ANCHOR.covariance)
