@@ -1,9 +1,8 @@
-"""Writers and their symmetric readers: TUM and KITTI trajectories, PLY point clouds."""
+"""Writers and their symmetric readers: TUM trajectories, PLY point clouds."""
 
 from __future__ import annotations
 
 import io
-import logging
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +13,9 @@ from graph_slam.errors import StreamError
 from graph_slam.session.adapters import (
     PointCloud,
     read_ply,
-    read_trajectory_kitti,
-    read_trajectory_tum,
     write_ply,
-    write_trajectory_kitti,
-    write_trajectory_tum,
 )
+from graph_slam.session.io import read_tum, write_tum
 from graph_slam.session.records import PoseTrajectory
 
 
@@ -37,12 +33,13 @@ def test_tum_round_trip(tmp_path: Path, use_file_object: bool) -> None:
     traj = _trajectory()
     if use_file_object:
         buffer = io.StringIO()
-        write_trajectory_tum(traj, buffer)
+        write_tum(buffer, traj.t_s, traj.parent_T_child)
         buffer.seek(0)
-        back = read_trajectory_tum(buffer, parent="world", child="imu")
+        t_s, poses = read_tum(buffer)
     else:
-        write_trajectory_tum(traj, tmp_path / "t.txt")
-        back = read_trajectory_tum(tmp_path / "t.txt", parent="world", child="imu")
+        write_tum(tmp_path / "t.txt", traj.t_s, traj.parent_T_child)
+        t_s, poses = read_tum(tmp_path / "t.txt")
+    back = PoseTrajectory(t_s, poses, parent="world", child="imu")
     assert back.name == "world_T_imu"
     np.testing.assert_allclose(back.t_s, traj.t_s, rtol=0, atol=1e-9)
     # 9 decimals per value: positions within 5e-10 m, rotations within ~1e-8.
@@ -51,48 +48,9 @@ def test_tum_round_trip(tmp_path: Path, use_file_object: bool) -> None:
 
 def test_tum_malformed() -> None:
     with pytest.raises(StreamError, match=r"line 2: TUM rows must have 8 entries"):
-        read_trajectory_tum(io.StringIO("# header\n1 2 3\n"))
+        read_tum(io.StringIO("# header\n1 2 3\n"))
     with pytest.raises(StreamError, match=r"quaternion norm 2\.000000 is not 1"):
-        read_trajectory_tum(io.StringIO("1 0 0 0 0 0 0 2\n"))
-
-
-# --------------------------------------------------------------------------- KITTI
-def test_kitti_round_trip_is_exact(tmp_path: Path) -> None:
-    traj = _trajectory()
-    write_trajectory_kitti(traj, tmp_path / "poses.txt", times=tmp_path / "times.txt")
-    lines = (tmp_path / "poses.txt").read_text().splitlines()
-    assert len(lines) == 25 and all(len(line.split()) == 12 for line in lines)
-    back = read_trajectory_kitti(tmp_path / "poses.txt", times=tmp_path / "times.txt")
-    np.testing.assert_array_equal(back.parent_T_child, traj.parent_T_child)
-    np.testing.assert_allclose(back.t_s, traj.t_s, rtol=0, atol=1e-9)
-    indexed = read_trajectory_kitti(tmp_path / "poses.txt")
-    np.testing.assert_array_equal(indexed.t_s, np.arange(25.0))
-
-
-def test_kitti_low_precision_rotations_are_projected_and_counted(caplog) -> None:
-    traj = _trajectory(5)
-    text = "".join(
-        " ".join(f"{v:.4e}" for v in pose[:3, :4].ravel()) + "\n" for pose in traj.parent_T_child
-    )
-    with caplog.at_level(logging.WARNING):
-        back = read_trajectory_kitti(io.StringIO(text))
-    # 5 significant digits leave rotations ~1e-5 from orthonormal: projected, and logged.
-    assert "rotation(s) within 0.0001 of orthonormal projected onto SO(3)" in caplog.text
-    rot = back.parent_T_child[:, :3, :3]
-    np.testing.assert_allclose(
-        np.einsum("nji,njk->nik", rot, rot), np.tile(np.eye(3), (5, 1, 1)), atol=1e-12
-    )
-    np.testing.assert_allclose(back.parent_T_child, traj.parent_T_child, atol=1e-4)
-
-
-def test_kitti_malformed() -> None:
-    with pytest.raises(StreamError, match=r"line 1: KITTI rows must have 12 entries, found 11"):
-        read_trajectory_kitti(io.StringIO("1 0 0 0 0 1 0 0 0 0 1\n"))
-    scaled = "1.1 0 0 0 0 1 0 0 0 0 1 0\n"
-    with pytest.raises(StreamError, match=r"line 1: rotation is 0\.21 from orthonormal"):
-        read_trajectory_kitti(io.StringIO(scaled))
-    with pytest.raises(StreamError, match=r"1 poses but 2 times"):
-        read_trajectory_kitti(io.StringIO("1 0 0 0 0 1 0 0 0 0 1 0\n"), times=np.array([0.0, 1.0]))
+        read_tum(io.StringIO("1 0 0 0 0 0 0 2\n"))
 
 
 # --------------------------------------------------------------------------- PLY

@@ -29,7 +29,7 @@ def make_pipeline(
 ) -> Pipeline:
     """The variant's pipeline: ``icp`` = the thesis baseline, else the factor graph."""
     if config.variant == "icp":
-        from graph_slam.pipelines.protocolline import ThesisBaseline
+        from graph_slam.pipelines.baseline import ThesisBaseline
 
         return ThesisBaseline(config, intrinsics, camera_T_imu, leg_model, has_color)
     from graph_slam.pipelines.graph import GraphPipeline

@@ -10,7 +10,6 @@ Poses are ``a_T_b`` 4×4 homogeneous matrices that map points from frame ``b`` t
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -380,7 +379,3 @@ class SceneTruth:
                 return obj
         raise RecordError(f"SceneTruth[{self.name}]: no object named {name!r}")
 
-
-def stack_poses(poses: Sequence[np.ndarray]) -> np.ndarray:
-    """Stack 4×4 poses into N×4×4 (an empty sequence gives 0×4×4)."""
-    return np.stack(poses) if len(poses) else np.zeros((0, 4, 4))
