@@ -378,4 +378,3 @@ class SceneTruth:
             if obj.name == name:
                 return obj
         raise RecordError(f"SceneTruth[{self.name}]: no object named {name!r}")
-
