@@ -15,11 +15,12 @@ from graph_slam.backend import StrideSLAM
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import build_pyramid, register
-from graph_slam.frontend.registration import RegistrationResult, adjoint
+from graph_slam.frontend.registration import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+from kinematics.conversions import adjoint_rot_first as adjoint
 
 log = logging.getLogger(__name__)
 
