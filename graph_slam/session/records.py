@@ -16,6 +16,7 @@ from typing import Literal
 import numpy as np
 
 from graph_slam.errors import RecordError
+from kinematics import imu as kinematics_imu
 
 GaitEventKind = Literal["foot_strike", "toe_off"]
 GAIT_EVENT_KINDS: tuple[str, ...] = ("foot_strike", "toe_off")
@@ -165,12 +166,9 @@ class RgbdFrame:
 
 # --------------------------------------------------------------------------- streams
 @dataclass(frozen=True, slots=True, eq=False)
-class ImuSeries:
-    """IMU samples in the IMU frame: angular rate (rad/s) and specific force (m/s²)."""
-
-    t_s: np.ndarray
-    gyro_rad_s: np.ndarray
-    accel_m_s2: np.ndarray
+class ImuSeries(kinematics_imu.ImuSeries):
+    """:class:`kinematics.imu.ImuSeries` (angular rate rad/s, specific force m/s², IMU frame)
+    validated on construction: shapes, finite values, strictly increasing time."""
 
     def __post_init__(self) -> None:
         t = _float_array("ImuSeries", "t_s", self.t_s, (None,))
@@ -186,14 +184,6 @@ class ImuSeries:
             _float_array("ImuSeries", "accel_m_s2", self.accel_m_s2, (t.size, 3)),
         )
         check_increasing("ImuSeries", t)
-
-    def __len__(self) -> int:
-        return int(self.t_s.size)
-
-    def slice_time(self, t0_s: float, t1_s: float) -> ImuSeries:
-        """Samples with ``t0_s <= t_s < t1_s``."""
-        mask = (self.t_s >= t0_s) & (self.t_s < t1_s)
-        return ImuSeries(self.t_s[mask], self.gyro_rad_s[mask], self.accel_m_s2[mask])
 
 
 JOINT_NAMES: tuple[str, ...] = ("knee", "ankle")
