@@ -3,20 +3,17 @@
 from __future__ import annotations
 
 import io
+import logging
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from graph_slam.errors import StreamError
-from graph_slam.session.adapters import (
-    PointCloud,
-    read_ply,
-    write_ply,
-)
+from graph_slam.errors import RecordError, StreamError
+from graph_slam.session.adapters import read_ply, write_ply
 from graph_slam.session.io import read_tum, write_tum
-from graph_slam.session.records import PoseTrajectory
+from graph_slam.session.records import Cloud, PoseTrajectory
 
 
 def _trajectory(n: int = 25, seed: int = 3) -> PoseTrajectory:
@@ -54,10 +51,10 @@ def test_tum_malformed() -> None:
 
 
 # --------------------------------------------------------------------------- PLY
-def _cloud(n: int = 100, color: bool = True) -> PointCloud:
+def _cloud(n: int = 100, color: bool = True) -> Cloud:
     rng = np.random.default_rng(11)
-    colors = rng.integers(0, 256, (n, 3), dtype=np.uint8) if color else None
-    return PointCloud(rng.normal(0, 3.0, (n, 3)), colors)
+    colors = rng.integers(0, 256, (n, 3), dtype=np.uint8) / 255.0 if color else None
+    return Cloud(rng.normal(0, 3.0, (n, 3)), colors)
 
 
 @pytest.mark.parametrize("binary", [True, False])
@@ -77,8 +74,9 @@ def test_ply_round_trip_is_exact(tmp_path: Path, binary: bool, color: bool) -> N
     np.testing.assert_array_equal(read_ply(buffer).points_m, cloud.points_m)
 
 
-def test_ply_from_another_tool() -> None:
-    """float32 coordinates, normals and alpha (ignored, listed), big-endian, a face element."""
+def test_ply_from_another_tool(caplog) -> None:
+    """float32 coordinates, normals (read) and alpha (ignored, logged), big-endian, a face
+    element."""
     pts = np.array([[0.5, -1.25, 2.0], [3.0, 4.0, -5.5]], dtype=">f4")
     header = (
         "ply\nformat binary_big_endian 1.0\ncomment other tool\nelement vertex 2\n"
@@ -90,11 +88,14 @@ def test_ply_from_another_tool() -> None:
     dtype = np.dtype([("p", ">f4", 3), ("n", ">f4", 3), ("c", "u1", 4)])
     rec = np.zeros(2, dtype=dtype)
     rec["p"] = pts
+    rec["n"] = [[0.0, 0.0, 1.0], [0.6, 0.8, 0.0]]
     rec["c"] = [[1, 2, 3, 255], [4, 5, 6, 255]]
-    cloud = read_ply(io.BytesIO(header.encode() + rec.tobytes()))
+    with caplog.at_level(logging.INFO, logger="graph_slam.session.adapters.ply"):
+        cloud = read_ply(io.BytesIO(header.encode() + rec.tobytes()))
     np.testing.assert_array_equal(cloud.points_m, pts.astype(np.float64))
     np.testing.assert_array_equal(cloud.colors_rgb, [[1, 2, 3], [4, 5, 6]])
-    assert cloud.ignored_properties == ("nx", "ny", "nz", "alpha")
+    np.testing.assert_array_equal(cloud.normals, np.float32([[0, 0, 1], [0.6, 0.8, 0]]))
+    assert "vertex properties ignored: alpha" in caplog.text
 
 
 def test_ply_malformed(tmp_path: Path) -> None:
@@ -111,5 +112,5 @@ def test_ply_malformed(tmp_path: Path) -> None:
     bad_ascii = b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n"
     with pytest.raises(StreamError, match=r"vertex 1: 0 values, expected 3 \(file truncated\)"):
         read_ply(io.BytesIO(bad_ascii))
-    with pytest.raises(StreamError, match=r"NaN or inf"):
-        PointCloud(np.array([[0.0, np.nan, 1.0]]))
+    with pytest.raises(RecordError, match=r"NaN or inf"):
+        Cloud(np.array([[0.0, np.nan, 1.0]]))

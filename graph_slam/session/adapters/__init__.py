@@ -14,7 +14,7 @@ from graph_slam.session.adapters.base import (
 )
 from graph_slam.session.adapters.config import ConvertConfig
 from graph_slam.session.adapters.convert import ConversionResult, convert
-from graph_slam.session.adapters.ply import PointCloud, read_ply, write_ply
+from graph_slam.session.adapters.ply import read_ply, write_ply
 from graph_slam.session.adapters.registry import ADAPTERS, select_adapter
 
 __all__ = [
@@ -22,7 +22,6 @@ __all__ = [
     "ConversionReport",
     "ConversionResult",
     "ConvertConfig",
-    "PointCloud",
     "Recording",
     "SourceAdapter",
     "StreamReport",
