@@ -9,8 +9,9 @@ are only imported by the modules that use them):
   Jacobians, camera-pose covariance)
 - :mod:`kinematics.stride_frame` - ``stride_T_camera`` at foot strike
 - :mod:`kinematics.encoders` - joint-encoder validation (limits, NaN, jumps)
-- :mod:`kinematics.gait_events` - foot strike / toe-off from a load cell or a thigh IMU,
-  gait phase
+- :mod:`kinematics.imu` - the IMU series and the IMU CSV schema (shared with the session format)
+- :mod:`kinematics.gait_events` - foot strike / toe-off from a load cell or a thigh IMU
+  (:class:`~kinematics.gait_events.DetectedEvents`), gait phase
 - :mod:`kinematics.conversions` - pin.SE3 <-> gtsam.Pose3 <-> 4x4 arrays
 """
 

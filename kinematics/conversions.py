@@ -97,6 +97,11 @@ def swap_twist_order(x: np.ndarray) -> np.ndarray:
     raise KinematicsError(f"swap_twist_order: expected 6, 6xN or 6x6, got shape {x.shape}")
 
 
+def skew(w: np.ndarray) -> np.ndarray:
+    """The 3x3 cross-product matrix: ``skew(w) @ v == np.cross(w, v)``."""
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
 def adjoint_rot_first(a_T_b: np.ndarray) -> np.ndarray:
     """6x6 adjoint of ``a_T_b`` for twists ordered [rotation; translation] (GTSAM order).
 
@@ -105,16 +110,11 @@ def adjoint_rot_first(a_T_b: np.ndarray) -> np.ndarray:
     """
     m = np.asarray(a_T_b, dtype=float)
     r, t = m[:3, :3], m[:3, 3]
-    skew = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
     ad = np.zeros((6, 6))
     ad[:3, :3] = r
     ad[3:, 3:] = r
-    ad[3:, :3] = skew @ r
+    ad[3:, :3] = skew(t) @ r
     return ad
-
-
-def _skew(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
 def expmap_rot_first(xi: np.ndarray) -> np.ndarray:
@@ -122,7 +122,7 @@ def expmap_rot_first(xi: np.ndarray) -> np.ndarray:
     xi = np.asarray(xi, dtype=float)
     w, v = xi[:3], xi[3:]
     theta = float(np.linalg.norm(w))
-    k = _skew(w)
+    k = skew(w)
     if theta < 1e-9:
         r = np.eye(3) + k
         jl = np.eye(3) + 0.5 * k
@@ -154,7 +154,7 @@ def logmap_rot_first(a_T_b: np.ndarray) -> np.ndarray:
             / (2 * np.sin(theta))
             * np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
         )
-    k = _skew(w)
+    k = skew(w)
     if theta < 1e-9:
         jl_inv = np.eye(3) - 0.5 * k
     else:

@@ -39,19 +39,10 @@ from pathlib import Path
 import numpy as np
 
 from kinematics.errors import GaitDetectionError, GaitInputError
-from kinematics.gait_synth import ImuSeries
+from kinematics.imu import IMU_COLUMNS, LEGACY_IMU_COLUMNS, ImuSeries
 
 logger = logging.getLogger(__name__)
 
-IMU_COLUMNS: tuple[str, ...] = (
-    "t_s",
-    "gyro_x",
-    "gyro_y",
-    "gyro_z",
-    "accel_x",
-    "accel_y",
-    "accel_z",
-)
 EVENT_KINDS: tuple[str, ...] = ("foot_strike", "toe_off")
 MIN_RATE_HZ, MAX_RATE_HZ = 50.0, 1000.0
 MAX_GYRO_RAD_S = 35.0  # 2000 deg/s: the largest common MEMS range
@@ -90,8 +81,11 @@ class GaitEventConfig:
 
 
 @dataclass(frozen=True)
-class GaitEvents:
-    """Detected events and how they were found."""
+class DetectedEvents:
+    """What a detector found: the events and how (method, merged and rejected candidates).
+
+    Not a session record: ``graph_slam.session.records.DetectedEvents`` is the validated stream of
+    events a session holds (time, kind and source per event)."""
 
     foot_strikes_s: np.ndarray
     toe_offs_s: np.ndarray
@@ -113,9 +107,12 @@ class GaitEvents:
 
 # --- I/O -------------------------------------------------------------------------------------
 def read_imu_csv(path: str | Path) -> ImuSeries:
-    """Read ``t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z`` (rad/s, m/s²), strictly.
+    """Read an IMU CSV strictly: header :data:`~kinematics.imu.IMU_COLUMNS` (the session
+    format's ``imu.csv``) or the unit-less :data:`~kinematics.imu.LEGACY_IMU_COLUMNS`, any
+    column order; s, rad/s, m/s².
 
-    Errors (:class:`GaitInputError`) name the file, the line, the column and the rule.
+    Errors (:class:`GaitInputError`) name the file, the line, the column (as the file names
+    it) and the rule.
     """
     path = Path(path)
     try:
@@ -130,14 +127,19 @@ def read_imu_csv(path: str | Path) -> ImuSeries:
             raise GaitInputError(
                 f"{path}: empty file (need header {','.join(IMU_COLUMNS)})"
             ) from None
-        missing = [c for c in IMU_COLUMNS if c not in header]
-        extra = [c for c in header if c not in IMU_COLUMNS]
-        if missing or extra or len(header) != len(IMU_COLUMNS):
+        # the schema the header is closest to names what is missing
+        columns = max(
+            (IMU_COLUMNS, LEGACY_IMU_COLUMNS), key=lambda cols: len(set(cols) & set(header))
+        )
+        missing = [c for c in columns if c not in header]
+        extra = [c for c in header if c not in columns]
+        if missing or extra or len(header) != len(columns):
             raise GaitInputError(
-                f"{path}: line 1: header must be exactly {','.join(IMU_COLUMNS)} (any order); "
-                f"missing {missing}, unexpected {extra}"
+                f"{path}: line 1: header must be exactly {','.join(IMU_COLUMNS)} (or the "
+                f"legacy {','.join(LEGACY_IMU_COLUMNS)}), any order; missing {missing}, "
+                f"unexpected {extra}"
             )
-        index = [header.index(c) for c in IMU_COLUMNS]
+        index = [header.index(c) for c in columns]
         rows: list[list[float]] = []
         for line_no, row in enumerate(reader, start=2):
             if not row or all(not x.strip() for x in row):
@@ -147,7 +149,7 @@ def read_imu_csv(path: str | Path) -> ImuSeries:
                     f"{path}: line {line_no}: has {len(row)} fields, the header has {len(header)}"
                 )
             values = []
-            for col, j in zip(IMU_COLUMNS, index, strict=True):
+            for col, j in zip(columns, index, strict=True):
                 text = row[j].strip()
                 try:
                     value = float(text)
@@ -162,18 +164,21 @@ def read_imu_csv(path: str | Path) -> ImuSeries:
                     )
                 values.append(value)
             rows.append(values)
-    data = np.asarray(rows, dtype=float).reshape(-1, len(IMU_COLUMNS))
+    data = np.asarray(rows, dtype=float).reshape(-1, len(columns))
     imu = ImuSeries(
         t_s=data[:, 0], gyro_rad_s=data[:, 1:4], accel_m_s2=data[:, 4:7], source=str(path)
     )
-    validate_imu(imu, first_line=2)
+    validate_imu(imu, first_line=2, columns=columns)
     return imu
 
 
-def validate_imu(imu: ImuSeries, first_line: int | None = None) -> float:
+def validate_imu(
+    imu: ImuSeries, first_line: int | None = None, columns: Sequence[str] = IMU_COLUMNS
+) -> float:
     """Check an IMU series (shapes, finite, time, rate 50-1000 Hz, ranges); return its rate.
 
-    ``first_line``: file line of sample 0, to name lines in messages (else sample indices).
+    ``first_line``: file line of sample 0, to name lines in messages (else sample indices);
+    ``columns``: the names of t, gyro x/y/z, accel x/y/z in messages.
     """
 
     def where(k: int) -> str:
@@ -185,11 +190,11 @@ def validate_imu(imu: ImuSeries, first_line: int | None = None) -> float:
         raise GaitInputError(f"{src}: need t_s (N,), gyro (N, 3), accel (N, 3)")
     if t.size < 2:
         raise GaitInputError(f"{src}: need at least 2 samples, got {t.size}")
-    for name, arr in (("t_s", t[:, None]), ("gyro", g), ("accel", a)):
+    for first, arr in ((0, t[:, None]), (1, g), (4, a)):
         bad = ~np.isfinite(arr)
         if bad.any():
             k, j = np.argwhere(bad)[0]
-            col = name if name == "t_s" else f"{name}_{'xyz'[j]}"
+            col = columns[first + j]
             raise GaitInputError(f"{src}: {where(int(k))}, column {col}: not finite")
     dt = np.diff(t)
     if np.any(dt <= 0):
@@ -208,22 +213,23 @@ def validate_imu(imu: ImuSeries, first_line: int | None = None) -> float:
             f"{src}: {where(k)}, column t_s: gap of {dt[k - 1]:.3f} s (more than 5 sample "
             "periods); split the recording at gaps"
         )
-    for name, arr, limit, unit in (
-        ("gyro", g, MAX_GYRO_RAD_S, "rad/s"),
-        ("accel", a, MAX_ACCEL_M_S2, "m/s²"),
+    for first, arr, limit, unit in (
+        (1, g, MAX_GYRO_RAD_S, "rad/s"),
+        (4, a, MAX_ACCEL_M_S2, "m/s²"),
     ):
         big = np.abs(arr) > limit
         if big.any():
             k, j = np.argwhere(big)[0]
             raise GaitInputError(
-                f"{src}: {where(int(k))}, column {name}_{'xyz'[j]}: {arr[k, j]:.4g} exceeds the "
+                f"{src}: {where(int(k))}, column {columns[first + j]}: {arr[k, j]:.4g} exceeds the "
                 f"plausible range ±{limit:.4g} {unit} (units must be rad/s and m/s²)"
             )
     return rate
 
 
 def write_imu_csv(path: str | Path, imu: ImuSeries) -> Path:
-    """Write an IMU series in the format :func:`read_imu_csv` reads."""
+    """Write an IMU series with the header :data:`~kinematics.imu.IMU_COLUMNS` (the session
+    format's ``imu.csv``), as :func:`read_imu_csv` reads it."""
     path = Path(path)
     data = np.column_stack([imu.t_s, imu.gyro_rad_s, imu.accel_m_s2])
     with path.open("w", newline="", encoding="utf-8") as fh:
@@ -233,7 +239,7 @@ def write_imu_csv(path: str | Path, imu: ImuSeries) -> Path:
     return path
 
 
-def write_events_csv(path: str | Path, events: GaitEvents) -> Path:
+def write_events_csv(path: str | Path, events: DetectedEvents) -> Path:
     """Write ``t_s,kind`` rows sorted by time."""
     path = Path(path)
     with path.open("w", newline="", encoding="utf-8") as fh:
@@ -595,7 +601,7 @@ def sagittal_axis(gyro_rad_s: np.ndarray) -> tuple[np.ndarray, float]:
     return eigvec[:, -1], share
 
 
-def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None) -> GaitEvents:
+def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None) -> DetectedEvents:
     """Foot strikes and toe-offs from a thigh IMU in any mounting orientation.
 
     See the module docstring for the method. Returns empty event lists (not an error) when no
@@ -631,7 +637,7 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
             imu.source,
             cfg.min_swing_peak_rad_s,
         )
-    return GaitEvents(
+    return DetectedEvents(
         foot_strikes_s=strikes,
         toe_offs_s=toe_offs,
         method="thigh_imu",
@@ -656,7 +662,7 @@ def detect_from_load_cell(
     config: GaitEventConfig | None = None,
     min_load_range_n: float = 100.0,
     source: str = "<load cell>",
-) -> GaitEvents:
+) -> DetectedEvents:
     """Foot strikes / toe-offs from an axial load (N, compression +) with hysteresis.
 
     Default thresholds: 15 % (on) and 8 % (off) of the load range (5th to 95th percentile);
@@ -682,7 +688,7 @@ def detect_from_load_cell(
             logger.info(
                 "%s: load range %.0f N < %.0f N: no walking", source, hi - lo, min_load_range_n
             )
-            return GaitEvents(np.zeros(0), np.zeros(0), method="load_cell")
+            return DetectedEvents(np.zeros(0), np.zeros(0), method="load_cell")
         on_threshold_n = lo + 0.15 * (hi - lo) if on_threshold_n is None else on_threshold_n
         off_threshold_n = lo + 0.08 * (hi - lo) if off_threshold_n is None else off_threshold_n
     if not off_threshold_n < on_threshold_n:
@@ -734,7 +740,7 @@ def detect_from_load_cell(
     for first, second in pairs:
         inside |= (toe_offs > first) & (toe_offs < second)
     toe_offs = toe_offs[~inside]
-    return GaitEvents(
+    return DetectedEvents(
         foot_strikes_s=strikes,
         toe_offs_s=toe_offs,
         method="load_cell",

@@ -36,6 +36,7 @@ from scipy.signal import find_peaks
 from scipy.spatial.transform import Rotation
 
 from kinematics.errors import GaitInputError
+from kinematics.imu import ImuSeries
 
 GRAVITY_M_S2 = 9.81
 
@@ -46,16 +47,6 @@ _TIBIA_M = 0.43
 _HEEL_IN_TALUS = np.array([-0.04877, -0.04195])  # calcaneus origin ~ heel
 _TOE_IN_TALUS = np.array([-0.04877 + 0.1788, -0.04195 - 0.002])
 _IMU_IN_FEMUR = np.array([0.0, -0.25, 0.07])  # lateral on the thigh (z mirrored for left)
-
-
-@dataclass(frozen=True)
-class ImuSeries:
-    """A 6-axis IMU recording: time, angular rate and specific force in the sensor frame."""
-
-    t_s: np.ndarray
-    gyro_rad_s: np.ndarray
-    accel_m_s2: np.ndarray
-    source: str = "<memory>"
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Writers and their symmetric readers: TUM and KITTI trajectories, PLY point clouds."""
+"""Writers and their symmetric readers: TUM trajectories, PLY point clouds."""
 
 from __future__ import annotations
 
@@ -10,17 +10,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from graph_slam.errors import StreamError
-from graph_slam.session.adapters import (
-    PointCloud,
-    read_ply,
-    read_trajectory_kitti,
-    read_trajectory_tum,
-    write_ply,
-    write_trajectory_kitti,
-    write_trajectory_tum,
-)
-from graph_slam.session.records import PoseTrajectory
+from graph_slam.errors import RecordError, StreamError
+from graph_slam.session.adapters import read_ply, write_ply
+from graph_slam.session.io import read_tum, write_tum
+from graph_slam.session.records import Cloud, PoseTrajectory
 
 
 def _trajectory(n: int = 25, seed: int = 3) -> PoseTrajectory:
@@ -37,12 +30,13 @@ def test_tum_round_trip(tmp_path: Path, use_file_object: bool) -> None:
     traj = _trajectory()
     if use_file_object:
         buffer = io.StringIO()
-        write_trajectory_tum(traj, buffer)
+        write_tum(buffer, traj.t_s, traj.parent_T_child)
         buffer.seek(0)
-        back = read_trajectory_tum(buffer, parent="world", child="imu")
+        t_s, poses = read_tum(buffer)
     else:
-        write_trajectory_tum(traj, tmp_path / "t.txt")
-        back = read_trajectory_tum(tmp_path / "t.txt", parent="world", child="imu")
+        write_tum(tmp_path / "t.txt", traj.t_s, traj.parent_T_child)
+        t_s, poses = read_tum(tmp_path / "t.txt")
+    back = PoseTrajectory(t_s, poses, parent="world", child="imu")
     assert back.name == "world_T_imu"
     np.testing.assert_allclose(back.t_s, traj.t_s, rtol=0, atol=1e-9)
     # 9 decimals per value: positions within 5e-10 m, rotations within ~1e-8.
@@ -51,55 +45,16 @@ def test_tum_round_trip(tmp_path: Path, use_file_object: bool) -> None:
 
 def test_tum_malformed() -> None:
     with pytest.raises(StreamError, match=r"line 2: TUM rows must have 8 entries"):
-        read_trajectory_tum(io.StringIO("# header\n1 2 3\n"))
+        read_tum(io.StringIO("# header\n1 2 3\n"))
     with pytest.raises(StreamError, match=r"quaternion norm 2\.000000 is not 1"):
-        read_trajectory_tum(io.StringIO("1 0 0 0 0 0 0 2\n"))
-
-
-# --------------------------------------------------------------------------- KITTI
-def test_kitti_round_trip_is_exact(tmp_path: Path) -> None:
-    traj = _trajectory()
-    write_trajectory_kitti(traj, tmp_path / "poses.txt", times=tmp_path / "times.txt")
-    lines = (tmp_path / "poses.txt").read_text().splitlines()
-    assert len(lines) == 25 and all(len(line.split()) == 12 for line in lines)
-    back = read_trajectory_kitti(tmp_path / "poses.txt", times=tmp_path / "times.txt")
-    np.testing.assert_array_equal(back.parent_T_child, traj.parent_T_child)
-    np.testing.assert_allclose(back.t_s, traj.t_s, rtol=0, atol=1e-9)
-    indexed = read_trajectory_kitti(tmp_path / "poses.txt")
-    np.testing.assert_array_equal(indexed.t_s, np.arange(25.0))
-
-
-def test_kitti_low_precision_rotations_are_projected_and_counted(caplog) -> None:
-    traj = _trajectory(5)
-    text = "".join(
-        " ".join(f"{v:.4e}" for v in pose[:3, :4].ravel()) + "\n" for pose in traj.parent_T_child
-    )
-    with caplog.at_level(logging.WARNING):
-        back = read_trajectory_kitti(io.StringIO(text))
-    # 5 significant digits leave rotations ~1e-5 from orthonormal: projected, and logged.
-    assert "rotation(s) within 0.0001 of orthonormal projected onto SO(3)" in caplog.text
-    rot = back.parent_T_child[:, :3, :3]
-    np.testing.assert_allclose(
-        np.einsum("nji,njk->nik", rot, rot), np.tile(np.eye(3), (5, 1, 1)), atol=1e-12
-    )
-    np.testing.assert_allclose(back.parent_T_child, traj.parent_T_child, atol=1e-4)
-
-
-def test_kitti_malformed() -> None:
-    with pytest.raises(StreamError, match=r"line 1: KITTI rows must have 12 entries, found 11"):
-        read_trajectory_kitti(io.StringIO("1 0 0 0 0 1 0 0 0 0 1\n"))
-    scaled = "1.1 0 0 0 0 1 0 0 0 0 1 0\n"
-    with pytest.raises(StreamError, match=r"line 1: rotation is 0\.21 from orthonormal"):
-        read_trajectory_kitti(io.StringIO(scaled))
-    with pytest.raises(StreamError, match=r"1 poses but 2 times"):
-        read_trajectory_kitti(io.StringIO("1 0 0 0 0 1 0 0 0 0 1 0\n"), times=np.array([0.0, 1.0]))
+        read_tum(io.StringIO("1 0 0 0 0 0 0 2\n"))
 
 
 # --------------------------------------------------------------------------- PLY
-def _cloud(n: int = 100, color: bool = True) -> PointCloud:
+def _cloud(n: int = 100, color: bool = True) -> Cloud:
     rng = np.random.default_rng(11)
-    colors = rng.integers(0, 256, (n, 3), dtype=np.uint8) if color else None
-    return PointCloud(rng.normal(0, 3.0, (n, 3)), colors)
+    colors = rng.integers(0, 256, (n, 3), dtype=np.uint8) / 255.0 if color else None
+    return Cloud(rng.normal(0, 3.0, (n, 3)), colors)
 
 
 @pytest.mark.parametrize("binary", [True, False])
@@ -119,8 +74,9 @@ def test_ply_round_trip_is_exact(tmp_path: Path, binary: bool, color: bool) -> N
     np.testing.assert_array_equal(read_ply(buffer).points_m, cloud.points_m)
 
 
-def test_ply_from_another_tool() -> None:
-    """float32 coordinates, normals and alpha (ignored, listed), big-endian, a face element."""
+def test_ply_from_another_tool(caplog) -> None:
+    """float32 coordinates, normals (read) and alpha (ignored, logged), big-endian, a face
+    element."""
     pts = np.array([[0.5, -1.25, 2.0], [3.0, 4.0, -5.5]], dtype=">f4")
     header = (
         "ply\nformat binary_big_endian 1.0\ncomment other tool\nelement vertex 2\n"
@@ -132,11 +88,14 @@ def test_ply_from_another_tool() -> None:
     dtype = np.dtype([("p", ">f4", 3), ("n", ">f4", 3), ("c", "u1", 4)])
     rec = np.zeros(2, dtype=dtype)
     rec["p"] = pts
+    rec["n"] = [[0.0, 0.0, 1.0], [0.6, 0.8, 0.0]]
     rec["c"] = [[1, 2, 3, 255], [4, 5, 6, 255]]
-    cloud = read_ply(io.BytesIO(header.encode() + rec.tobytes()))
+    with caplog.at_level(logging.INFO, logger="graph_slam.session.adapters.ply"):
+        cloud = read_ply(io.BytesIO(header.encode() + rec.tobytes()))
     np.testing.assert_array_equal(cloud.points_m, pts.astype(np.float64))
     np.testing.assert_array_equal(cloud.colors_rgb, [[1, 2, 3], [4, 5, 6]])
-    assert cloud.ignored_properties == ("nx", "ny", "nz", "alpha")
+    np.testing.assert_array_equal(cloud.normals, np.float32([[0, 0, 1], [0.6, 0.8, 0]]))
+    assert "vertex properties ignored: alpha" in caplog.text
 
 
 def test_ply_malformed(tmp_path: Path) -> None:
@@ -153,5 +112,5 @@ def test_ply_malformed(tmp_path: Path) -> None:
     bad_ascii = b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n"
     with pytest.raises(StreamError, match=r"vertex 1: 0 values, expected 3 \(file truncated\)"):
         read_ply(io.BytesIO(bad_ascii))
-    with pytest.raises(StreamError, match=r"NaN or inf"):
-        PointCloud(np.array([[0.0, np.nan, 1.0]]))
+    with pytest.raises(RecordError, match=r"NaN or inf"):
+        Cloud(np.array([[0.0, np.nan, 1.0]]))

@@ -11,7 +11,7 @@ import pytest
 
 from kinematics.errors import GaitInputError
 from kinematics.gait_events import (
-    GaitEvents,
+    DetectedEvents,
     detect_from_load_cell,
     detect_from_thigh_imu,
     gait_phase,
@@ -202,7 +202,7 @@ def test_imu_csv_round_trip(tmp_path: Path) -> None:
     back = read_imu_csv(path)
     np.testing.assert_allclose(back.t_s, sim.imu.t_s, atol=1e-6)
     np.testing.assert_allclose(back.gyro_rad_s, sim.imu.gyro_rad_s, rtol=1e-5, atol=1e-9)
-    events = GaitEvents(np.array([1.5, 2.7]), np.array([2.1]), method="test")
+    events = DetectedEvents(np.array([1.5, 2.7]), np.array([2.1]), method="test")
     out = read_events_csv(write_events_csv(tmp_path / "ev.csv", events))
     np.testing.assert_allclose(out["foot_strike"], [1.5, 2.7])
     np.testing.assert_allclose(out["toe_off"], [2.1])

@@ -14,6 +14,7 @@ from graph_slam.session.format import open_session, validate_session
 from graph_slam.sim import SimConfig, simulate
 from graph_slam.sim.config import CameraProfile, DropModel, ImuProfile, MotionConfig, load_profile
 from graph_slam.sim.motion import GaitMotion
+from graph_slam.sim.quicklook import write_quicklook
 from graph_slam.sim.render import Renderer, intrinsics_for
 from graph_slam.sim.scene import load_scene
 from graph_slam.sim.sensors import apply_depth_noise, depth_sigma_m, frame_schedule, simulate_imu
@@ -176,7 +177,9 @@ def test_same_seed_same_bytes_and_a_valid_session(tmp_path: Path, monkeypatch) -
     from graph_slam.cli import main
 
     cfg = SimConfig(strides=1, seed=3, fast=True, speed_m_s=1.4)
-    a = simulate(cfg, tmp_path / "a").path
+    result = simulate(cfg, tmp_path / "a")
+    write_quicklook(result)  # the caller's step, as graph-slam simulate does
+    a = result.path
     with pytest.raises(SystemExit) as exit_info:  # the command gives the same session
         main(
             ["simulate", "--out", str(tmp_path / "b"), "--strides", "1", "--seed", "3",

@@ -14,8 +14,9 @@ def register(app: typer.Typer) -> None:
         imu_csv: Annotated[
             Path,
             typer.Argument(
-                help="IMU CSV with columns t_s,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z "
-                "(s, rad/s, m/s²; 50-1000 Hz), from a thigh IMU in any orientation."
+                help="IMU CSV as a session's imu.csv: t_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,"
+                "accel_x_m_s2,accel_y_m_s2,accel_z_m_s2 (or the legacy t_s,gyro_x,...,accel_z; "
+                "50-1000 Hz), from a thigh IMU in any orientation."
             ),
         ],
         out: Annotated[

@@ -61,6 +61,7 @@ def register(app: typer.Typer) -> None:
         from graph_slam.commands._common import progress_bar
         from graph_slam.config import config_from_dict, load_config
         from graph_slam.sim import SimConfig, simulate
+        from graph_slam.sim.quicklook import write_quicklook
 
         base = load_config(SimConfig, config).model_dump()
         base.update(
@@ -80,5 +81,7 @@ def register(app: typer.Typer) -> None:
         cfg = config_from_dict(SimConfig, base, source="graph-slam simulate options")
         with progress_bar("rendering") as update:
             result = simulate(cfg, out, overwrite=overwrite, progress=update)
+        if cfg.quicklook:
+            write_quicklook(result)
         for line in result.lines():
             typer.echo(line)

@@ -14,7 +14,6 @@ from graph_slam.frontend.cloud import (
 )
 from graph_slam.frontend.config import (
     CloudConfig,
-    FrontendConfig,
     LevelConfig,
     RefineConfig,
     RegistrationConfig,
@@ -36,7 +35,6 @@ __all__ = [
     "CloudConfig",
     "CloudCounts",
     "DegeneracyReport",
-    "FrontendConfig",
     "LevelConfig",
     "LocalMap",
     "Pyramid",

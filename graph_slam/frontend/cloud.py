@@ -16,60 +16,10 @@ import numpy as np
 
 from graph_slam.errors import RecordError
 from graph_slam.frontend.config import CloudConfig, RegistrationConfig
-from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+from graph_slam.session.records import CameraIntrinsics, Cloud, RgbdFrame
 
 _KEY_BITS = 21  # bits per axis of a voxel key: ±2^20 voxels (±10 km at 1 cm)
 _KEY_OFFSET = 1 << (_KEY_BITS - 1)
-
-
-def _readonly(array: np.ndarray | None) -> np.ndarray | None:
-    if array is None:
-        return None
-    array = np.ascontiguousarray(array, dtype=np.float64)
-    array.setflags(write=False)
-    return array
-
-
-@dataclass(frozen=True, eq=False)
-class Cloud:
-    """Points (N×3, metres) with optional colours (N×3 RGB in [0, 1]) and unit normals (N×3)."""
-
-    points_m: np.ndarray
-    colors: np.ndarray | None = None
-    normals: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        points = np.asarray(self.points_m, dtype=np.float64).reshape(-1, 3)
-        object.__setattr__(self, "points_m", _readonly(points))
-        for name in ("colors", "normals"):
-            value = getattr(self, name)
-            if value is not None:
-                value = np.asarray(value, dtype=np.float64)
-                if value.shape != points.shape:
-                    raise RecordError(
-                        f"Cloud.{name}: shape {value.shape} does not match points {points.shape}"
-                    )
-                object.__setattr__(self, name, _readonly(value))
-
-    def __len__(self) -> int:
-        return int(self.points_m.shape[0])
-
-    def transformed(self, a_T_cloud: np.ndarray) -> Cloud:
-        """The same cloud expressed in frame ``a``."""
-        rot, trans = a_T_cloud[:3, :3], a_T_cloud[:3, 3]
-        normals = None if self.normals is None else self.normals @ rot.T
-        return Cloud(self.points_m @ rot.T + trans, self.colors, normals)
-
-    def to_open3d(self):
-        """An ``open3d.geometry.PointCloud`` copy (points, colours, normals)."""
-        import open3d as o3d
-
-        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(self.points_m)))
-        if self.colors is not None:
-            pcd.colors = o3d.utility.Vector3dVector(np.array(self.colors))
-        if self.normals is not None:
-            pcd.normals = o3d.utility.Vector3dVector(np.array(self.normals))
-        return pcd
 
 
 @dataclass(frozen=True)
@@ -129,25 +79,35 @@ def voxel_index(points_m: np.ndarray, voxel_m: float) -> np.ndarray:
     return index
 
 
-def voxel_keys(points_m: np.ndarray, voxel_m: float) -> np.ndarray:
-    """One int64 key per point: its voxel on the grid with origin 0 and edge ``voxel_m``."""
-    return _pack(voxel_index(points_m, voxel_m))
-
-
 def _pack(index: np.ndarray) -> np.ndarray:
     index = index + _KEY_OFFSET
     return (index[:, 0] << (2 * _KEY_BITS)) | (index[:, 1] << _KEY_BITS) | index[:, 2]
 
 
-@dataclass(frozen=True)
-class _VoxelSums:
+@dataclass(frozen=True, eq=False)
+class VoxelSums:
+    """Per-voxel point (and colour) sums and counts on a fixed grid: the one voxel mean.
+
+    Used by the pyramid (:func:`voxel_pyramid`), the local map (running sums over frames) and
+    the terrain fusion. ``index`` is M×3 (sorted by voxel), ``counts`` the (weighted) number of
+    points per voxel.
+    """
+
     index: np.ndarray  # M×3 voxel index
     counts: np.ndarray  # M
     point_sums: np.ndarray  # M×3
     color_sums: np.ndarray | None
 
     @classmethod
-    def of(cls, index: np.ndarray, weights: np.ndarray | None, points, colors) -> _VoxelSums:
+    def of(
+        cls,
+        index: np.ndarray,
+        points: np.ndarray,
+        colors: np.ndarray | None = None,
+        weights: np.ndarray | None = None,
+    ) -> VoxelSums:
+        """Sum ``points`` (and ``colors``) by voxel ``index`` (N×3); ``weights`` are the
+        counts the rows stand for (1 each by default; sums of earlier voxels carry theirs)."""
         keys, first, inverse = np.unique(_pack(index), return_index=True, return_inverse=True)
         inverse, n = inverse.ravel(), keys.size
 
@@ -157,9 +117,31 @@ class _VoxelSums:
         counts = np.bincount(inverse, weights, n).astype(float)
         return cls(index[first], counts, sums(points), None if colors is None else sums(colors))
 
+    @classmethod
+    def empty(cls, with_colors: bool) -> VoxelSums:
+        zeros = np.zeros((0, 3))
+        return cls(np.zeros((0, 3), np.int64), np.zeros(0), zeros, zeros if with_colors else None)
+
+    def __len__(self) -> int:
+        return int(self.counts.size)
+
+    def added(self, index: np.ndarray, points: np.ndarray, colors: np.ndarray | None) -> VoxelSums:
+        """These sums with more points (N×3 voxel ``index``) added."""
+        return VoxelSums.of(
+            np.vstack([self.index, index]),
+            np.vstack([self.point_sums, points]),
+            None if self.color_sums is None else np.vstack([self.color_sums, colors]),
+            np.concatenate([self.counts, np.ones(len(points))]),
+        )
+
+    def mean_points(self) -> np.ndarray:
+        return self.point_sums / self.counts[:, None]
+
+    def mean_colors(self) -> np.ndarray | None:
+        return None if self.color_sums is None else self.color_sums / self.counts[:, None]
+
     def cloud(self) -> Cloud:
-        colors = None if self.color_sums is None else self.color_sums / self.counts[:, None]
-        return Cloud(self.point_sums / self.counts[:, None], colors)
+        return Cloud(self.mean_points(), self.mean_colors())
 
 
 def voxel_pyramid(
@@ -179,15 +161,15 @@ def voxel_pyramid(
         points if grid_T_cloud is None else points @ grid_T_cloud[:3, :3].T + grid_T_cloud[:3, 3]
     )
     finest_m = min(voxels_m)
-    finest = _VoxelSums.of(voxel_index(in_grid, finest_m), None, points, cloud.colors)
+    finest = VoxelSums.of(voxel_index(in_grid, finest_m), points, cloud.colors)
     out = []
     for voxel_m in voxels_m:
         ratio = voxel_m / finest_m
         if voxel_m == finest_m:
             out.append(finest.cloud())
         elif abs(ratio - round(ratio)) < 1e-9:
-            merged = _VoxelSums.of(
-                finest.index // round(ratio), finest.counts, finest.point_sums, finest.color_sums
+            merged = VoxelSums.of(
+                finest.index // round(ratio), finest.point_sums, finest.color_sums, finest.counts
             )
             out.append(merged.cloud())
         else:

@@ -1,7 +1,7 @@
 """Typed configuration of the registration front end.
 
-:class:`FrontendConfig` holds a :class:`CloudConfig` (depth image → cloud) and a
-:class:`RegistrationConfig` (pyramid, ICP, robust kernel, quality gates). Presets:
+:class:`CloudConfig` (depth image → cloud) and :class:`RegistrationConfig` (pyramid, ICP,
+robust kernel, quality gates); the pipelines' config holds both. Presets:
 :func:`thesis_registration` (the thesis: multi-scale colored ICP as in Open3D's tutorial, no
 robust kernel), :func:`colored_registration` (the default: the same with a Tukey kernel),
 :func:`refined_colored_registration` (then a depth-noise-weighted refinement at 5 mm) and
@@ -141,13 +141,6 @@ class RegistrationConfig(ConfigModel):
         if self.refine is not None:
             return self.refine.max_correspondence_m
         return self.levels[-1].max_correspondence_m
-
-
-class FrontendConfig(ConfigModel):
-    """The whole front end: cloud extraction and registration."""
-
-    cloud: CloudConfig = CloudConfig()
-    registration: RegistrationConfig = RegistrationConfig()
 
 
 def thesis_registration() -> RegistrationConfig:

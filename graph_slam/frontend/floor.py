@@ -73,6 +73,21 @@ class FloorFit:
         return self.offset_m
 
 
+def plane_hypotheses(
+    triples: np.ndarray, up: np.ndarray, min_norm: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """RANSAC hypotheses: the planes ``n·p + d = 0`` through point triples (K×3×3), unit normals
+    on the side of ``up``. A triple whose cross product has norm ``<= min_norm`` (collinear)
+    gives NaN. Shared by this floor fit and ``terrain.obstacles.fit_floor``."""
+    p0, p1, p2 = triples[:, 0], triples[:, 1], triples[:, 2]
+    normals = np.cross(p1 - p0, p2 - p0)
+    norms = np.linalg.norm(normals, axis=1)
+    norms[norms <= min_norm] = np.nan
+    normals = normals / norms[:, None]
+    normals *= np.where(normals @ up < 0, -1.0, 1.0)[:, None]
+    return normals, -np.einsum("kd,kd->k", normals, p0)
+
+
 def fit_floor(
     points_m: np.ndarray,
     up_hint: np.ndarray,
@@ -100,17 +115,12 @@ def fit_floor(
     rng = np.random.default_rng(cfg.seed)
     sample = pts[rng.choice(pts.shape[0], min(cfg.sample_points, pts.shape[0]), replace=False)]
     tri = rng.integers(0, sample.shape[0], size=(cfg.iterations, 3))
-    a, b, c = sample[tri[:, 0]], sample[tri[:, 1]], sample[tri[:, 2]]
-    normals = np.cross(b - a, c - a)
-    norms = np.linalg.norm(normals, axis=1)
-    valid = norms > 1e-9
-    normals[valid] /= norms[valid, None]
-    normals *= np.sign(normals @ hint)[:, None]
-    valid &= normals @ hint >= cos_max
+    normals, offsets = plane_hypotheses(sample[tri], hint, min_norm=1e-9)
+    valid = np.isfinite(normals).all(axis=1)
+    valid[valid] = normals[valid] @ hint >= cos_max
     if not valid.any():
         return FloorFit(False, "no_plane_near_up: no 3-point hypothesis within the angle gate")
-    n_h = normals[valid]
-    d_h = -np.einsum("ij,ij->i", n_h, a[valid])
+    n_h, d_h = normals[valid], offsets[valid]
     scores = (np.abs(sample @ n_h.T + d_h) < cfg.distance_m).sum(axis=0)
     best = int(np.argmax(scores))
     normal, offset = n_h[best], d_h[best]

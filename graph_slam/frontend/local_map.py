@@ -12,12 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 from graph_slam.errors import ConfigError
-from graph_slam.frontend.cloud import Cloud, voxel_keys
+from graph_slam.frontend.cloud import Cloud, VoxelSums, voxel_index
 from graph_slam.session.records import check_pose
 
 
 class LocalMap:
-    """Running voxel means in the map frame (sums and counts per voxel key)."""
+    """Running voxel means in the map frame (:class:`VoxelSums` over every inserted frame)."""
 
     def __init__(self, voxel_m: float, *, with_colors: bool = True) -> None:
         if not voxel_m > 0:
@@ -27,14 +27,11 @@ class LocalMap:
         self.clear()
 
     def clear(self) -> None:
-        self._keys = np.zeros(0, dtype=np.int64)
-        self._point_sums = np.zeros((0, 3))
-        self._color_sums = np.zeros((0, 3))
-        self._counts = np.zeros(0)
+        self._sums = VoxelSums.empty(self.with_colors)
         self.frames_inserted = 0
 
     def __len__(self) -> int:
-        return int(self._keys.size)
+        return len(self._sums)
 
     def insert(self, cloud: Cloud, map_T_cloud: np.ndarray) -> None:
         """Add ``cloud`` (in its own frame) at pose ``map_T_cloud``."""
@@ -42,28 +39,9 @@ class LocalMap:
         if self.with_colors and cloud.colors is None:
             raise ConfigError("LocalMap.with_colors: the map keeps colours, the cloud has none")
         points = cloud.points_m @ map_T_cloud[:3, :3].T + map_T_cloud[:3, 3]
-        colors = cloud.colors if self.with_colors else np.zeros_like(points)
-        keys = np.concatenate([self._keys, voxel_keys(points, self.voxel_m)])
-        self._keys, inverse = np.unique(keys, return_inverse=True)
-        inverse = inverse.ravel()
-        n = self._keys.size
-        weights = np.concatenate([self._counts, np.ones(len(points))])
-        self._counts = np.bincount(inverse, weights, n)
-        self._point_sums = self._accumulate(self._point_sums, points, inverse, n)
-        self._color_sums = self._accumulate(self._color_sums, colors, inverse, n)
+        self._sums = self._sums.added(voxel_index(points, self.voxel_m), points, cloud.colors)
         self.frames_inserted += 1
-
-    @staticmethod
-    def _accumulate(
-        sums: np.ndarray, values: np.ndarray, inverse: np.ndarray, n: int
-    ) -> np.ndarray:
-        stacked = np.vstack([sums, values])
-        return np.column_stack([np.bincount(inverse, stacked[:, j], n) for j in range(3)])
 
     def cloud(self) -> Cloud:
         """One point per voxel (the mean), in the map frame."""
-        mean = self._point_sums / np.maximum(self._counts, 1)[:, None]
-        colors = (
-            self._color_sums / np.maximum(self._counts, 1)[:, None] if self.with_colors else None
-        )
-        return Cloud(mean, colors)
+        return self._sums.cloud()

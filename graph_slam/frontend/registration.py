@@ -29,6 +29,7 @@ from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailur
 from graph_slam.frontend.cloud import Cloud, Pyramid, build_pyramid, voxel_pyramid
 from graph_slam.frontend.config import RegistrationConfig
 from graph_slam.session.records import check_pose
+from kinematics.conversions import adjoint_rot_first, skew
 
 
 class RegistrationStatus(StrEnum):
@@ -138,20 +139,6 @@ class RegistrationResult:
     def is_reliable(self) -> bool:
         """True when every direction of the motion is constrained (status OK)."""
         return self.status is RegistrationStatus.OK
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def adjoint(a_T_b: np.ndarray) -> np.ndarray:
-    """The 6×6 adjoint of a pose in (ω, t) order, as ``gtsam.Pose3.AdjointMap``."""
-    rot, trans = a_T_b[:3, :3], a_T_b[:3, 3]
-    ad = np.zeros((6, 6))
-    ad[:3, :3] = rot
-    ad[3:, 3:] = rot
-    ad[3:, :3] = _skew(trans) @ rot
-    return ad
 
 
 def kernel_weights(residuals: np.ndarray, kernel: str, k: float) -> np.ndarray:
@@ -264,7 +251,7 @@ def _analyse(rows: _Rows, threshold: float) -> _Analysis:
     center = rows.q.mean(axis=0)
     length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
     to_unit = np.eye(6)  # origin twist = to_unit · (L·ω, t about the centre)
-    to_unit[3:, :3] = _skew(center)
+    to_unit[3:, :3] = skew(center)
     to_unit[:, :3] /= length
     norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
     weighted = rows.jac * rows.w[:, None]
@@ -289,7 +276,7 @@ def _information(
     sigma2 = float(np.sum(rows.w * rows.r**2) / max(float(rows.w.sum()), 1e-300))
     sigma = max(np.sqrt(sigma2), min_sigma_m * float(np.median(rows.geo_scale)))
     info_left = (rows.jac * rows.w[:, None]).T @ rows.jac / sigma**2
-    ad = adjoint(target_T_source)
+    ad = adjoint_rot_first(target_T_source)
     return ad.T @ info_left @ ad, float(sigma)
 
 

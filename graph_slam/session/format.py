@@ -67,16 +67,8 @@ from graph_slam.session.records import (
     SceneObject,
     SceneTruth,
 )
+from kinematics.imu import IMU_COLUMNS  # the one IMU CSV schema (also graph-slam gait-events)
 
-IMU_COLUMNS = (
-    "t_s",
-    "gyro_x_rad_s",
-    "gyro_y_rad_s",
-    "gyro_z_rad_s",
-    "accel_x_m_s2",
-    "accel_y_m_s2",
-    "accel_z_m_s2",
-)
 JOINT_COLUMNS = ("t_s", "knee_rad", "ankle_rad")
 FRAME_COLUMNS = ("index", "t_s", "depth", "color")
 EVENT_COLUMNS = ("t_s", "kind", "source")
@@ -289,7 +281,7 @@ class Session:
             return None
         data = io.read_numeric_csv(path, IMU_COLUMNS)
         io.check_times(path, data[:, 0])
-        return ImuSeries(data[:, 0], data[:, 1:4], data[:, 4:7])
+        return ImuSeries(data[:, 0], data[:, 1:4], data[:, 4:7], source=str(path))
 
     @cached_property
     def joints(self) -> JointSeries | None:

@@ -10,13 +10,13 @@ Poses are ``a_T_b`` 4×4 homogeneous matrices that map points from frame ``b`` t
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
 from graph_slam.errors import RecordError
+from kinematics import imu as kinematics_imu
 
 GaitEventKind = Literal["foot_strike", "toe_off"]
 GAIT_EVENT_KINDS: tuple[str, ...] = ("foot_strike", "toe_off")
@@ -166,12 +166,9 @@ class RgbdFrame:
 
 # --------------------------------------------------------------------------- streams
 @dataclass(frozen=True, slots=True, eq=False)
-class ImuSeries:
-    """IMU samples in the IMU frame: angular rate (rad/s) and specific force (m/s²)."""
-
-    t_s: np.ndarray
-    gyro_rad_s: np.ndarray
-    accel_m_s2: np.ndarray
+class ImuSeries(kinematics_imu.ImuSeries):
+    """:class:`kinematics.imu.ImuSeries` (angular rate rad/s, specific force m/s², IMU frame)
+    validated on construction: shapes, finite values, strictly increasing time."""
 
     def __post_init__(self) -> None:
         t = _float_array("ImuSeries", "t_s", self.t_s, (None,))
@@ -187,14 +184,6 @@ class ImuSeries:
             _float_array("ImuSeries", "accel_m_s2", self.accel_m_s2, (t.size, 3)),
         )
         check_increasing("ImuSeries", t)
-
-    def __len__(self) -> int:
-        return int(self.t_s.size)
-
-    def slice_time(self, t0_s: float, t1_s: float) -> ImuSeries:
-        """Samples with ``t0_s <= t_s < t1_s``."""
-        mask = (self.t_s >= t0_s) & (self.t_s < t1_s)
-        return ImuSeries(self.t_s[mask], self.gyro_rad_s[mask], self.accel_m_s2[mask])
 
 
 JOINT_NAMES: tuple[str, ...] = ("knee", "ankle")
@@ -306,6 +295,70 @@ class PoseTrajectory:
         return f"{self.parent}_T_{self.child}"
 
 
+# --------------------------------------------------------------------------- point clouds
+@dataclass(frozen=True, eq=False)
+class Cloud:
+    """Points (N×3, metres, finite) with optional colours (N×3 RGB in [0, 1]) and unit normals
+    (N×3), in the frame the holder names. The one point-cloud type: the front end's clouds, the
+    fused terrain map (``FusedMap.to_point_cloud``) and PLY files (``adapters.ply``)."""
+
+    points_m: np.ndarray
+    colors: np.ndarray | None = None
+    normals: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        points = np.asarray(self.points_m, dtype=np.float64)
+        if points.size == 0:
+            points = points.reshape(0, 3)
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise RecordError(f"Cloud.points_m: shape {points.shape} is not N×3")
+        if not np.isfinite(points).all():
+            raise RecordError("Cloud.points_m: NaN or inf; every coordinate must be finite")
+        object.__setattr__(self, "points_m", _frozen(points))
+        for name in ("colors", "normals"):
+            value = getattr(self, name)
+            if value is not None:
+                value = np.asarray(value, dtype=np.float64)
+                if value.shape != points.shape:
+                    raise RecordError(
+                        f"Cloud.{name}: shape {value.shape} does not match points {points.shape}"
+                    )
+                object.__setattr__(self, name, _frozen(value))
+        if (
+            self.colors is not None
+            and self.colors.size
+            and not (self.colors.min() >= 0.0 and self.colors.max() <= 1.0 + 1e-9)
+        ):
+            raise RecordError("Cloud.colors: must be RGB in [0, 1] (divide uint8 colours by 255)")
+
+    def __len__(self) -> int:
+        return int(self.points_m.shape[0])
+
+    @property
+    def colors_rgb(self) -> np.ndarray | None:
+        """The colours as N×3 uint8 (0-255), as PLY files and images hold them."""
+        if self.colors is None:
+            return None
+        return np.clip(np.rint(self.colors * 255.0), 0, 255).astype(np.uint8)
+
+    def transformed(self, a_T_cloud: np.ndarray) -> Cloud:
+        """The same cloud expressed in frame ``a``."""
+        rot, trans = a_T_cloud[:3, :3], a_T_cloud[:3, 3]
+        normals = None if self.normals is None else self.normals @ rot.T
+        return Cloud(self.points_m @ rot.T + trans, self.colors, normals)
+
+    def to_open3d(self):
+        """An ``open3d.geometry.PointCloud`` copy (points, colours, normals)."""
+        import open3d as o3d
+
+        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(self.points_m)))
+        if self.colors is not None:
+            pcd.colors = o3d.utility.Vector3dVector(np.array(self.colors))
+        if self.normals is not None:
+            pcd.normals = o3d.utility.Vector3dVector(np.array(self.normals))
+        return pcd
+
+
 # --------------------------------------------------------------------------- calibration, scene
 def _pose_field(record: str, name: str, value: object) -> np.ndarray:
     pose = _float_array(record, name, value, (4, 4))
@@ -379,8 +432,3 @@ class SceneTruth:
             if obj.name == name:
                 return obj
         raise RecordError(f"SceneTruth[{self.name}]: no object named {name!r}")
-
-
-def stack_poses(poses: Sequence[np.ndarray]) -> np.ndarray:
-    """Stack 4×4 poses into N×4×4 (an empty sequence gives 0×4×4)."""
-    return np.stack(poses) if len(poses) else np.zeros((0, 4, 4))

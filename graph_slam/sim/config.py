@@ -75,7 +75,7 @@ class SimConfig(ConfigModel):
     )
     imu_time_offset_s: float = Field(0.0, ge=-0.5, le=0.5, description="IMU clock offset")
     motion_blur: bool = True
-    quicklook: bool = True
+    quicklook: bool = Field(True, description="graph-slam simulate draws quicklook.png")
     motion: MotionConfig = MotionConfig()
 
 

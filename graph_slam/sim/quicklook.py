@@ -1,21 +1,40 @@
 """Quick-look picture of a simulated walk: side and top views of the camera path over the scene,
-stride boundaries and the camera's sagittal field of view at a few frames."""
+stride boundaries and the camera's sagittal field of view at a few frames.
+
+Drawn by the caller after :func:`graph_slam.sim.recording.simulate` (``graph-slam simulate``
+does when ``SimConfig.quicklook``): ``write_quicklook(result)``."""
 
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from graph_slam.sim.recording import Simulation
+from graph_slam.errors import SimulationError
+from graph_slam.sim.recording import SimResult, Simulation
+
+QUICKLOOK_NAME = "quicklook.png"
 
 
-def quicklook(
-    sim: Simulation, world_T_camera: np.ndarray, t_frames: np.ndarray, path: Path
-) -> Path:
+def write_quicklook(result: SimResult) -> Path:
+    """Draw ``quicklook.png`` into the session folder a simulation wrote; the time it took is
+    added to ``result.timings_s["quick-look"]``."""
+    if result.simulation is None:
+        raise SimulationError(
+            "write_quicklook: the SimResult holds no simulation (only simulate() fills it)"
+        )
+    clock = time.perf_counter()
+    path = quicklook(result.simulation, result.path / QUICKLOOK_NAME)
+    result.timings_s["quick-look"] = time.perf_counter() - clock
+    return path
+
+
+def quicklook(sim: Simulation, path: Path) -> Path:
+    """Side and top views of the walk in ``sim`` (the frames at their true poses)."""
+    t_frames = sim.frame_times_s
+    world_T_camera = sim.motion.world_T(t_frames, sim.thigh_T_camera)
     import matplotlib
 
     matplotlib.use("Agg")

@@ -50,7 +50,6 @@ from graph_slam.sim.sensors import (
 logger = logging.getLogger(__name__)
 
 CONFIG_NAME = "sim_config.yaml"
-QUICKLOOK_NAME = "quicklook.png"
 EVENTS_TRUTH_NAME = "events_truth.csv"
 MOCAP_RATE_HZ = 200.0
 
@@ -70,6 +69,8 @@ class SimResult:
     stride_times_s: np.ndarray
     mean_speed_m_s: float
     timings_s: dict[str, float] = field(default_factory=dict)
+    simulation: Simulation | None = field(default=None, repr=False)
+    """The run's setup (scene, motion, profiles): what the quick-look draws."""
 
     @property
     def effective_rate_hz(self) -> float:
@@ -158,7 +159,12 @@ def simulate(
     overwrite: bool = False,
     progress: Callable[[int, int], None] | None = None,
 ) -> SimResult:
-    """Simulate a walk and write the session (plus config and quick-look) to ``out``."""
+    """Simulate a walk and write the session (plus its resolved config) to ``out``.
+
+    The quick-look picture is the caller's step:
+    :func:`graph_slam.sim.quicklook.write_quicklook` (``graph-slam simulate`` draws it when
+    ``cfg.quicklook``).
+    """
     clock = time.perf_counter()
     timings: dict[str, float] = {}
     sim = prepare(cfg)
@@ -262,15 +268,10 @@ def simulate(
         frames_per_stride=per_stride,
         stride_times_s=np.diff(strikes),
         mean_speed_m_s=motion.mean_speed_m_s,
+        simulation=sim,
     )
     write_resolved_config(sim, path / CONFIG_NAME, result)
     timings["streams"] = time.perf_counter() - clock
-    if cfg.quicklook:
-        clock = time.perf_counter()
-        from graph_slam.sim.quicklook import quicklook
-
-        quicklook(sim, world_T_camera, t_frames, path / QUICKLOOK_NAME)
-        timings["quick-look"] = time.perf_counter() - clock
     result.timings_s = timings
     return result
 

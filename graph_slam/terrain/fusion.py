@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from graph_slam.errors import MappingError
-from graph_slam.session.adapters.ply import PointCloud
+from graph_slam.frontend.cloud import VoxelSums, voxel_index
+from graph_slam.session.records import Cloud
 
 log = logging.getLogger(__name__)
 
@@ -46,14 +47,16 @@ class FusedMap:
     def __len__(self) -> int:
         return int(self.points_m.shape[0])
 
-    def to_point_cloud(self) -> PointCloud:
-        """As a :class:`PointCloud` (for ``graph_slam.session.adapters.ply.write_ply``)."""
-        return PointCloud(self.points_m, self.colors_rgb)
+    def to_point_cloud(self) -> Cloud:
+        """As a :class:`~graph_slam.session.records.Cloud` (e.g. for
+        ``graph_slam.session.adapters.ply.write_ply``, which writes these colours back exactly)."""
+        return Cloud(self.points_m, None if self.colors_rgb is None else self.colors_rgb / 255.0)
 
 
 def voxel_keys(points_m: np.ndarray, voxel_m: float, origin_m: np.ndarray) -> np.ndarray:
-    """Integer voxel index of each point on the grid anchored at ``origin_m``."""
-    return np.floor((points_m - origin_m) / voxel_m).astype(np.int64)
+    """Integer voxel index of each point on the grid anchored at ``origin_m``
+    (:func:`graph_slam.frontend.cloud.voxel_index` of the points relative to it)."""
+    return voxel_index(points_m - origin_m, voxel_m)
 
 
 def _check_cloud(i: int, points: np.ndarray, colors: np.ndarray | None) -> None:
@@ -126,19 +129,12 @@ def fuse_clouds(
             voxel_m, origin, fused, skipped,
         )  # fmt: skip
     points = np.concatenate(points_all)
-    keys = voxel_keys(points, voxel_m, origin)
-    unique_keys, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.reshape(-1)
-    means = (
-        np.stack([np.bincount(inverse, weights=points[:, d]) for d in range(3)], axis=1)
-        / counts[:, None]
-    )
-    mean_colors = None
-    if have_colors and colors_all:
-        colors = np.concatenate(colors_all)
-        mean_colors = (
-            np.stack([np.bincount(inverse, weights=colors[:, d]) for d in range(3)], axis=1)
-            / counts[:, None]
-        )
+    colors = np.concatenate(colors_all) if have_colors and colors_all else None
+    sums = VoxelSums.of(voxel_keys(points, voxel_m, origin), points, colors)
+    mean_colors = sums.mean_colors()
+    if mean_colors is not None:
         mean_colors = np.clip(np.rint(mean_colors), 0, 255).astype(np.uint8)
-    return FusedMap(means, mean_colors, counts, unique_keys, voxel_m, origin, fused, skipped)
+    counts = sums.counts.astype(np.int64)
+    return FusedMap(
+        sums.mean_points(), mean_colors, counts, sums.index, voxel_m, origin, fused, skipped
+    )

@@ -49,6 +49,7 @@ from pydantic import Field
 
 from graph_slam.config import ConfigModel
 from graph_slam.errors import MappingError
+from graph_slam.frontend.floor import plane_hypotheses
 
 log = logging.getLogger(__name__)
 
@@ -224,16 +225,6 @@ class ObstacleMap:
         return tuple(o for o in self.obstacles if o.complete)
 
 
-def _plane_through(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals (pointing up) and offsets of the planes through triples ``p`` (K×3×3)."""
-    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    norm = np.linalg.norm(normal, axis=1)
-    norm[norm == 0] = np.nan
-    normal = normal / norm[:, None]
-    normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
-    return normal, -np.einsum("kd,kd->k", normal, p[:, 0])
-
-
 def fit_floor(points_m: np.ndarray, config: ObstacleConfig | None = None) -> FloorPlane:
     """The lowest dominant near-horizontal plane (RANSAC, then least squares on its inliers)."""
     cfg = config or ObstacleConfig()
@@ -245,7 +236,7 @@ def fit_floor(points_m: np.ndarray, config: ObstacleConfig | None = None) -> Flo
     if len(points) > cfg.ransac_max_points:
         sample = points[rng.choice(len(points), cfg.ransac_max_points, replace=False)]
     triples = sample[rng.integers(0, len(sample), size=(cfg.ransac_iterations, 3))]
-    normals, offsets = _plane_through(triples)
+    normals, offsets = plane_hypotheses(triples, np.array([0.0, 0.0, 1.0]))
     ok = np.isfinite(normals).all(axis=1) & (normals[:, 2] >= np.cos(cfg.max_floor_tilt_rad))
     if not ok.any():
         raise MappingError(

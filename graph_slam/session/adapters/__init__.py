@@ -1,5 +1,6 @@
 """Adapters: foreign recordings in (bags, TUM RGB-D, EuRoC, prosthesis logs), standard files out
-(TUM / KITTI trajectories, PLY maps). See docs/adapters.md.
+(PLY maps; TUM trajectories are ``graph_slam.session.io.read_tum`` / ``write_tum``). See
+docs/adapters.md.
 
 ``convert(src, dst, config)`` turns any registered source into a session folder; the sources
 are the explicit :data:`ADAPTERS` registry, each a :class:`SourceAdapter`.
@@ -13,30 +14,19 @@ from graph_slam.session.adapters.base import (
 )
 from graph_slam.session.adapters.config import ConvertConfig
 from graph_slam.session.adapters.convert import ConversionResult, convert
-from graph_slam.session.adapters.ply import PointCloud, read_ply, write_ply
+from graph_slam.session.adapters.ply import read_ply, write_ply
 from graph_slam.session.adapters.registry import ADAPTERS, select_adapter
-from graph_slam.session.adapters.trajectory_files import (
-    read_trajectory_kitti,
-    read_trajectory_tum,
-    write_trajectory_kitti,
-    write_trajectory_tum,
-)
 
 __all__ = [
     "ADAPTERS",
     "ConversionReport",
     "ConversionResult",
     "ConvertConfig",
-    "PointCloud",
     "Recording",
     "SourceAdapter",
     "StreamReport",
     "convert",
     "read_ply",
-    "read_trajectory_kitti",
-    "read_trajectory_tum",
     "select_adapter",
     "write_ply",
-    "write_trajectory_kitti",
-    "write_trajectory_tum",
 ]

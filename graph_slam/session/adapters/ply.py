@@ -1,22 +1,26 @@
-"""Point-cloud maps as PLY: ``x y z`` (double) and optional ``red green blue`` (uchar).
+"""Point clouds (:class:`~graph_slam.session.records.Cloud`) as PLY: ``x y z`` (double) and
+optional ``red green blue`` (uchar).
 
 Written with numpy alone (ASCII, or binary little-endian), read back symmetrically. The reader
-also takes what other tools write: float or double coordinates, any extra scalar vertex
-properties (ignored, listed in the result), binary big-endian, and elements after the vertices
+also takes what other tools write: float or double coordinates, normals ``nx ny nz``, any other
+scalar vertex properties (ignored, logged), binary big-endian, and elements after the vertices
 (ignored). The vertex element must come first; list properties on it are refused.
 """
 
 from __future__ import annotations
 
 import io as _io
+import logging
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
 
-from graph_slam.errors import StreamError
+from graph_slam.errors import RecordError, StreamError
+from graph_slam.session.records import Cloud
+
+logger = logging.getLogger(__name__)
 
 PLY_TYPES: dict[str, str] = {
     "char": "i1",
@@ -39,33 +43,6 @@ PLY_TYPES: dict[str, str] = {
 FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 
 
-@dataclass(frozen=True, eq=False)
-class PointCloud:
-    """N×3 points (metres, float64, finite) with optional N×3 uint8 RGB colours."""
-
-    points_m: np.ndarray
-    colors_rgb: np.ndarray | None = None
-    ignored_properties: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        points = np.asarray(self.points_m, dtype=np.float64)
-        if points.ndim != 2 or points.shape[1] != 3:
-            raise StreamError(f"PointCloud.points_m: shape {points.shape} is not N×3")
-        if not np.isfinite(points).all():
-            raise StreamError("PointCloud.points_m: NaN or inf; every coordinate must be finite")
-        object.__setattr__(self, "points_m", points)
-        if self.colors_rgb is not None:
-            colors = np.asarray(self.colors_rgb)
-            if colors.dtype != np.uint8 or colors.shape != points.shape:
-                raise StreamError(
-                    f"PointCloud.colors_rgb: must be uint8 {points.shape[0]}×3, got "
-                    f"{colors.dtype} {colors.shape}"
-                )
-
-    def __len__(self) -> int:
-        return int(self.points_m.shape[0])
-
-
 @contextmanager
 def _binary(target: str | Path | BinaryIO, mode: str):
     if isinstance(target, str | Path):
@@ -75,10 +52,12 @@ def _binary(target: str | Path | BinaryIO, mode: str):
         yield target, str(getattr(target, "name", "<stream>"))
 
 
-def write_ply(cloud: PointCloud, dest: str | Path | BinaryIO, *, binary: bool = True) -> None:
-    """Write a point cloud as PLY (binary little-endian by default, or ASCII)."""
+def write_ply(cloud: Cloud, dest: str | Path | BinaryIO, *, binary: bool = True) -> None:
+    """Write a point cloud as PLY (binary little-endian by default, or ASCII): points as double,
+    colours as uchar (``Cloud.colors_rgb``); normals are not written."""
     n = len(cloud)
-    has_color = cloud.colors_rgb is not None
+    colors_rgb = cloud.colors_rgb
+    has_color = colors_rgb is not None
     header = [
         "ply",
         f"format {'binary_little_endian' if binary else 'ascii'} 1.0",
@@ -97,9 +76,9 @@ def write_ply(cloud: PointCloud, dest: str | Path | BinaryIO, *, binary: bool = 
     rec = np.empty(n, dtype=np.dtype(fields))
     for i, axis in enumerate("xyz"):
         rec[axis] = cloud.points_m[:, i]
-    if cloud.colors_rgb is not None:
+    if colors_rgb is not None:
         for i, ch in enumerate(("red", "green", "blue")):
-            rec[ch] = cloud.colors_rgb[:, i]
+            rec[ch] = colors_rgb[:, i]
     with _binary(dest, "wb") as (handle, _):
         handle.write(("\n".join(header) + "\n").encode("ascii"))
         if binary:
@@ -150,8 +129,9 @@ def _parse_header(handle: BinaryIO, name: str) -> tuple[str, list[tuple[str, int
     return fmt, elements
 
 
-def read_ply(src: str | Path | BinaryIO) -> PointCloud:
-    """Read the vertices of a PLY file: ``x y z`` and, when present, ``red green blue``."""
+def read_ply(src: str | Path | BinaryIO) -> Cloud:
+    """Read the vertices of a PLY file: ``x y z`` and, when present, ``red green blue`` (uchar,
+    as colours in [0, 1]) and ``nx ny nz``. Other vertex properties are ignored and logged."""
     try:
         with _binary(src, "rb") as (handle, name):
             fmt, elements = _parse_header(handle, name)
@@ -203,15 +183,30 @@ def read_ply(src: str | Path | BinaryIO) -> PointCloud:
     except ValueError as err:
         raise StreamError(f"{src}: not a number in the vertex data ({err})") from None
     if data is None:
-        return PointCloud(np.zeros((0, 3)), None, tuple(n for n in names if n not in "xyz"))
+        _log_ignored(name, [n for n in names if n not in "xyz"])
+        return Cloud(np.zeros((0, 3)))
     points = np.column_stack([data[a].astype(np.float64) for a in "xyz"])
-    colors = None
-    color_names = ("red", "green", "blue")
+    colors = normals = None
+    color_names, normal_names = ("red", "green", "blue"), ("nx", "ny", "nz")
     if all(c in names for c in color_names):
         values = np.column_stack([data[c] for c in color_names])
         if np.any(values < 0) or np.any(values > 255) or np.any(values % 1):
             raise StreamError(f"{name}: colours must be integers 0..255")
-        colors = values.astype(np.uint8)
-    used = ("x", "y", "z", *(color_names if colors is not None else ()))
-    ignored = tuple(n for n in names if n not in used)
-    return PointCloud(points, colors, ignored)
+        colors = values.astype(np.uint8) / 255.0
+    if all(c in names for c in normal_names):
+        normals = np.column_stack([data[c].astype(np.float64) for c in normal_names])
+    used = (
+        "x", "y", "z",
+        *(color_names if colors is not None else ()),
+        *(normal_names if normals is not None else ()),
+    )  # fmt: skip
+    _log_ignored(name, [n for n in names if n not in used])
+    try:
+        return Cloud(points, colors, normals)
+    except RecordError as err:
+        raise StreamError(f"{name}: {err}") from None
+
+
+def _log_ignored(name: str, ignored: list[str]) -> None:
+    if ignored:
+        logger.info("%s: vertex properties ignored: %s", name, ", ".join(ignored))
