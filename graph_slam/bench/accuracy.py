@@ -228,16 +228,5 @@ def summary_lines(scores: list[SessionScore]) -> list[str]:
     return lines
 
 
-def report_lines(scores: list[SessionScore]) -> list[str]:
-    """The figures recorded in docs/benchmarks.md."""
-    lines = [header_line()]
-    for sc in scores:
-        lines.append(f"== {sc.name} ({sc.speed})")
-        for v, vs in sc.variants.items():
-            lines += variant_lines(v, vs)
-        lines += swing_lines(sc)
-    return lines + summary_lines(scores)
-
-
 def header_line() -> str:
     return f"pipelines benchmark ({len(os.sched_getaffinity(0))} CPUs visible)"

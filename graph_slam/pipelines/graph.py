@@ -20,7 +20,6 @@ from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
-from kinematics.conversions import adjoint_rot_first as adjoint
 
 log = logging.getLogger(__name__)
 
