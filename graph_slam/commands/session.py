@@ -50,7 +50,8 @@ def print_info(info) -> None:
         console.print("strides: no gait events in this session")
     else:
         console.print(
-            f"strides: {st.strides} complete ({st.foot_strikes} foot strikes, {st.toe_offs} toe-offs); "
+            f"strides ({st.source or 'every source'}): {st.strides} complete "
+            f"({st.foot_strikes} foot strikes, {st.toe_offs} toe-offs); "
             f"duration mean {_fmt(st.mean_stride_s, '.3f')} s, min {_fmt(st.min_stride_s, '.3f')} s, "
             f"max {_fmt(st.max_stride_s, '.3f')} s; frames per stride "
             f"{', '.join(map(str, st.frames_per_stride)) or '–'}"
@@ -59,11 +60,19 @@ def print_info(info) -> None:
 
 def register(app: typer.Typer) -> None:
     @app.command()
-    def info(session: SessionArg) -> None:
+    def info(
+        session: SessionArg,
+        event_source: Annotated[
+            str | None,
+            typer.Option(
+                help="Cut strides at this events.csv source (e.g. load_cell); default all."
+            ),
+        ] = None,
+    ) -> None:
         """Streams, counts, rates, durations, gaps and strides of a session."""
         from graph_slam.session import open_session, session_info
 
-        print_info(session_info(open_session(session)))
+        print_info(session_info(open_session(session), event_source))
 
     @app.command()
     def validate(

@@ -22,6 +22,7 @@ import numpy as np
 
 from graph_slam.errors import EvaluationError
 from graph_slam.evaluation._evo import require_evo
+from graph_slam.strides.reference import gait_cycle_percent, stance_mask  # noqa: F401 (re-export)
 
 log = logging.getLogger(__name__)
 
@@ -52,26 +53,6 @@ class StrideTrajectoryMetrics:
             "rmse_by_phase_m": self.rmse_by_phase_m,
             "rpe_rmse_m": self.rpe_rmse_m,
         }
-
-
-def stance_mask(t_s: np.ndarray, toe_off_s: float | None) -> np.ndarray:
-    """True for frames before the stride's toe-off (stance), False after (swing).
-
-    With no toe-off known (``None``) every frame counts as stance.
-    """
-    t = np.asarray(t_s, dtype=np.float64)
-    if toe_off_s is None:
-        return np.ones(t.shape, dtype=bool)
-    return t < toe_off_s
-
-
-def gait_cycle_percent(t_s: np.ndarray, t_strike_s: float, t_next_strike_s: float) -> np.ndarray:
-    """Position in the gait cycle (0 at this foot strike, 100 at the next), linear in time."""
-    if not t_next_strike_s > t_strike_s:
-        raise EvaluationError(
-            f"gait_cycle_percent: the next foot strike ({t_next_strike_s}) must follow this one ({t_strike_s})"
-        )
-    return 100.0 * (np.asarray(t_s, dtype=np.float64) - t_strike_s) / (t_next_strike_s - t_strike_s)
 
 
 def _rmse(errors: np.ndarray) -> float:

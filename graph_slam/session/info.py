@@ -57,6 +57,8 @@ class StrideInfo:
     min_stride_s: float | None
     max_stride_s: float | None
     frames_per_stride: tuple[int, ...] = ()
+    source: str | None = None
+    """The events' source that cut them (None: every source in events.csv)."""
 
 
 @dataclass(frozen=True)
@@ -75,8 +77,10 @@ class SessionInfo:
     provenance: dict[str, object] = field(default_factory=dict)
 
 
-def session_info(session: Session) -> SessionInfo:
-    """Summarise a session (reads the small streams; decodes no frame)."""
+def session_info(session: Session, event_source: str | None = None) -> SessionInfo:
+    """Summarise a session (reads the small streams; decodes no frame). Strides are cut at the
+    foot strikes of ``event_source`` (None: every source), the pipelines' rule
+    (:meth:`GaitEvents.of_source`)."""
     streams = [StreamInfo.from_times("frames", session.frame_times_s)]
     for name in ("imu", "joints", "ground_truth", "ground_truth_hf"):
         series = getattr(session, name)
@@ -85,6 +89,7 @@ def session_info(session: Session) -> SessionInfo:
     strides = None
     events = session.events
     if events is not None:
+        events = events.of_source(event_source, f"{session.path}/events.csv")
         strikes = events.foot_strikes_s
         durations = np.diff(strikes)
         frames = tuple(int(n) for n in np.diff(np.searchsorted(session.frame_times_s, strikes)))
@@ -96,6 +101,7 @@ def session_info(session: Session) -> SessionInfo:
             min_stride_s=float(durations.min()) if durations.size else None,
             max_stride_s=float(durations.max()) if durations.size else None,
             frames_per_stride=frames,
+            source=event_source,
         )
     cam = session.manifest.sensors.camera
     return SessionInfo(

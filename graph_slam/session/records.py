@@ -15,7 +15,7 @@ from typing import Literal
 
 import numpy as np
 
-from graph_slam.errors import RecordError
+from graph_slam.errors import RecordError, SessionError
 from kinematics import imu as kinematics_imu
 
 GaitEventKind = Literal["foot_strike", "toe_off"]
@@ -257,6 +257,24 @@ class GaitEvents:
     def toe_offs_s(self) -> np.ndarray:
         """Times of the toe-offs."""
         return self.t_s[np.array([k == "toe_off" for k in self.kind], dtype=bool)]
+
+    def of_source(self, source: str | None, where: str = "events.csv") -> GaitEvents:
+        """The events of one ``source`` (None: all of them) — the one rule for the events that
+        cut strides; a :class:`SessionError` naming the sources found when there is none."""
+        if source is None:
+            return self
+        use = np.array([s == source for s in self.source], dtype=bool)
+        if not use.any():
+            raise SessionError(
+                f"{where}: no event with source {source!r} "
+                f"(found {sorted(set(self.source))}); set event_source"
+            )
+        keep = np.flatnonzero(use)
+        return GaitEvents(
+            self.t_s[keep],
+            tuple(self.kind[i] for i in keep),
+            tuple(self.source[i] for i in keep),
+        )
 
     @classmethod
     def empty(cls) -> GaitEvents:

@@ -12,8 +12,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graph_slam.errors import SessionError
-
 log = logging.getLogger(__name__)
 
 
@@ -50,24 +48,12 @@ class StrideEvents:
 
 
 def stride_events(events, source: str | None, where: str = "events.csv") -> StrideEvents:
-    """The one rule for which events cut strides: those of ``source`` (a ``SessionError``
-    naming the sources found when there is none), or every event when ``source`` is None.
-    ``events``: a :class:`graph_slam.session.records.GaitEvents` or None (no strides)."""
+    """The events that cut strides: those of ``source`` (None: every source), by the one rule
+    :meth:`graph_slam.session.records.GaitEvents.of_source`. ``events`` None: no strides."""
     if events is None or not len(events):
         return StrideEvents(np.zeros(0), np.zeros(0), source)
-    kinds = np.asarray(events.kind)
-    use = np.ones(len(events), dtype=bool)
-    if source is not None:
-        use = np.asarray(events.source) == source
-        if not use.any():
-            raise SessionError(
-                f"{where}: no event with source {source!r} "
-                f"(found {sorted(set(events.source))}); set event_source"
-            )
-    t = np.asarray(events.t_s)
-    return StrideEvents(
-        np.sort(t[use & (kinds == "foot_strike")]), np.sort(t[use & (kinds == "toe_off")]), source
-    )
+    picked = events.of_source(source, where)
+    return StrideEvents(np.sort(picked.foot_strikes_s), np.sort(picked.toe_offs_s), source)
 
 
 @dataclass(frozen=True)
