@@ -23,16 +23,13 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from graph_slam.errors import ConfigError
 from graph_slam.strides.joints import JointBuffer
+from graph_slam.strides.measurements import KinematicMeasurement
 from kinematics.conversions import adjoint_rot_first
-
-if TYPE_CHECKING:  # the record lives with the back end that checks and consumes it
-    from graph_slam.backend.measurements import KinematicMeasurement
 
 log = logging.getLogger(__name__)
 
@@ -161,7 +158,6 @@ class LegKinematics:
         """The camera in the new stride's frame at ``t_s`` (``up_in_imu``: session IMU frame,
         None: the model's nominal heel-strike pitch). ``up_sigma_rad`` given: the covariance
         is :func:`anchor_covariance` (no contact noise), else the kinematics' heel-strike one."""
-        from graph_slam.backend.measurements import KinematicMeasurement
         from kinematics.errors import KinematicsError
         from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2, stride_T_camera
 
@@ -192,7 +188,6 @@ class LegKinematics:
 
     def foot_pose(self, t_s: float) -> KinematicMeasurement | None:
         """``foot_pose`` stance: the struck foot held, the camera from the encoders at ``t_s``."""
-        from graph_slam.backend.measurements import KinematicMeasurement
         from kinematics.errors import KinematicsError
         from kinematics.stride_frame import DEFAULT_ENCODER_VAR_RAD2
 
