@@ -121,6 +121,7 @@ class ThesisBaseline:
         t0 = time.perf_counter()
         index = len(self.results.frames)
         cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
+        t_cloud = time.perf_counter()
         pose: np.ndarray | None = None
         fitness = float("nan")
         if self._pending_strike:
@@ -159,6 +160,11 @@ class ThesisBaseline:
             backend_s=0.0,
             fitness=fitness,
             terrain_s=time.perf_counter() - t1,
+            stages_s={
+                "cloud": t_cloud - t0,
+                "registration": t1 - t_cloud,  # reset or map pyramid + ICP + fusion
+                "terrain": time.perf_counter() - t1,
+            },
         )
         self.results.frames.append(out)
         return out

@@ -141,12 +141,16 @@ class GraphPipeline:
         xi = gtsam.Pose3.Logmap(gtsam.Pose3(np.linalg.inv(pose0) @ pose1))
         return gtsam.Pose3.Expmap(xi * (t_s - t1) / max(t1 - t0, 1e-6)).matrix()
 
-    def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool):
+    def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool, stages: dict):
         """The frame's cloud, its registration to the previous frame (same stride) and its
-        pyramid (the next frame's target). Returns ``(cloud, icp, pyramid, fitness)``."""
+        pyramid (the next frame's target). Returns ``(cloud, icp, pyramid, fitness)``; each
+        step's time goes into ``stages``."""
         if not self.use_icp or not (self.cfg.graph.icp_in_swing or foot_loaded):
             return None, None, None, float("nan")
+        t0 = time.perf_counter()
         cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
+        t1 = time.perf_counter()
+        stages["cloud"] = t1 - t0
         icp, fitness = None, float("nan")
         if self._prev is not None and self._pending_strike is None:  # same stride
             prev_index, prev_pyramid, _, _ = self._prev
@@ -156,10 +160,13 @@ class GraphPipeline:
             except RegistrationError as err:
                 icp = failed_icp_measurement(err, index, prev_index)
                 fitness = icp.fitness
+        t2 = time.perf_counter()
+        stages["registration"] = t2 - t1
         try:
             pyramid = build_pyramid(cloud, self.registration)
         except RegistrationError:
             pyramid = None
+        stages["preprocess"] = time.perf_counter() - t2
         return cloud, icp, pyramid, fitness
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
@@ -167,18 +174,26 @@ class GraphPipeline:
         map cloud; strides the back end closed get their terrain maps."""
         t0 = time.perf_counter()
         index = len(self.results.frames)
-        cloud, icp, pyramid, fitness = self._register(frame, index, foot_loaded)
+        stages: dict[str, float] = {}
+        cloud, icp, pyramid, fitness = self._register(frame, index, foot_loaded, stages)
         floor_flag: tuple[str, ...] = ()
         if self._pending_strike is not None:
+            t_floor = time.perf_counter()
             fit = self._strike_with_up(frame.t_s, cloud)
+            stages["floor"] = time.perf_counter() - t_floor
             if fit is not None:
                 floor_flag = (f"floor:{fit.reason}",)
         t1 = time.perf_counter()
         est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
         t2 = time.perf_counter()
+        stages["graph"] = t2 - t1
         self._remember(index, pyramid, est, frame.t_s)
         self._close_strides()  # those closed by this frame (a strike, or a missed one)
+        t3 = time.perf_counter()
         self.terrain.add_frame(index, frame)
+        stages["terrain"] = time.perf_counter() - t3
+        if t3 - t2 > 1e-4:
+            stages["stride_close"] = t3 - t2
         out = FrameOutput(
             frame_index=index,
             stride_index=est.stride_index,
@@ -193,7 +208,8 @@ class GraphPipeline:
             flags=est.flags
             + floor_flag
             + ((f"icp:{est.gate.reason}",) if est.gate is not None else ()),
-            terrain_s=time.perf_counter() - t2,
+            terrain_s=stages["terrain"],
+            stages_s=stages,
             estimate=est,
         )
         self.results.frames.append(out)

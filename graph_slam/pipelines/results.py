@@ -37,6 +37,11 @@ class FrameOutput:
     flags: tuple[str, ...] = ()
     terrain_s: float = 0.0
     """Time spent keeping the frame's map cloud (the stride's maps are fused at its close)."""
+    stages_s: dict[str, float] = field(default_factory=dict)
+    """Per-stage wall time of this frame (s): ``cloud`` (depth → cloud), ``preprocess``
+    (voxel grid, normals: the next frame's target), ``registration``, ``floor`` (stride
+    start), ``graph`` (gate, factors, iSAM2 update, estimate), ``terrain``, ``stride_close``
+    (smoothing and the maps of a stride that closed at this frame)."""
     estimate: FrameEstimate | None = None
     """The back end's own record of the frame (graph variants)."""
 
