@@ -248,3 +248,29 @@ def test_factors_use_the_canonical_adjoint_gtsam_convention():
         factors.imu_cov_to_camera(cov, CAMERA_T_IMU), ad @ cov @ ad.T, atol=1e-10
     )
     assert not hasattr(factors, "adjoint")  # no second copy in the back end
+
+
+def test_imu_interval_reads_no_sample_beyond_the_first_after_its_end():
+    """Preintegration over [t0, t1] is the same whether samples after the first one at or
+    after t1 have arrived: online, a frame waits one IMU period for that sample and reads
+    nothing further ahead (issue 14: causal replay)."""
+    from graph_slam.backend.config import ImuNoiseConfig
+    from graph_slam.backend.imu import ImuBuffer
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 0.2, 0.005)
+    gyro = rng.normal(size=(t.size, 3)) * 0.5
+    accel = rng.normal(size=(t.size, 3)) + np.array([0.0, 0.0, 9.81])
+    bias = gtsam.imuBias.ConstantBias()
+    t0, t1 = 0.0512, 0.1113
+    full, part = ImuBuffer(ImuNoiseConfig()), ImuBuffer(ImuNoiseConfig())
+    full.add(t, gyro, accel)
+    k = np.searchsorted(t, t1, side="left") + 1  # up to the first sample at/after t1
+    part.add(t[:k], gyro[:k], accel[:k])
+    a, b = full.integrate(t0, t1, bias), part.integrate(t0, t1, bias)
+    assert a.ok and b.ok
+    np.testing.assert_array_equal(
+        np.asarray(a.pim.deltaRij().matrix()), np.asarray(b.pim.deltaRij().matrix())
+    )
+    np.testing.assert_array_equal(np.asarray(a.pim.deltaVij()), np.asarray(b.pim.deltaVij()))
+    np.testing.assert_array_equal(np.asarray(a.pim.deltaPij()), np.asarray(b.pim.deltaPij()))

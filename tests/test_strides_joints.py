@@ -55,3 +55,23 @@ def test_buffer_with_a_leg_model_applies_the_encoder_rules():
     assert buf.counts["used"] == 5
     np.testing.assert_allclose(buf.q_at(0.055), [0.5, 0.0])
     assert lo[1] <= 0.0 <= hi[1]
+
+
+def test_q_at_reads_no_sample_beyond_the_first_after_t():
+    """Online, a frame at t waits for the first encoder sample at or after t; q_at(t) is the
+    same whether later samples have arrived or not, and None before that sample arrives."""
+    t = np.arange(0.0, 0.12, 0.002)
+    q = np.column_stack([0.3 + 2.0 * t**2, -0.1 - 0.5 * t])
+    full = JointBuffer()
+    full.add(t, q[:, 0], q[:, 1])
+    for t_s in (0.0305, 0.05, 0.0981):
+        k = np.searchsorted(t, t_s, side="left") + 1
+        part = JointBuffer()
+        part.add(t[:k], q[:k, 0], q[:k, 1])
+        np.testing.assert_array_equal(part.q_at(t_s), full.q_at(t_s))
+        early = JointBuffer()
+        early.add(t[: k - 1], q[: k - 1, 0], q[: k - 1, 1])
+        assert t_s == t[k - 1] or early.q_at(t_s) is None
+    full.drop_before(0.05)
+    np.testing.assert_array_equal(full.q_at(0.0501), JointBuffer.q_at(full, 0.0501))
+    assert full.t_s[0] <= 0.05 < full.t_s[1]

@@ -175,6 +175,18 @@ class ImuBuffer:
         m = (self._t >= t0_s) & (self._t <= t1_s)
         return self._accel[m].mean(axis=0) if m.any() else None
 
+    def _sample_at(self, t_s: float, j: int) -> tuple[np.ndarray, np.ndarray]:
+        """Accelerometer and gyro at ``t_s`` in sample ``j``'s piece: linear between ``j`` and
+        ``j + 1``; held after the last sample."""
+        t = self._t
+        if j + 1 >= t.size:
+            return self._accel[j], self._gyro[j]
+        w = (t_s - t[j]) / (t[j + 1] - t[j])
+        return (
+            (1 - w) * self._accel[j] + w * self._accel[j + 1],
+            (1 - w) * self._gyro[j] + w * self._gyro[j + 1],
+        )
+
     def integrate(self, t0_s: float, t1_s: float, bias: gtsam.imuBias.ConstantBias) -> ImuSegment:
         """Preintegrate ``[t0_s, t1_s]`` from the bias estimate ``bias``."""
         if not t1_s > t0_s:
@@ -197,14 +209,12 @@ class ImuBuffer:
             dt = float(e - s)
             if dt <= 0:
                 continue
-            # Midpoint rule: the measurement interpolated linearly to the sub-interval's
+            # Midpoint rule: the measurement linear in time, evaluated at the sub-interval's
             # centre (zero-order hold lags by half a sample: 0.14° and ~1 cm/s² of gravity
-            # leak per rad/s of rotation at 200 Hz).
-            if j + 1 < self._t.size:
-                w = ((s + e) / 2.0 - self._t[j]) / (self._t[j + 1] - self._t[j])
-                acc = (1 - w) * self._accel[j] + w * self._accel[j + 1]
-                gyr = (1 - w) * self._gyro[j] + w * self._gyro[j + 1]
-            else:
-                acc, gyr = self._accel[j], self._gyro[j]
+            # leak per rad/s of rotation at 200 Hz). It reads samples up to the first one at
+            # or after t1 and none beyond: online, a frame waits for that sample (one IMU
+            # period at most). Extrapolating the last piece from earlier samples instead
+            # doubled the smoothed stride error (2.0 → 4.2 mm, measured on the simulator).
+            acc, gyr = self._sample_at((s + e) / 2.0, j)
             pim.integrateMeasurement(acc, gyr, dt)
         return ImuSegment(t0_s, t1_s, pim, int(idx.size), max_hold)

@@ -2,7 +2,10 @@
 
 :class:`JointBuffer` takes encoder samples as a device delivers them (chunks, in time order)
 and answers ``q_at(t_s)`` — the knee and ankle angles at any time inside the buffered span,
-linearly interpolated by :func:`interp_q`, None outside it (never extrapolated). Samples that
+linearly interpolated by :func:`interp_q`, None outside it (never extrapolated). Online, a
+frame at ``t_s`` is processed once the encoders have delivered a sample at or after ``t_s``
+(at 500 Hz, at most 2 ms later): ``q_at`` reads no sample beyond that one, so its answer is
+the same whether later samples have arrived or not (docs/pipelines.md, "causal replay"). Samples that
 cannot be used are rejected, counted by reason (:attr:`JointBuffer.counts`) and never used:
 
 * ``nonfinite``: NaN or inf in the time or an angle;
@@ -108,3 +111,9 @@ class JointBuffer:
     def q_at(self, t_s: float) -> np.ndarray | None:
         """``[knee, ankle]`` (rad) at ``t_s`` by :func:`interp_q`; None outside the samples."""
         return interp_q(t_s, self._t, self._q)
+
+    def drop_before(self, t_s: float) -> None:
+        """Forget samples not needed at or after ``t_s`` (keeps the one before it)."""
+        k = max(int(np.searchsorted(self._t, t_s, side="right")) - 1, 0)
+        if k:
+            self._t, self._q = self._t[k:], self._q[k:]
