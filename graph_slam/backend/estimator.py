@@ -152,5 +152,6 @@ class StrideSLAM:
         est = self.strides.estimate(index, k, t_s, flags, gate, kept, t_start)
         self.registration.add_frame(index, k)
         self.imu.drop_before(t_s - 1.0)
+        self.leg.joints.drop_before(t_s - 1.0)  # memory stays flat on long recordings
         self._last_frame_t = t_s
         return est

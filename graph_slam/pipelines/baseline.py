@@ -104,6 +104,7 @@ class ThesisBaseline:
         if not self.joints.t_s.size:
             return None, "no joint encoders"
         q = self.joints.q_at(t_s)
+        self.joints.drop_before(t_s - 1.0)  # only resets read the encoders
         if q is None:
             return None, "no encoder sample around the foot strike"
         up = None
