@@ -155,6 +155,13 @@ class BackendConfig(ConfigModel):
     kinematics: KinematicFactorConfig = KinematicFactorConfig()
     priors: PriorConfig = PriorConfig()
     smoothing: bool = Field(True, description="batch LM over the stride at its end")
+    defer_smoothing: bool = Field(
+        False,
+        description="real time: at a stride's end carry the iSAM2 estimate and its marginals "
+        "into the next stride (milliseconds) and queue the batch smoothing for "
+        "StrideSLAM.smooth_deferred() (the pipeline runs it at finish): no smoothing spike "
+        "at the foot strike",
+    )
     covariances: bool = Field(False, description="per-frame marginal covariances (slower)")
     isam2_relinearize_threshold: float = Field(0.01, gt=0)
     gap_bridge_rot_sigma_rad: float = Field(0.3, gt=0)

@@ -88,11 +88,17 @@ class StrideSLAM:
         return self.strides.foot_strike()
 
     def finish(self) -> Results:
-        """Close the open stride and return every result."""
+        """Close the open stride and return every result (deferred smoothings not run:
+        :meth:`smooth_deferred`)."""
         if self.strides.graph is not None:
             self.strides.close()
         self.results.imu_counts = dict(self.imu.counts)
         return self.results
+
+    def smooth_deferred(self) -> list[StrideSummary]:
+        """Batch-smooth the strides closed with ``defer_smoothing`` (off the real-time path:
+        at the end of a run, or when the host is idle); returns the strides updated."""
+        return self.strides.smooth_deferred()
 
     # ------------------------------------------------------------------ frames
     def add_frame(

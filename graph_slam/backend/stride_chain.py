@@ -162,6 +162,8 @@ class StrideChain:
         self._counts = {"icp_ok": 0, "icp_rej": 0, "kin": 0, "gap": 0}
         self._last_nav = None  # (t_s, NavEstimate, cov_pose, cov_vel, cov_bias) at stride end
         self._started_loaded = True  # the open stride's first frame had the foot loaded
+        self.deferred: list[tuple[StrideSummary, StrideGraph]] = []
+        """Closed strides whose batch smoothing waits (``defer_smoothing``)."""
 
     @property
     def anchored(self) -> bool:
@@ -287,9 +289,12 @@ class StrideChain:
         return est
 
     def close(self) -> StrideSummary:
-        """Smooth the open stride, keep its end state for the next one, summarise it."""
+        """Smooth the open stride, keep its end state for the next one, summarise it. With
+        ``defer_smoothing`` the end state is iSAM2's and the smoothing is queued
+        (:meth:`smooth_deferred`)."""
         g = self.graph
-        result, marginals, smoothing_s = g.smooth(self.cfg.smoothing)
+        defer = self.cfg.smoothing and self.cfg.defer_smoothing
+        result, marginals, smoothing_s = g.smooth(self.cfg.smoothing and not defer)
         n = g.n_states
         last = g.nav(n - 1, result)
         marginal = g.marginal_covariance  # online iSAM2 when the smoothed one failed
@@ -307,8 +312,36 @@ class StrideChain:
         self._last_nav = (g.t_s[-1], last, *end)
         summary = self._summary(result, covs, smoothing_s, last)
         self.results.strides.append(summary)
+        if defer:
+            summary.flags = (*summary.flags, "smoothing_deferred")
+            self.deferred.append((summary, g))
         self.graph = None
         return summary
+
+    def smooth_deferred(self) -> list[StrideSummary]:
+        """Run the queued smoothings: each summary's smoothed poses (and covariances, when
+        asked for) are replaced by the batch solution; returns the strides updated."""
+        done = []
+        inv_ext = np.linalg.inv(self.camera_T_imu)
+        while self.deferred:
+            summary, g = self.deferred.pop(0)
+            result, marginals, smoothing_s = g.smooth(True, marginals=self.cfg.covariances)
+            summary.smoothed_stride_T_camera = np.array(
+                [result.atPose3(X(k)).matrix() @ inv_ext for k in range(g.n_states)]
+            )
+            if marginals is not None:
+                summary.smoothed_covariances = np.array(
+                    [
+                        factors.imu_cov_to_camera(
+                            np.asarray(marginals.marginalCovariance(X(k))), self.camera_T_imu
+                        )
+                        for k in range(g.n_states)
+                    ]
+                )
+            summary.smoothing_s = smoothing_s
+            summary.flags = tuple(sorted({*summary.flags, *g.flags} - {"smoothing_deferred"}))
+            done.append(summary)
+        return done
 
     def _summary(self, result, covs, smoothing_s: float, last: NavEstimate) -> StrideSummary:
         g, c = self.graph, self._counts

@@ -149,11 +149,14 @@ class StrideGraph:
     def marginal_covariance(self, key: int) -> np.ndarray:
         return np.asarray(self.isam.marginalCovariance(key))
 
-    def smooth(self, enabled: bool = True) -> tuple[gtsam.Values, gtsam.ISAM2 | None, float]:
+    def smooth(
+        self, enabled: bool = True, marginals: bool = True
+    ) -> tuple[gtsam.Values, gtsam.ISAM2 | None, float]:
         """Batch LM over the stride from the iSAM2 estimate; falls back to iSAM2 on failure.
 
         Returns the estimate, an iSAM2 linearised at it (``marginalCovariance`` by QR;
-        ``gtsam.Marginals`` uses Cholesky and fails on these graphs) and the time taken.
+        ``gtsam.Marginals`` uses Cholesky and fails on these graphs; None when ``marginals``
+        is False) and the time taken.
         """
         t0 = time.perf_counter()
         result = self.estimate
@@ -171,12 +174,14 @@ class StrideGraph:
             except RuntimeError as err:
                 log.warning("stride smoothing failed (%s); keeping the iSAM2 estimate", err)
                 self.flags.add("smoothing_failed")
-        marginals = None
+        if not marginals:
+            return result, None, time.perf_counter() - t0
+        isam = None
         try:
-            marginals = gtsam.ISAM2(self._isam_params)
-            marginals.update(self.graph, result)
+            isam = gtsam.ISAM2(self._isam_params)
+            isam.update(self.graph, result)
         except RuntimeError as err:
-            marginals = None
+            isam = None
             log.warning("stride marginals failed (%s)", err)
             self.flags.add("marginals_failed")
-        return result, marginals, time.perf_counter() - t0
+        return result, isam, time.perf_counter() - t0

@@ -98,7 +98,7 @@ class GraphPipeline:
         self._pending_strike = float(t_s)
         self.gravity.foot_strike(t_s)
 
-    def _strike_with_up(self, t_frame_s: float, cloud):
+    def _strike_with_up(self, t_frame_s: float, cloud, stages: dict):
         """Close the stride at the pending strike. The new anchor's up vector (IMU frame at the
         new stride's first frame): the gyro-rotated accelerometer mean over about one stride
         (:class:`graph_slam.strides.gravity.GravityEstimator`), fused with the floor plane in
@@ -129,7 +129,9 @@ class GraphPipeline:
                 up, sigma = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
             else:
                 log.info("t=%.3f s: no floor for the anchor (%s)", t_frame_s, fit.reason)
+        t_close = time.perf_counter()
         self.slam.foot_strike(t_strike, up_in_imu=up, up_sigma_rad=sigma, up_t_s=t_frame_s)
+        stages["stride_close"] = time.perf_counter() - t_close  # smoothing of the last stride
         return fit
 
     def _guess(self, t_s: float) -> np.ndarray:
@@ -179,21 +181,21 @@ class GraphPipeline:
         floor_flag: tuple[str, ...] = ()
         if self._pending_strike is not None:
             t_floor = time.perf_counter()
-            fit = self._strike_with_up(frame.t_s, cloud)
-            stages["floor"] = time.perf_counter() - t_floor
+            fit = self._strike_with_up(frame.t_s, cloud, stages)
+            stages["floor"] = time.perf_counter() - t_floor - stages["stride_close"]
             if fit is not None:
                 floor_flag = (f"floor:{fit.reason}",)
         t1 = time.perf_counter()
         est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
         t2 = time.perf_counter()
-        stages["graph"] = t2 - t1
+        stages["graph"] = t2 - t1  # a missed strike's smoothing included
         self._remember(index, pyramid, est, frame.t_s)
         self._close_strides()  # those closed by this frame (a strike, or a missed one)
         t3 = time.perf_counter()
         self.terrain.add_frame(index, frame)
         stages["terrain"] = time.perf_counter() - t3
-        if t3 - t2 > 1e-4:
-            stages["stride_close"] = t3 - t2
+        if t3 - t2 > 1e-4:  # the terrain maps of a stride that closed
+            stages["stride_close"] = stages.get("stride_close", 0.0) + t3 - t2
         out = FrameOutput(
             frame_index=index,
             stride_index=est.stride_index,
@@ -230,7 +232,11 @@ class GraphPipeline:
         """A :class:`StrideOutput` (with its terrain) for every stride the back end closed."""
         for s in self.slam.results.strides[len(self.results.strides) :]:
             terrain = self.terrain.close_stride(
-                s.index, s.frame_indices, s.online_stride_T_camera, s.smoothed_stride_T_camera
+                s.index,
+                s.frame_indices,
+                s.online_stride_T_camera,
+                s.smoothed_stride_T_camera,
+                smoothed_later="smoothing_deferred" in s.flags,
             )
             self.results.strides.append(
                 StrideOutput(
@@ -246,12 +252,23 @@ class GraphPipeline:
                 )
             )
 
+    def _smooth_deferred(self) -> None:
+        """The batch smoothing of strides closed in real time (``backend.defer_smoothing``),
+        and their maps from the smoothed poses."""
+        for s in self.slam.smooth_deferred():
+            out = self.results.strides[s.index]
+            out.smoothed_stride_T_camera = s.smoothed_stride_T_camera
+            out.flags = s.flags
+            if out.terrain is not None:
+                out.terrain = self.terrain.fuse_smoothed(out.terrain, s.smoothed_stride_T_camera)
+
     def finish(self) -> PipelineResults:
         if self._pending_strike is not None:  # a strike after the last frame
             self.slam.foot_strike(self._pending_strike)
             self._pending_strike = None
         res = self.slam.finish()
         self._close_strides()
+        self._smooth_deferred()
         self.results.backend = res
         if self.cfg.backend.covariances:
             self.results.covariances = np.array(

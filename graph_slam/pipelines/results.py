@@ -40,8 +40,9 @@ class FrameOutput:
     stages_s: dict[str, float] = field(default_factory=dict)
     """Per-stage wall time of this frame (s): ``cloud`` (depth → cloud), ``preprocess``
     (voxel grid, normals: the next frame's target), ``registration``, ``floor`` (stride
-    start), ``graph`` (gate, factors, iSAM2 update, estimate), ``terrain``, ``stride_close``
-    (smoothing and the maps of a stride that closed at this frame)."""
+    start, without the smoothing), ``graph`` (gate, factors, iSAM2 update, estimate),
+    ``terrain``, ``stride_close`` (the smoothing and the maps of a stride that closed at this
+    frame). ``frontend_s`` and ``backend_s`` are the older two-way split of the same time."""
     estimate: FrameEstimate | None = None
     """The back end's own record of the frame (graph variants)."""
 

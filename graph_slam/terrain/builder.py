@@ -105,6 +105,7 @@ class TerrainBuilder:
         self.min_depth_m = float(min_depth_m)
         self.max_depth_m = float(min(max_depth_m, config.max_depth_m))
         self._clouds: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+        self._waiting: dict[int, list] = {}  # stride index -> clouds for a later smoothed map
 
     def add_frame(self, frame_index: int, frame) -> None:
         """Keep the frame's map cloud until its stride closes."""
@@ -119,13 +120,23 @@ class TerrainBuilder:
         frame_indices: Sequence[int],
         online_stride_T_camera: np.ndarray,
         smoothed_stride_T_camera: np.ndarray | None,
+        smoothed_later: bool = False,
     ) -> StrideTerrain:
         """Fuse the stride's frames with each configured pose set; forget their clouds.
-        ``smoothed_stride_T_camera`` None: the online poses are the smoothed ones."""
+        ``smoothed_stride_T_camera`` None: the online poses are the smoothed ones.
+        ``smoothed_later``: the smoothed poses come later (deferred smoothing): the clouds
+        wait for :meth:`fuse_smoothed` when a smoothed map is configured."""
         frames = tuple(int(i) for i in frame_indices)
         clouds = [self._clouds.pop(i, None) for i in frames]
         if not self.cfg.enabled or any(c is None for c in clouds):
             return StrideTerrain(stride_index, frames)
+        if smoothed_later:
+            if "smoothed" in self.cfg.poses:
+                self._waiting[stride_index] = clouds
+            online = None
+            if "online" in self.cfg.poses:
+                online = self._fuse(clouds, np.asarray(online_stride_T_camera))
+            return StrideTerrain(stride_index, frames, online, None)
         poses = {"online": online_stride_T_camera, "smoothed": smoothed_stride_T_camera}
         maps: dict[str, StrideMap | None] = {}
         for kind in self.cfg.poses:
@@ -137,6 +148,16 @@ class TerrainBuilder:
                 clouds, np.asarray(online_stride_T_camera)
             )
         return StrideTerrain(stride_index, frames, maps.get("online"), maps.get("smoothed"))
+
+    def fuse_smoothed(self, terrain: StrideTerrain, smoothed_stride_T_camera) -> StrideTerrain:
+        """The stride's map from its (deferred) smoothed poses; ``terrain`` unchanged when no
+        clouds wait for it."""
+        clouds = self._waiting.pop(terrain.stride_index, None)
+        if clouds is None:
+            return terrain
+        return dataclasses.replace(
+            terrain, smoothed=self._fuse(clouds, np.asarray(smoothed_stride_T_camera))
+        )
 
     def _fuse(self, clouds, stride_T_camera: np.ndarray) -> StrideMap:
         colors = [c for _, c in clouds]
