@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import time
 
+import gtsam
 import numpy as np
 
 from graph_slam.backend.config import BackendConfig
@@ -94,6 +95,21 @@ class StrideSLAM:
             self.strides.close()
         self.results.imu_counts = dict(self.imu.counts)
         return self.results
+
+    def predict_relative(self, t_s: float) -> np.ndarray | None:
+        """``last_T_new``: the camera's motion from the open stride's latest state to ``t_s``,
+        preintegrated from the current estimate (pose, velocity, bias) — an ICP initial guess
+        good to millimetres. None at a stride's first frame or across an IMU gap."""
+        g = self.strides.graph
+        if g is None or self.strides.pending is not None or not t_s > g.t_s[-1]:
+            return None
+        last = g.nav(g.n_states - 1)
+        seg = self.imu.buffer.integrate(g.t_s[-1], t_s, last.bias)
+        if not seg.ok:
+            return None
+        nav = seg.pim.predict(gtsam.NavState(last.stride_T_imu, last.velocity_m_s), last.bias)
+        last_T_new_imu = np.linalg.inv(last.stride_T_imu.matrix()) @ nav.pose().matrix()
+        return self.camera_T_imu @ last_T_new_imu @ np.linalg.inv(self.camera_T_imu)
 
     def smooth_deferred(self) -> list[StrideSummary]:
         """Batch-smooth the strides closed with ``defer_smoothing`` (off the real-time path:

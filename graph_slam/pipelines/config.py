@@ -72,6 +72,12 @@ class GraphFrontendConfig(ConfigModel):
     constant_velocity_guess: bool = Field(
         True, description="initial guess: the last online relative motion scaled by Δt"
     )
+    imu_guess: bool = Field(
+        False,
+        description="initial guess: the IMU preintegrated from the graph's current estimate "
+        "(StrideSLAM.predict_relative); falls back to constant velocity at a stride's start "
+        "or across an IMU gap",
+    )
     icp_in_swing: bool = Field(
         True,
         description="False: no registration while the foot is unloaded, as if every swing "

@@ -135,7 +135,12 @@ class GraphPipeline:
         return fit
 
     def _guess(self, t_s: float) -> np.ndarray:
-        """Initial ``prev_T_current``: constant velocity from the last two online poses."""
+        """Initial ``prev_T_current``: the IMU's prediction (``graph.imu_guess``), else
+        constant velocity from the last two online poses, else identity."""
+        if self.cfg.graph.imu_guess:
+            guess = self.slam.predict_relative(t_s)
+            if guess is not None:
+                return guess
         if self._prev2 is None or not self.cfg.graph.constant_velocity_guess:
             return np.eye(4)
         _, _, pose1, t1 = self._prev
