@@ -194,17 +194,24 @@ def _kind(text: str) -> str:
     return ":".join(part.strip() for part in text.split(":")[:2])
 
 
+def _kinds(flags: tuple[str, ...]) -> list[str]:
+    """The flags' kinds; the registration's own flag dropped when the gate rejected it."""
+    rejected = "icp_rejected" in flags
+    return [_kind(f) for f in flags if not (rejected and f.startswith("icp:"))]
+
+
 def _assert_same_online_output(a: PipelineResults, b: PipelineResults) -> None:
     """Per frame: the same stride, status and flags (their kinds) and ``stride_T_camera``
     (to 1e-9). The streams arrive in other chunks, so sums over them round differently
-    (1e-13); a registration that diverges amplifies that into another failure reason
-    (``low_fitness`` instead of ``too_few_correspondences``), never into a success."""
+    (1e-13), and Open3D's threaded sums are not bit-identical from run to run: a registration
+    that diverges may end in another failure (``low_fitness``, ``too_few_correspondences``) or
+    in a step the gate rejects as implausible. Accepted or rejected must agree."""
     assert len(a.frames) == len(b.frames)
     for fa, fb in zip(a.frames, b.frames, strict=True):
         where = f"frame {fa.frame_index} (t={fa.t_s:.3f} s)"
         assert fa.stride_index == fb.stride_index, where
         assert _kind(fa.status) == _kind(fb.status), where
-        assert [_kind(f) for f in fa.flags] == [_kind(f) for f in fb.flags], where
+        assert _kinds(fa.flags) == _kinds(fb.flags), where
         assert fa.has_pose == fb.has_pose, where
         if fa.has_pose:
             np.testing.assert_allclose(
