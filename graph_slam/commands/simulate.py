@@ -49,7 +49,16 @@ def register(app: typer.Typer) -> None:
         accel_range: Annotated[
             float | None, typer.Option(help="Accelerometer saturation, ±g (4 or 8).")
         ] = None,
-        fast: Annotated[bool, typer.Option("--fast", help="Quarter resolution.")] = False,
+        fast: Annotated[
+            bool, typer.Option("--fast", help="Quarter resolution (D455: same as 212x120).")
+        ] = False,
+        resolution: Annotated[
+            str | None,
+            typer.Option(
+                help="Image size WxH: the profile's divided by one factor (D455 real-time "
+                "modes 848x480, 424x240, 212x120). Default: the profile's."
+            ),
+        ] = None,
         no_blur: Annotated[bool, typer.Option("--no-blur", help="No motion blur.")] = False,
         config: Annotated[
             Path | None, typer.Option("--config", help="YAML of SimConfig overrides (base).")
@@ -78,6 +87,8 @@ def register(app: typer.Typer) -> None:
             fast=fast,
             motion_blur=not no_blur,
         )
+        if resolution is not None:
+            base["resolution"] = resolution
         cfg = config_from_dict(SimConfig, base, source="graph-slam simulate options")
         with progress_bar("rendering") as update:
             result = simulate(cfg, out, overwrite=overwrite, progress=update)

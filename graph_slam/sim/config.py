@@ -68,7 +68,16 @@ class SimConfig(ConfigModel):
     )
     mount_pitch_deg: float = Field(35.0, ge=30, le=45, description="camera below horizontal")
     noise_scale: float = Field(1.0, ge=0, le=10, description="multiplies every noise σ")
-    fast: bool = Field(False, description="quarter resolution (tests, previews)")
+    fast: bool = Field(
+        False, description="quarter resolution (tests, previews): the D455's 212x120"
+    )
+    resolution: str | None = Field(
+        None,
+        pattern=r"^[1-9][0-9]*x[1-9][0-9]*$",
+        description="image size WIDTHxHEIGHT, the profile's size divided by one factor on "
+        "both axes (the D455's real-time modes 848x480, 424x240, 212x120); None = the "
+        "profile's size (or a quarter of it with fast)",
+    )
     imu_rate_hz: float | None = Field(None, gt=0, le=4000, description="override the profile")
     accel_range_g: float | None = Field(
         None, gt=0, le=64, description="accelerometer saturation (±g); None = profile"
@@ -77,6 +86,12 @@ class SimConfig(ConfigModel):
     motion_blur: bool = True
     quicklook: bool = Field(True, description="graph-slam simulate draws quicklook.png")
     motion: MotionConfig = MotionConfig()
+
+    @model_validator(mode="after")
+    def _one_size(self) -> SimConfig:
+        if self.fast and self.resolution is not None:
+            raise ValueError("set either fast (a quarter of the profile's size) or resolution")
+        return self
 
 
 class DepthNoise(ConfigModel):

@@ -37,7 +37,7 @@ from graph_slam.sim.config import (
     load_profile,
 )
 from graph_slam.sim.motion import GaitMotion
-from graph_slam.sim.render import Renderer, intrinsics_for
+from graph_slam.sim.render import Renderer, image_size, intrinsics_for
 from graph_slam.sim.scene import load_scene
 from graph_slam.sim.sensors import (
     frame_schedule,
@@ -126,6 +126,7 @@ def prepare(cfg: SimConfig) -> Simulation:
         camera = camera.model_copy(
             update={"drops": camera.drops.model_copy(update={"model": cfg.drops})}
         )
+    image_size(camera, cfg.fast, cfg.resolution)  # a wrong size fails before any work
     leg = LegParams(mount_pitch_down_rad=math.radians(cfg.mount_pitch_deg))
     model = LegModel(leg)
     motion = GaitMotion(cfg.speed_m_s, cfg.strides, cfg.seed, leg, cfg.motion)
@@ -169,7 +170,7 @@ def simulate(
     timings: dict[str, float] = {}
     sim = prepare(cfg)
     motion, camera = sim.motion, sim.camera
-    intrinsics = intrinsics_for(camera, cfg.fast)
+    intrinsics = intrinsics_for(camera, cfg.fast, cfg.resolution)
     renderer = Renderer(
         sim.scene, intrinsics, camera, noise_scale=cfg.noise_scale, motion_blur=cfg.motion_blur
     )

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from graph_slam.errors import SimulationError
 from graph_slam.session.records import CameraIntrinsics
 from graph_slam.sim.config import CameraProfile
 from graph_slam.sim.scene import Scene
@@ -21,10 +22,37 @@ BACKGROUND_RGB = np.array([205.0, 205.0, 200.0], np.float32)  # beyond the floor
 MAX_BLUR_SAMPLES = 12
 
 
-def intrinsics_for(profile: CameraProfile, fast: bool = False) -> CameraIntrinsics:
-    """Pinhole intrinsics from the profile's resolution and field of view (``fast``: ¼ size)."""
-    div = 4 if fast else 1
-    w, h = max(profile.width_px // div, 8), max(profile.height_px // div, 8)
+def image_size(
+    profile: CameraProfile, fast: bool = False, resolution: str | None = None
+) -> tuple[int, int]:
+    """The rendered image's (width, height): the profile's, a quarter of it (``fast``), or
+    ``resolution`` (``"WxH"``), which must be the profile's size divided by one factor on both
+    axes (binning: the field of view stays the profile's)."""
+    if resolution is None:
+        div = 4 if fast else 1
+        return max(profile.width_px // div, 8), max(profile.height_px // div, 8)
+    try:
+        w, h = (int(part) for part in resolution.lower().split("x"))
+    except ValueError:
+        raise SimulationError(
+            f"resolution {resolution!r}: write it WIDTHxHEIGHT, e.g. 424x240"
+        ) from None
+    pw, ph = profile.width_px, profile.height_px
+    if not (8 <= w <= pw and 8 <= h <= ph and w * ph == h * pw):
+        modes = ", ".join(f"{pw // k}x{ph // k}" for k in (1, 2, 4) if pw % k == 0 == ph % k)
+        raise SimulationError(
+            f"resolution {resolution!r}: camera {profile.name} ({pw}x{ph}) renders its own "
+            f"size divided by one factor on both axes, at least 8 px (e.g. {modes})"
+        )
+    return w, h
+
+
+def intrinsics_for(
+    profile: CameraProfile, fast: bool = False, resolution: str | None = None
+) -> CameraIntrinsics:
+    """Pinhole intrinsics from the image size (:func:`image_size`) and the profile's field of
+    view: ``fx``, ``fy`` scale with the size, the principal point stays at the centre."""
+    w, h = image_size(profile, fast, resolution)
     fx = 0.5 * w / math.tan(math.radians(profile.fov_x_deg) / 2)
     fy = 0.5 * h / math.tan(math.radians(profile.fov_y_deg) / 2)
     return CameraIntrinsics(w, h, fx, fy, (w - 1) / 2.0, (h - 1) / 2.0)

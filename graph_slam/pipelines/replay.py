@@ -1,0 +1,429 @@
+"""A causal replay of a session: every stream fed in timestamp order, as the device would.
+
+``replay_session(session, config, pace)`` plays a recorded session into a pipeline on a clock.
+Each sample, event and frame exists from its time stamp on; nothing is read ahead:
+
+- before a frame is processed, the pipeline gets the IMU and encoder samples and the foot
+  strikes stamped at or before the frame (those stamped after it wait for the next processed
+  frame, even when they arrived while the estimator was busy: the output then depends only on
+  which frames were processed, not on how long each took), then the frame with its
+  foot-loaded state from the load-cell events stamped at or before it;
+- the estimator is one worker: a frame that arrives while it is busy waits, and when it is
+  free it takes **the newest frame that has arrived and skips the older waiting ones**
+  (:func:`pick_frame`; counted, their indices kept); samples and events are never skipped.
+
+Pacing: ``virtual`` (default) runs as fast as the machine can on a virtual clock that each
+pipeline call advances by its measured compute time (``perf_counter``; ``compute_cost`` may
+rescale it, e.g. a slower on-board computer, or fix it for a deterministic test);
+``wall`` sleeps until each frame's arrival on the real clock (a session replayed in real
+time). Reading the frame from disk is not the estimator's work: both clocks stop during it.
+"""
+
+from __future__ import annotations
+
+import logging
+import resource
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from graph_slam.errors import ConfigError, SessionError
+from graph_slam.pipelines.config import PipelineConfig
+from graph_slam.pipelines.protocol import Pipeline
+from graph_slam.pipelines.results import PipelineResults
+from graph_slam.pipelines.runner import make_pipeline
+from graph_slam.strides.kinematics import leg_model_for
+from graph_slam.strides.streams import Streams, StrideEvents, session_streams
+
+log = logging.getLogger(__name__)
+
+Pace = Literal["virtual", "wall"]
+PACES: tuple[str, ...] = ("virtual", "wall")
+
+ComputeCost = Callable[[int, float], float]
+"""``(session frame index, measured seconds) -> seconds on the virtual clock``."""
+
+RSS_MARKS_S: tuple[float, ...] = (60.0, 300.0, 600.0)
+"""Session times (s after the first frame) at which the resident memory is sampled."""
+
+
+# --------------------------------------------------------------------------- the skip policy
+def pick_frame(arrival_s: np.ndarray, next_index: int, free_at_s: float) -> tuple[int, float]:
+    """The skip policy: which frame the estimator takes when it becomes free.
+
+    ``arrival_s``: every frame's arrival time (non-decreasing); ``next_index``: the first frame
+    not yet handled; ``free_at_s``: when the estimator is free. Returns ``(index, start_s)``:
+    the newest frame that has arrived by ``free_at_s``, started then (the frames
+    ``next_index..index-1`` are skipped); if none has arrived, the next one, started at its
+    arrival (nothing skipped).
+    """
+    if not 0 <= next_index < arrival_s.size:
+        raise IndexError(f"next_index {next_index} outside 0..{arrival_s.size - 1}")
+    if arrival_s[next_index] > free_at_s:
+        return next_index, float(arrival_s[next_index])
+    newest = int(np.searchsorted(arrival_s, free_at_s, side="right")) - 1
+    return max(newest, next_index), float(free_at_s)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """The policy applied to a timing trace: which frames were processed, when."""
+
+    processed: np.ndarray
+    """Indices of the processed frames."""
+    skipped: np.ndarray
+    """Indices of the skipped frames."""
+    start_s: np.ndarray
+    finish_s: np.ndarray
+    latency_s: np.ndarray
+    """finish − arrival of each processed frame."""
+
+
+def schedule(arrival_s: Sequence[float], compute_s: Sequence[float]) -> Schedule:
+    """Apply :func:`pick_frame` to a trace: ``compute_s[i]`` is how long frame ``i`` takes if
+    it is processed (the replay measures it as it goes; this is its pure core, for tests and
+    what-if questions such as "at twice the compute time")."""
+    arrival = np.asarray(arrival_s, float)
+    compute = np.asarray(compute_s, float)
+    if arrival.shape != compute.shape or arrival.ndim != 1:
+        raise ValueError("arrival_s and compute_s must be 1-D and of the same length")
+    if np.any(np.diff(arrival) < 0):
+        raise ValueError("arrival_s must be non-decreasing")
+    processed, skipped, start, finish = [], [], [], []
+    i, free_at = 0, -np.inf
+    while i < arrival.size:
+        j, t0 = pick_frame(arrival, i, free_at)
+        skipped.extend(range(i, j))
+        free_at = t0 + compute[j]
+        processed.append(j)
+        start.append(t0)
+        finish.append(free_at)
+        i = j + 1
+    p = np.array(processed, dtype=int)
+    return Schedule(
+        processed=p,
+        skipped=np.array(skipped, dtype=int),
+        start_s=np.array(start),
+        finish_s=np.array(finish),
+        latency_s=np.array(finish) - arrival[p] if p.size else np.zeros(0),
+    )
+
+
+# --------------------------------------------------------------------------- clocks
+class _VirtualClock:
+    """Session time that only the estimator's measured work advances."""
+
+    def __init__(self, t0_s: float, cost: ComputeCost | None) -> None:
+        self.now_s = t0_s
+        self._cost = cost
+
+    def now(self) -> float:
+        return self.now_s
+
+    def wait_until(self, t_s: float) -> None:
+        self.now_s = max(self.now_s, t_s)
+
+    def spent(self, frame_index: int, measured_s: float) -> None:
+        self.now_s += measured_s if self._cost is None else self._cost(frame_index, measured_s)
+
+    def pause(self, _measured_s: float) -> None:
+        pass
+
+
+class _WallClock:
+    """Session time on the real clock: ``t0_s`` now, then as the wall clock runs."""
+
+    def __init__(self, t0_s: float) -> None:
+        self._origin = time.perf_counter() - t0_s
+
+    def now(self) -> float:
+        return time.perf_counter() - self._origin
+
+    def wait_until(self, t_s: float) -> None:
+        delay = t_s - self.now()
+        if delay > 0:
+            time.sleep(delay)
+
+    def spent(self, _frame_index: int, _measured_s: float) -> None:
+        pass
+
+    def pause(self, measured_s: float) -> None:
+        self._origin += measured_s  # the session's clock stood still meanwhile
+
+
+# --------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class ProcessedFrame:
+    """One processed frame on the replay's clock (session time, s)."""
+
+    session_index: int
+    t_s: float
+    arrival_s: float
+    start_s: float
+    """When the estimator took it (before the buffered samples were delivered)."""
+    finish_s: float
+    compute_s: float
+    """Wall time of ``add_frame``."""
+    cpu_s: float
+    """Process CPU time of ``add_frame`` (every thread)."""
+    feed_s: float
+    """Wall time delivering the buffered samples and foot strikes before it."""
+    stages_s: dict[str, float] = field(default_factory=dict)
+    """The pipeline's per-stage times (:attr:`FrameOutput.stages_s`)."""
+
+    @property
+    def latency_s(self) -> float:
+        return self.finish_s - self.arrival_s
+
+
+@dataclass(frozen=True)
+class RssSample:
+    """Resident memory at a moment of the replay."""
+
+    session_s: float
+    """Session time since the first frame."""
+    rss_mb: float
+    peak_mb: float
+
+
+@dataclass(eq=False)
+class ReplayResult:
+    """What :func:`replay_session` produced: the pipeline's results over the processed frames
+    (``results.frames[k]`` is ``frames[k]``) and the timing of each."""
+
+    pace: str
+    results: PipelineResults
+    frames: list[ProcessedFrame]
+    skipped: np.ndarray
+    """Session indices of the frames skipped by the policy."""
+    n_delivered: int
+    duration_s: float
+    """Session time from the first to the last delivered frame."""
+    finish_call_s: float
+    """Wall time of the pipeline's ``finish`` (closing the last stride)."""
+    rss: list[RssSample]
+
+    @property
+    def n_processed(self) -> int:
+        return len(self.frames)
+
+    @property
+    def n_skipped(self) -> int:
+        return int(self.skipped.size)
+
+    @property
+    def session_indices(self) -> np.ndarray:
+        return np.array([f.session_index for f in self.frames], dtype=int)
+
+    @property
+    def latency_s(self) -> np.ndarray:
+        return np.array([f.latency_s for f in self.frames])
+
+    @property
+    def compute_s(self) -> np.ndarray:
+        return np.array([f.compute_s for f in self.frames])
+
+    @property
+    def cpu_s(self) -> np.ndarray:
+        return np.array([f.cpu_s for f in self.frames])
+
+    @property
+    def delivered_rate_hz(self) -> float:
+        return (self.n_delivered - 1) / self.duration_s if self.duration_s > 0 else float("nan")
+
+    @property
+    def achieved_rate_hz(self) -> float:
+        """Processed frames per second of session time (the delivered rate when none is
+        skipped)."""
+        if self.duration_s <= 0:
+            return float("nan")
+        return self.delivered_rate_hz * self.n_processed / self.n_delivered
+
+    @property
+    def peak_rss_mb(self) -> float:
+        return max((s.peak_mb for s in self.rss), default=float("nan"))
+
+    def stage_s(self, name: str) -> np.ndarray:
+        """The stage's time on every processed frame where it ran."""
+        return np.array([f.stages_s[name] for f in self.frames if name in f.stages_s])
+
+
+def rss_mb() -> float:
+    """The process's resident memory now (MB; Linux ``/proc``, else the peak)."""
+    try:
+        pages = int(Path("/proc/self/statm").read_text().split()[1])
+    except (OSError, IndexError, ValueError):
+        return peak_rss_mb()
+    return pages * resource.getpagesize() / 1e6
+
+
+def peak_rss_mb() -> float:
+    """The process's peak resident memory so far (MB; ``ru_maxrss``)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 1e6 if sys.platform == "darwin" else peak / 1e3  # bytes on macOS, else KiB
+
+
+# --------------------------------------------------------------------------- the feed
+class _Feed:
+    """The session's streams, delivered up to a time in timestamp order (never twice)."""
+
+    def __init__(self, pipe: Pipeline, streams: Streams) -> None:
+        self.pipe = pipe
+        self.s = streams
+        self.i_imu = self.i_joint = self.i_strike = self.i_toe = 0
+        self.strikes = streams.events.foot_strikes_s
+        self.toe_offs = streams.events.toe_offs_s
+
+    def _samples_until(self, t_s: float) -> None:
+        s = self.s
+        if s.imu_t_s is not None:
+            j = int(np.searchsorted(s.imu_t_s, t_s, side="right"))
+            if j > self.i_imu:
+                sl = slice(self.i_imu, j)
+                self.pipe.add_imu(s.imu_t_s[sl], s.gyro_rad_s[sl], s.accel_m_s2[sl])
+                self.i_imu = j
+        if s.joints_t_s is not None:
+            j = int(np.searchsorted(s.joints_t_s, t_s, side="right"))
+            if j > self.i_joint:
+                sl = slice(self.i_joint, j)
+                self.pipe.add_joints(s.joints_t_s[sl], s.knee_rad[sl], s.ankle_rad[sl])
+                self.i_joint = j
+
+    def until(self, t_s: float) -> None:
+        """Samples and foot strikes stamped at or before ``t_s``; each strike after the
+        samples up to it."""
+        while self.i_strike < self.strikes.size and self.strikes[self.i_strike] <= t_s:
+            t_strike = float(self.strikes[self.i_strike])
+            self._samples_until(t_strike)
+            self.pipe.foot_strike(t_strike)
+            self.i_strike += 1
+        self._samples_until(t_s)
+        self.i_toe = int(np.searchsorted(self.toe_offs, t_s, side="right"))
+
+    def known_events(self) -> StrideEvents:
+        """The load-cell events delivered so far."""
+        return StrideEvents(
+            self.strikes[: self.i_strike], self.toe_offs[: self.i_toe], self.s.events.source
+        )
+
+
+# --------------------------------------------------------------------------- the replay
+def _warm_up(pipe: Pipeline, streams: Streams, session, n: int) -> None:
+    """Run a throw-away pipeline over the first ``n`` frames (nothing kept)."""
+    import gc
+
+    feed = _Feed(pipe, streams)
+    for i in range(n):
+        frame = session.frame(i)
+        feed.until(frame.t_s)
+        pipe.add_frame(frame, feed.known_events().foot_loaded(frame.t_s))
+    del feed, pipe
+    gc.collect()
+
+
+def replay_session(
+    session,
+    config: PipelineConfig | None = None,
+    pace: Pace = "virtual",
+    *,
+    compute_cost: ComputeCost | None = None,
+    rss_marks_s: Sequence[float] = RSS_MARKS_S,
+    warmup_frames: int = 3,
+    progress: Callable[[int, int], None] | None = None,
+    pipeline_factory: Callable[..., Pipeline] = make_pipeline,
+) -> ReplayResult:
+    """Replay a session (a :class:`graph_slam.session.Session` or its folder) causally into
+    the config's pipeline (see the module docstring for the rules).
+
+    ``compute_cost``: ``virtual`` pace only, maps each measured duration to virtual seconds
+    (None: as measured). ``rss_marks_s``: session times (s after the first frame) at which
+    the resident memory is sampled (also at the start and the end). ``warmup_frames``: before
+    the clock starts, a throw-away pipeline processes the session's first frames (a device is
+    started before the walk: lazy imports, thread pools and caches are not the estimator's
+    per-frame cost; the first frame took 4.6 s instead of ~0.3 s without). ``progress(frames
+    arrived, frames in total)``. ``pipeline_factory``: ``make_pipeline``'s signature (tests
+    pass a recording fake).
+    """
+    from graph_slam.session import open_session
+
+    if pace not in PACES:
+        raise ConfigError(f"pace {pace!r}: choose virtual or wall")
+    if compute_cost is not None and pace != "virtual":
+        raise ConfigError("compute_cost rescales the virtual clock: use it with pace='virtual'")
+    config = config or PipelineConfig()
+    if isinstance(session, str | Path):
+        session = open_session(session)
+    if session.intrinsics is None:
+        raise SessionError(f"{session.path}: the session has no camera; pipelines need frames")
+    streams = session_streams(session, config.event_source)
+    calib = session.calibration
+    leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
+    has_color = bool(session.manifest.sensors.camera.has_color)
+    pipe = pipeline_factory(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
+    n = session.n_frames if config.max_frames is None else min(config.max_frames, session.n_frames)
+    if n == 0:
+        raise SessionError(f"{session.path}: the session has no frames to replay")
+    arrival = np.asarray(session.frame_times_s[:n], float)
+    t0 = float(arrival[0])
+    clock = _VirtualClock(t0, compute_cost) if pace == "virtual" else _WallClock(t0)
+    feed = _Feed(pipe, streams)
+    marks = sorted(float(m) for m in rss_marks_s)
+    rss = [RssSample(0.0, rss_mb(), peak_rss_mb())]
+    frames: list[ProcessedFrame] = []
+    skipped: list[int] = []
+    i = 0
+    while i < n:
+        j, start = pick_frame(arrival, i, clock.now())
+        clock.wait_until(start)
+        skipped.extend(range(i, j))
+        io_t0 = time.perf_counter()
+        frame = session.frame(j)
+        clock.pause(time.perf_counter() - io_t0)
+        start = clock.now()
+        w0 = time.perf_counter()
+        feed.until(frame.t_s)
+        loaded = feed.known_events().foot_loaded(frame.t_s)
+        w1, c1 = time.perf_counter(), time.process_time()
+        out = pipe.add_frame(frame, loaded)
+        w2, c2 = time.perf_counter(), time.process_time()
+        clock.spent(j, w2 - w0)
+        frames.append(
+            ProcessedFrame(
+                session_index=j,
+                t_s=float(frame.t_s),
+                arrival_s=float(arrival[j]),
+                start_s=start,
+                finish_s=clock.now(),
+                compute_s=w2 - w1,
+                cpu_s=c2 - c1,
+                feed_s=w1 - w0,
+                stages_s=dict(out.stages_s),
+            )
+        )
+        while marks and arrival[j] - t0 >= marks[0]:
+            marks.pop(0)
+            rss.append(RssSample(float(arrival[j] - t0), rss_mb(), peak_rss_mb()))
+        i = j + 1
+        if progress is not None:
+            progress(i, n)
+    feed.until(float(arrival[-1]))
+    w0 = time.perf_counter()
+    results = pipe.finish()
+    finish_call = time.perf_counter() - w0
+    results.counts["foot_strikes"] = feed.i_strike
+    rss.append(RssSample(float(arrival[-1] - t0), rss_mb(), peak_rss_mb()))
+    return ReplayResult(
+        pace=pace,
+        results=results,
+        frames=frames,
+        skipped=np.array(skipped, dtype=int),
+        n_delivered=n,
+        duration_s=float(arrival[-1] - t0),
+        finish_call_s=finish_call,
+        rss=rss,
+    )
