@@ -9,8 +9,7 @@ import pytest
 
 from graph_slam.errors import ConfigError
 from graph_slam.pipelines import PipelineConfig, PipelineResults, run_session
-from graph_slam.pipelines import replay as replay_mod
-from graph_slam.pipelines.replay import pick_frame, replay_session, schedule
+from graph_slam.pipelines.replay import pick_frame, ready_times, replay_session, schedule
 from graph_slam.pipelines.results import FrameOutput
 
 # --------------------------------------------------------------------------- the skip policy
@@ -121,15 +120,21 @@ def test_replay_feeds_every_stream_in_time_order_and_reads_nothing_ahead(online_
     assert [c[2] for c in frames] == res.session_indices.tolist()
     assert res.n_processed + res.n_skipped == res.n_delivered == session.n_frames
     assert res.n_skipped > 0 and res.n_processed < session.n_frames
-    expected = schedule(session.frame_times_s, np.full(session.n_frames, 2.5 * period))
+    stamps = np.asarray(session.frame_times_s)
+    ready = ready_times(stamps, streams)
+    expected = schedule(ready, np.full(session.n_frames, 2.5 * period))
     assert res.session_indices.tolist() == expected.processed.tolist()
     assert res.skipped.tolist() == expected.skipped.tolist()
-    np.testing.assert_allclose(res.latency_s, expected.latency_s, atol=1e-9)
-    # nothing stamped after the frame it precedes; stamps never go back (time order)
+    # latency counts from the frame's stamp (the wait for the covering samples included)
+    np.testing.assert_allclose(
+        res.latency_s, expected.finish_s - stamps[expected.processed], atol=1e-9
+    )
+    # before a frame: nothing stamped after the samples that cover it (one per stream at
+    # most); stamps never go back (time order)
     newest = -np.inf
     for kind, t, _ in calls:
         if kind == "frame":
-            assert newest <= t
+            assert newest <= ready[np.searchsorted(stamps, t)] + 1e-12
         newest = max(newest, t)
     strikes = [c for c in calls if c[0] == "strike"]
     for kind in ("imu", "joints"):
@@ -137,11 +142,15 @@ def test_replay_feeds_every_stream_in_time_order_and_reads_nothing_ahead(online_
         assert stamps == sorted(stamps)
     # samples and events are never skipped: each delivered once, all up to the last frame
     t_last = session.frame_times_s[-1]
+
+    def covering(t_s):  # up to and including the first sample at or after the last frame
+        return min(int(np.searchsorted(t_s, t_last, side="left")) + 1, t_s.size)
+
     n_imu = sum(c[2] for c in calls if c[0] == "imu")
-    assert n_imu == int(np.sum(streams.imu_t_s <= t_last))
+    assert n_imu == covering(streams.imu_t_s)
     assert len(strikes) == int(np.sum(streams.foot_strikes_s <= t_last)) > 0
     n_joints = sum(c[2] for c in calls if c[0] == "joints")
-    assert n_joints == int(np.sum(streams.joints_t_s <= t_last))
+    assert n_joints == covering(streams.joints_t_s)
 
 
 def test_foot_loaded_comes_from_the_events_known_at_the_frame(online_session):
@@ -219,15 +228,14 @@ def _assert_same_online_output(a: PipelineResults, b: PipelineResults) -> None:
             )
 
 
-# Frames: the first foot strike is at about frame 22 (0.25 s lead-in at 90 Hz).
-CAUSAL_CASES = [("icp+imu+kin", 40), ("icp", 30)]
-READ_AHEAD = (
-    "the back end still reads IMU/encoder samples after a frame's time stamp (the midpoint "
-    "rule, q(t) interpolated with the sample after t); being fixed in the back end"
-)
+# Frames: the first foot strike is at about frame 22 (0.25 s lead-in at 90 Hz). Not
+# icp+imu+kin with Open3D's colored ICP: its threaded sums are not bit-identical from run to
+# run, and a borderline registration is accepted in one run_session and rejected in the next
+# (measured: the same frame failed with 52, 78, 89 and 94 correspondences in four runs).
+# imu+kin exercises every stream the graph reads; the baseline exercises the resets.
+CAUSAL_CASES = [("imu+kin", 40), ("icp", 30)]
 
 
-@pytest.mark.xfail(strict=True, reason=READ_AHEAD)
 @pytest.mark.parametrize(("variant", "n"), CAUSAL_CASES)
 def test_causal_replay_equals_the_run_with_every_stream_pushed_first(online_session, variant, n):
     cfg = PipelineConfig(variant=variant, max_frames=n)
@@ -237,16 +245,15 @@ def test_causal_replay_equals_the_run_with_every_stream_pushed_first(online_sess
     _assert_same_online_output(offline, online.results)
 
 
-@pytest.mark.parametrize(("variant", "n"), CAUSAL_CASES)
-def test_the_only_difference_is_the_samples_after_the_frame(
-    online_session, monkeypatch, variant, n
-):
-    """With 20 ms of IMU and encoder samples read ahead (and nothing else changed) the replay
-    gives run_session's output: what makes the causal test fail is the read-ahead alone."""
-    deliver = replay_mod._Feed._samples_until
-    monkeypatch.setattr(replay_mod._Feed, "_samples_until", lambda self, t: deliver(self, t + 0.02))
-    cfg = PipelineConfig(variant=variant, max_frames=n)
-    offline = run_session(online_session, cfg)
-    _assert_same_online_output(
-        offline, replay_session(online_session, cfg, compute_cost=lambda i, s: 0.0).results
-    )
+def test_a_frame_is_ready_when_the_sensors_cover_its_time_stamp():
+    """The estimator interpolates the IMU and the joints to the frame's time: a frame waits for
+    the first sample at or after its stamp in each stream (never for a stream that ended)."""
+    from graph_slam.pipelines.replay import ready_times
+    from graph_slam.strides.streams import Streams, StrideEvents
+
+    imu_t = np.arange(0.0, 0.1, 0.0025)  # 400 Hz
+    joint_t = np.arange(0.0, 0.05, 0.002)  # 500 Hz, ends at 0.048
+    st = Streams(imu_t, np.zeros((imu_t.size, 3)), np.zeros((imu_t.size, 3)), joint_t,
+                 np.zeros(joint_t.size), np.zeros(joint_t.size), StrideEvents(np.zeros(0), np.zeros(0)))  # fmt: skip
+    frames = np.array([0.0101, 0.0211, 0.0491, 0.0755])
+    np.testing.assert_allclose(ready_times(frames, st), [0.0125, 0.0225, 0.05, 0.0775])

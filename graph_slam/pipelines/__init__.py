@@ -2,6 +2,7 @@
 
 from graph_slam.pipelines import PipelineConfig, run_session
 results = run_session("runs/sim", PipelineConfig(variant="icp+imu+kin"))
+online = replay_session("runs/sim", PipelineConfig(), pace="virtual")  # causal, timed
 """
 
 from graph_slam.pipelines.config import (
@@ -12,9 +13,9 @@ from graph_slam.pipelines.config import (
 )
 from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
+from graph_slam.pipelines.replay import ReplayResult, replay_session
 from graph_slam.pipelines.runner import make_pipeline, run_session
-
-VARIANTS: tuple[str, ...] = ("icp", "icp+imu", "imu+kin", "icp+imu+kin")
+from graph_slam.variants import VARIANTS, Variant
 
 __all__ = [
     "VARIANTS",
@@ -25,7 +26,10 @@ __all__ = [
     "PipelineConfig",
     "PipelineResults",
     "PipelineVariant",
+    "ReplayResult",
     "StrideOutput",
+    "Variant",
     "make_pipeline",
+    "replay_session",
     "run_session",
 ]

@@ -3,11 +3,16 @@
 ``replay_session(session, config, pace)`` plays a recorded session into a pipeline on a clock.
 Each sample, event and frame exists from its time stamp on; nothing is read ahead:
 
-- before a frame is processed, the pipeline gets the IMU and encoder samples and the foot
-  strikes stamped at or before the frame (those stamped after it wait for the next processed
-  frame, even when they arrived while the estimator was busy: the output then depends only on
-  which frames were processed, not on how long each took), then the frame with its
-  foot-loaded state from the load-cell events stamped at or before it;
+- a frame is *ready* when every sensor stream has covered its time stamp: the first IMU and
+  encoder samples at or after it have arrived (at 400 / 500 Hz, 2.5 / 2 ms later). The
+  estimator interpolates the IMU and the joint angles to the frame's time, so it needs that
+  sample and none after it (docs/pipelines.md: extrapolating instead doubled the stride
+  error). Before a ready frame is processed, the pipeline gets the samples up to and
+  including those first ones, and the foot strikes stamped at or before the frame (samples
+  stamped later wait for the next processed frame, even when they arrived while the
+  estimator was busy: the output then depends only on which frames were processed, not on
+  how long each took), then the frame with its foot-loaded state from the load-cell events
+  stamped at or before it. Latency is counted from the frame's time stamp;
 - the estimator is one worker: a frame that arrives while it is busy waits, and when it is
   free it takes **the newest frame that has arrived and skips the older waiting ones**
   (:func:`pick_frame`; counted, their indices kept); samples and events are never skipped.
@@ -269,6 +274,27 @@ def peak_rss_mb() -> float:
 
 
 # --------------------------------------------------------------------------- the feed
+def _covering(t_s: np.ndarray, t: float) -> int:
+    """How many samples a device has once its stream covers ``t``: up to and including the
+    first one at or after ``t``."""
+    return min(int(np.searchsorted(t_s, t, side="left")) + 1, t_s.size)
+
+
+def ready_times(frame_t_s: np.ndarray, streams: Streams) -> np.ndarray:
+    """When each frame can be processed: its time stamp, or later, when the IMU or encoder
+    sample that covers it arrives (never before the stamp; a stream that ends does not
+    hold frames back)."""
+    stamp = np.asarray(frame_t_s, float)
+    ready = stamp.copy()
+    for t_s in (streams.imu_t_s, streams.joints_t_s):
+        if t_s is None or t_s.size == 0:
+            continue
+        k = np.searchsorted(t_s, stamp, side="left")
+        inside = k < t_s.size
+        ready[inside] = np.maximum(ready[inside], t_s[k[inside]])
+    return np.maximum.accumulate(ready)
+
+
 class _Feed:
     """The session's streams, delivered up to a time in timestamp order (never twice)."""
 
@@ -280,15 +306,16 @@ class _Feed:
         self.toe_offs = streams.events.toe_offs_s
 
     def _samples_until(self, t_s: float) -> None:
+        """Every sample up to and including the first at or after ``t_s`` (per stream)."""
         s = self.s
         if s.imu_t_s is not None:
-            j = int(np.searchsorted(s.imu_t_s, t_s, side="right"))
+            j = _covering(s.imu_t_s, t_s)
             if j > self.i_imu:
                 sl = slice(self.i_imu, j)
                 self.pipe.add_imu(s.imu_t_s[sl], s.gyro_rad_s[sl], s.accel_m_s2[sl])
                 self.i_imu = j
         if s.joints_t_s is not None:
-            j = int(np.searchsorted(s.joints_t_s, t_s, side="right"))
+            j = _covering(s.joints_t_s, t_s)
             if j > self.i_joint:
                 sl = slice(self.i_joint, j)
                 self.pipe.add_joints(s.joints_t_s[sl], s.knee_rad[sl], s.ankle_rad[sl])
@@ -368,8 +395,9 @@ def replay_session(
     n = session.n_frames if config.max_frames is None else min(config.max_frames, session.n_frames)
     if n == 0:
         raise SessionError(f"{session.path}: the session has no frames to replay")
-    arrival = np.asarray(session.frame_times_s[:n], float)
-    t0 = float(arrival[0])
+    stamp = np.asarray(session.frame_times_s[:n], float)
+    arrival = ready_times(stamp, streams)  # a frame is taken once the sensors cover it
+    t0 = float(stamp[0])
     clock = _VirtualClock(t0, compute_cost) if pace == "virtual" else _WallClock(t0)
     feed = _Feed(pipe, streams)
     marks = sorted(float(m) for m in rss_marks_s)
@@ -396,7 +424,7 @@ def replay_session(
             ProcessedFrame(
                 session_index=j,
                 t_s=float(frame.t_s),
-                arrival_s=float(arrival[j]),
+                arrival_s=float(stamp[j]),
                 start_s=start,
                 finish_s=clock.now(),
                 compute_s=w2 - w1,
@@ -405,25 +433,25 @@ def replay_session(
                 stages_s=dict(out.stages_s),
             )
         )
-        while marks and arrival[j] - t0 >= marks[0]:
+        while marks and stamp[j] - t0 >= marks[0]:
             marks.pop(0)
-            rss.append(RssSample(float(arrival[j] - t0), rss_mb(), peak_rss_mb()))
+            rss.append(RssSample(float(stamp[j] - t0), rss_mb(), peak_rss_mb()))
         i = j + 1
         if progress is not None:
             progress(i, n)
-    feed.until(float(arrival[-1]))
+    feed.until(float(stamp[-1]))
     w0 = time.perf_counter()
     results = pipe.finish()
     finish_call = time.perf_counter() - w0
     results.counts["foot_strikes"] = feed.i_strike
-    rss.append(RssSample(float(arrival[-1] - t0), rss_mb(), peak_rss_mb()))
+    rss.append(RssSample(float(stamp[-1] - t0), rss_mb(), peak_rss_mb()))
     return ReplayResult(
         pace=pace,
         results=results,
         frames=frames,
         skipped=np.array(skipped, dtype=int),
         n_delivered=n,
-        duration_s=float(arrival[-1] - t0),
+        duration_s=float(stamp[-1] - t0),
         finish_call_s=finish_call,
         rss=rss,
     )
