@@ -12,8 +12,8 @@ from graph_slam.pipelines.config import (
     PipelineVariant,
 )
 from graph_slam.pipelines.protocol import Pipeline
-from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.pipelines.replay import ReplayResult, replay_session
+from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.pipelines.runner import make_pipeline, run_session
 from graph_slam.variants import VARIANTS, Variant
 
