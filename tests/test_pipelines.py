@@ -193,3 +193,19 @@ def test_swing_bridged_by_imu_and_kinematics(scored_full):
     swing = [f for f in r.frames if not f.foot_loaded and f.stride_index > 0]
     assert swing and all(not any(x.startswith("icp:") for x in f.flags) for f in swing)
     assert r.has_pose.all()
+
+
+def test_full_graph_with_the_realtime_registration_preset(scored_full):
+    """``graph.registration: realtime`` (GICP + photometric stage, each frame prepared once and
+    kept as the next target): the same stride RMSE target as the default; every registered
+    frame reports its cloud, preprocess and registration stages."""
+    r, scores = scored_full(graph={"registration": "realtime"})
+    assert r.config["graph"]["registration"]["method"] == "gicp"
+    assert len(scores) == 2
+    for sc in scores:
+        assert sc.smoothed_rmse_m < 0.005, sc
+    assert r.counts["icp_accepted"] > 0.8 * r.counts["frames"]
+    registered = [f for f in r.frames if np.isfinite(f.fitness)]
+    assert registered and all(
+        {"cloud", "preprocess", "registration"} <= f.stages_s.keys() for f in registered
+    )
