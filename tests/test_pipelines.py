@@ -212,3 +212,19 @@ def test_deferred_smoothing_keeps_the_accuracy_without_the_strike_spike(scored_f
     ]
     assert min(moved) > 1e-6  # the batch solution replaced iSAM2's
     assert all(s.terrain.smoothed is not None for s in r.strides if s.frame_indices)
+
+
+def test_full_graph_with_the_realtime_registration_preset(scored_full):
+    """``graph.registration: realtime`` (GICP + photometric stage, each frame prepared once and
+    kept as the next target): the same stride RMSE target as the default; every registered
+    frame reports its cloud, preprocess and registration stages."""
+    r, scores = scored_full(graph={"registration": "realtime"})
+    assert r.config["graph"]["registration"]["method"] == "gicp"
+    assert len(scores) == 2
+    for sc in scores:
+        assert sc.smoothed_rmse_m < 0.005, sc
+    assert r.counts["icp_accepted"] > 0.8 * r.counts["frames"]
+    registered = [f for f in r.frames if np.isfinite(f.fitness)]
+    assert registered and all(
+        {"cloud", "preprocess", "registration"} <= f.stages_s.keys() for f in registered
+    )

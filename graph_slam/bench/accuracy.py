@@ -101,12 +101,16 @@ False), as if every swing registration failed; scored at the next foot strike.""
 
 
 def variant_config(name: str) -> PipelineConfig:
-    """The pipeline configuration of a benchmark row (a variant or :data:`BRIDGE`); no
-    terrain maps (this benchmark scores poses only)."""
+    """The pipeline configuration of a benchmark row (a variant or :data:`BRIDGE`, optionally
+    ``:preset`` for a registration preset, e.g. ``icp+imu+kin:realtime``); no terrain maps
+    (this benchmark scores poses only)."""
     terrain = {"enabled": False}
+    name, _, preset = name.partition(":")
+    graph = {"registration": preset} if preset else {}
     if name == BRIDGE:
-        return PipelineConfig(variant="icp+imu+kin", graph={"icp_in_swing": False}, terrain=terrain)
-    return PipelineConfig(variant=name, terrain=terrain)
+        graph["icp_in_swing"] = False
+        return PipelineConfig(variant="icp+imu+kin", graph=graph, terrain=terrain)
+    return PipelineConfig(variant=name, graph=graph, terrain=terrain)
 
 
 def run_pipelines_bench(

@@ -8,6 +8,13 @@ Per pair (target = frame k, source = frame k+1), as a frame-to-frame pipeline pa
 new frame: ``cloud`` (depth → points), ``voxel`` (the new frame's target pyramid and its
 voxelisation on the previous frame's grid), ``normals`` (target pyramid), ``icp`` (Open3D levels
 and the optional refinement), ``information`` (information matrix, degeneracy, convergence gate).
+For the real-time preset (:class:`GicpConfig`) each frame is prepared once, on the previous
+frame's grid through the guess, and kept as the next pair's target, as the pipeline does:
+``cloud`` (decimated), ``voxel``, ``normals`` (covariances, normals, intensity gradients),
+``icp`` (GICP and the photometric stage), ``information``.
+
+Sessions written by ``graph-slam simulate`` can be benchmarked too (:func:`session_dataset`),
+at their resolution or decimated (``step`` 2: 848×480 → 424×240, intrinsics scaled).
 """
 
 from __future__ import annotations
@@ -34,6 +41,8 @@ from graph_slam.frontend import (
     register,
     thesis_registration,
 )
+from graph_slam.frontend.config import GicpConfig, realtime_registration
+from graph_slam.frontend.realtime import prepare_frame, register_prepared
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 STAGES = ("cloud", "voxel", "normals", "icp", "information")
@@ -46,6 +55,26 @@ BENCH_CONFIGS: dict[str, Callable[[], RegistrationConfig]] = {
     "point-to-plane 4/2/1 cm, Tukey": lambda: RegistrationConfig(method="point_to_plane"),
     "point-to-plane 2 cm (fast)": fast_point_to_plane,
 }
+
+
+def _accurate() -> RegistrationConfig:
+    from graph_slam.pipelines.config import REGISTRATION_PRESETS
+
+    return REGISTRATION_PRESETS["accurate"]()
+
+
+#: Short names (``graph-slam bench registration --methods``): the five above and the graph's
+#: presets ``accurate`` and ``realtime``.
+METHODS: dict[str, tuple[str, Callable[[], RegistrationConfig | GicpConfig]]] = {
+    "thesis": ("thesis: colored ICP 4/2/1 cm, no kernel", thesis_registration),
+    "default": ("colored ICP 4/2/1 cm, Tukey (default)", colored_registration),
+    "refined": ("colored 4/2/1 cm + noise-weighted 5 mm refinement", refined_colored_registration),
+    "p2pl": ("point-to-plane 4/2/1 cm, Tukey", lambda: RegistrationConfig(method="point_to_plane")),
+    "fast": ("point-to-plane 2 cm (fast)", fast_point_to_plane),
+    "accurate": ("accurate (graph default): colored ICP 4/2 cm, Tukey", _accurate),
+    "realtime": ("realtime: GICP 2 cm (small_gicp) + photometric stage", realtime_registration),
+}
+GUESSES = ("identity", "constant-velocity")
 
 TUM_INTRINSICS = CameraIntrinsics(640, 480, 517.3, 516.5, 318.6, 255.3)
 TUM_DEPTH_UNIT_M = 1.0 / 5000.0
@@ -120,13 +149,26 @@ def relative_truth(world_T_camera: np.ndarray, k: int) -> np.ndarray:
     return np.linalg.solve(world_T_camera[k], world_T_camera[k + 1])
 
 
+def initial_guess(data: Dataset, k: int, guess: str) -> np.ndarray:
+    """The initial ``camera_k_T_camera_k+1``: identity, or ``constant-velocity`` (the previous
+    pair's true motion, as the pipeline's guess from its last two poses; identity for k = 0)."""
+    if guess == "identity" or k == 0:
+        return np.eye(4)
+    if guess == "constant-velocity":
+        return relative_truth(data.world_T_camera, k - 1)
+    raise ValueError(f"guess must be one of {GUESSES}, got {guess!r}")
+
+
 def run_config(
     name: str,
-    config: RegistrationConfig,
+    config: RegistrationConfig | GicpConfig,
     data: Dataset,
     cloud_config: CloudConfig | None = None,
+    guess: str = "identity",
 ) -> ConfigSummary:
     """Register every consecutive pair of ``data`` and time each stage."""
+    if isinstance(config, GicpConfig):
+        return _run_realtime(name, config, data, cloud_config, guess)
     stage_s = dict.fromkeys(STAGES, 0.0)
     t_err, r_err, statuses = [], [], Counter()
     clouds = []
@@ -141,7 +183,7 @@ def run_config(
         stage_s["normals"] += pyramid.timing_s["normals"]
         t0 = time.perf_counter()
         try:
-            result = register(clouds[k + 1], pyramid, config)
+            result = register(clouds[k + 1], pyramid, config, initial_guess(data, k, guess))
         except RegistrationError as err:
             stage_s["icp"] += time.perf_counter() - t0
             statuses[f"failed {err.reason.value}"] += 1
@@ -163,7 +205,80 @@ def run_config(
     )
 
 
+def _run_realtime(
+    name: str, config: GicpConfig, data: Dataset, cloud_config: CloudConfig | None, guess: str
+) -> ConfigSummary:
+    """:func:`run_config` for the real-time preset: each frame prepared once and kept as the
+    next pair's target."""
+    stage_s = dict.fromkeys(STAGES, 0.0)
+    t_err, r_err, statuses = [], [], Counter()
+    step = config.pixel_step_for(data.intrinsics)
+    target = None
+    for k, frame in enumerate(data.frames):
+        t0 = time.perf_counter()
+        cloud, _ = depth_to_cloud(frame, data.intrinsics, cloud_config, step)
+        t1 = time.perf_counter()
+        init = None if k == 0 else initial_guess(data, k - 1, guess)
+        source = prepare_frame(cloud, config, None if k == 0 else target.grid_T_cloud @ init)
+        if k > 0:  # the first frame's preparation is not a pair's cost
+            stage_s["cloud"] += t1 - t0
+            stage_s["voxel"] += source.timing_s["voxel"]
+            stage_s["normals"] += source.timing_s["covariances"]
+            t0 = time.perf_counter()
+            try:
+                result = register_prepared(source, target, config, init)
+            except RegistrationError as err:
+                stage_s["icp"] += time.perf_counter() - t0
+                statuses[f"failed {err.reason.value}"] += 1
+            else:
+                for stage in ("icp", "information"):
+                    stage_s[stage] += result.timing_s[stage]
+                statuses[result.status.value] += 1
+                t, r = pose_error(
+                    result.target_T_source, relative_truth(data.world_T_camera, k - 1)
+                )
+                t_err.append(t * 1e3)
+                r_err.append(np.degrees(r))
+        target = source
+    pairs = len(data.frames) - 1
+    return ConfigSummary(
+        name=name,
+        pairs=pairs,
+        stage_ms={s: 1e3 * v / pairs for s, v in stage_s.items()},
+        translation_err_mm=np.asarray(t_err),
+        rotation_err_deg=np.asarray(r_err),
+        statuses=statuses,
+    )
+
+
 # --------------------------------------------------------------------------- datasets
+def session_dataset(
+    path: str | Path, step: int = 1, start: int = 0, stop: int | None = None
+) -> Dataset:
+    """Frames ``start:stop`` of a session with ground truth (``graph-slam simulate``), every
+    ``step``-th pixel (intrinsics scaled: ``f/step``, ``c/step``, pixel centres at integers)."""
+    from graph_slam.session import open_session
+
+    session = open_session(path)
+    truth = session.ground_truth
+    if truth is None or session.intrinsics is None:
+        raise SessionError(f"{path}: the registration benchmark needs frames and ground truth")
+    k = session.intrinsics
+    intrinsics = CameraIntrinsics(
+        k.width_px // step, k.height_px // step, k.fx_px / step, k.fy_px / step,
+        k.cx_px / step, k.cy_px / step,
+    )  # fmt: skip
+    frames = []
+    for frame in session.iter_frames(start, stop):
+        color = None if frame.color_rgb is None else frame.color_rgb[::step, ::step]
+        depth = frame.depth_m[::step, ::step][: intrinsics.height_px, : intrinsics.width_px]
+        color = None if color is None else color[: intrinsics.height_px, : intrinsics.width_px]
+        frames.append(RgbdFrame(frame.t_s, depth, color, frame.index))
+    poses = truth.parent_T_child[start : start + len(frames)]
+    name = f"{session.name}, {intrinsics.width_px}×{intrinsics.height_px}, {len(frames) - 1} pairs"
+    return Dataset(name, intrinsics, tuple(frames), poses)
+
+
 def synthetic_dataset(
     pairs: int = 10, rate_hz: float = 40.0, width_px: int = 848, height_px: int = 480
 ) -> Dataset:
@@ -283,15 +398,23 @@ def run_registration_bench(
     pairs: int = 10,
     rate_hz: float = 40.0,
     tum_folder: Path | None = None,
-    configs: dict[str, Callable[[], RegistrationConfig]] | None = None,
+    configs: dict[str, Callable[[], RegistrationConfig | GicpConfig]] | None = None,
     progress: Callable[[int, int], None] | None = None,
+    sessions: Sequence[Path] = (),
+    steps: Sequence[int] = (2, 1),
+    guess: str = "identity",
 ) -> list[DatasetReport]:
-    """Run every configuration on the synthetic frames and, when found, the TUM frames."""
+    """Run every configuration on the synthetic frames and, when found, the TUM frames; with
+    ``sessions``, on each session's first ``pairs + 1`` frames at every decimation ``step``
+    instead of the synthetic frames."""
     configs = configs or BENCH_CONFIGS
-    datasets = [synthetic_dataset(pairs, rate_hz)]
+    if sessions:
+        datasets = [session_dataset(p, s, 0, pairs + 1) for p in sessions for s in steps]
+    else:
+        datasets = [synthetic_dataset(pairs, rate_hz)]
     if tum_folder is not None:  # asked for: it must be there
         datasets.append(read_tum_sample(tum_folder))
-    elif (default_tum_folder() / "ground_truth.json").is_file():
+    elif not sessions and (default_tum_folder() / "ground_truth.json").is_file():
         datasets.append(read_tum_sample(default_tum_folder()))
     reports, done, total = [], 0, len(datasets) * len(configs)
     warm_up = Dataset(
@@ -312,7 +435,7 @@ def run_registration_bench(
             )
         summaries = []
         for name, factory in configs.items():
-            summaries.append(run_config(name, factory(), data))
+            summaries.append(run_config(name, factory(), data, guess=guess))
             done += 1
             if progress is not None:
                 progress(done, total)

@@ -64,16 +64,49 @@ def registration(
         Path | None,
         typer.Option(help="TUM sample folder (default: ../shared/data/tum_fr1_xyz_10 if present)."),
     ] = None,
+    methods: Annotated[
+        str | None,
+        typer.Option(
+            help="Comma-separated: thesis, default, refined, p2pl, fast, accurate, realtime "
+            "(default: the first five)."
+        ),
+    ] = None,
+    session: Annotated[
+        list[Path] | None,
+        typer.Option(help="Simulated session(s) instead of the synthetic frames (first pairs)."),
+    ] = None,
+    steps: Annotated[
+        str, typer.Option(help="With --session: pixel decimations, e.g. '2,1' (424×240, 848×480).")
+    ] = "2,1",
+    guess: Annotated[
+        str,
+        typer.Option(help="Initial guess: identity or constant-velocity (previous true motion)."),
+    ] = "identity",
 ) -> None:
     """Per-stage timings and accuracy of frame-to-frame registration (thesis and fast configs)."""
     import os
 
-    from graph_slam.bench.registration import run_registration_bench
+    from graph_slam.bench.registration import GUESSES, METHODS, run_registration_bench
     from graph_slam.commands._common import progress_bar
 
+    configs = None
+    if methods:
+        names = [m.strip() for m in methods.split(",") if m.strip()]
+        if unknown := [m for m in names if m not in METHODS]:
+            raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(METHODS)}")
+        configs = {METHODS[m][0]: METHODS[m][1] for m in names}
+    if guess not in GUESSES:
+        raise typer.BadParameter(f"--guess must be one of {', '.join(GUESSES)}")
     with progress_bar("registering") as update:
         reports = run_registration_bench(
-            pairs=pairs, rate_hz=rate_hz, tum_folder=tum, progress=update
+            pairs=pairs,
+            rate_hz=rate_hz,
+            tum_folder=tum,
+            configs=configs,
+            progress=update,
+            sessions=tuple(session or ()),
+            steps=tuple(int(s) for s in steps.split(",")),
+            guess=guess,
         )
     typer.echo(f"registration benchmark ({os.cpu_count()} CPUs visible)")
     for report in reports:
@@ -102,7 +135,8 @@ def pipelines_bench(
         str,
         typer.Option(
             help="Comma-separated: icp, icp+imu, imu+kin, icp+imu+kin, bridge "
-            "(icp+imu+kin without ICP in swing)."
+            "(icp+imu+kin without ICP in swing); a graph variant may name a registration "
+            "preset: icp+imu+kin:realtime (accurate, thesis, realtime)."
         ),
     ] = "icp,icp+imu,imu+kin,icp+imu+kin,bridge",
 ) -> None:
@@ -111,9 +145,17 @@ def pipelines_bench(
     from graph_slam.bench import accuracy as bp
 
     names = tuple(v.strip() for v in variants.split(",") if v.strip())
+    from graph_slam.pipelines.config import REGISTRATION_PRESETS
+
     known = (*bp.VARIANTS, bp.BRIDGE)
-    if unknown := [v for v in names if v not in known]:
-        raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(known)}")
+    presets = ("", *REGISTRATION_PRESETS)
+    if unknown := [
+        v for v in names if v.partition(":")[0] not in known or v.partition(":")[2] not in presets
+    ]:
+        raise typer.BadParameter(
+            f"unknown {unknown}; choose from {', '.join(known)}, optionally with "
+            f":{'/'.join(REGISTRATION_PRESETS)}"
+        )
     typer.echo(bp.header_line())
 
     def show(sc, v: str) -> None:

@@ -34,9 +34,15 @@ class CloudCounts:
 
 
 def depth_to_cloud(
-    frame: RgbdFrame, intrinsics: CameraIntrinsics, config: CloudConfig | None = None
+    frame: RgbdFrame,
+    intrinsics: CameraIntrinsics,
+    config: CloudConfig | None = None,
+    pixel_step: int = 1,
 ) -> tuple[Cloud, CloudCounts]:
-    """Back-project the valid, in-range depth pixels into the camera (optical) frame."""
+    """Back-project the valid, in-range depth pixels into the camera (optical) frame.
+
+    ``pixel_step`` > 1 decimates the organised image first (every n-th row and column, from
+    pixel (0, 0)); the counts are then of the pixels kept by the decimation."""
     config = config or CloudConfig()
     depth = frame.depth_m
     if depth.shape != intrinsics.shape_hw:
@@ -44,12 +50,21 @@ def depth_to_cloud(
             f"RgbdFrame[{frame.index}].depth_m: shape {depth.shape} does not match the "
             f"intrinsics {intrinsics.shape_hw} (height, width)"
         )
+    if pixel_step < 1:
+        raise RecordError(f"depth_to_cloud: pixel_step must be >= 1, got {pixel_step}")
+    color = frame.color_rgb
+    if pixel_step > 1:
+        depth = depth[::pixel_step, ::pixel_step]
+        color = None if color is None else color[::pixel_step, ::pixel_step]
     valid = depth > 0
     near = valid & (depth < config.min_depth_m)
     far = valid & (depth > config.max_depth_m)
     keep = valid & ~near & ~far
     v, u = np.nonzero(keep)
     z = depth[v, u].astype(np.float64)
+    colors = None if color is None else color[v, u] / 255.0
+    if pixel_step > 1:
+        v, u = v * pixel_step, u * pixel_step
     points = np.column_stack(
         [
             (u - intrinsics.cx_px) * z / intrinsics.fx_px,
@@ -57,7 +72,6 @@ def depth_to_cloud(
             z,
         ]
     )
-    colors = None if frame.color_rgb is None else frame.color_rgb[v, u] / 255.0
     counts = CloudCounts(
         pixels=int(depth.size),
         no_depth=int(depth.size - np.count_nonzero(valid)),

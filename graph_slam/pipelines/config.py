@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import Field, model_validator
+from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
 from graph_slam.backend.config import BackendConfig
 from graph_slam.config import ConfigModel
 from graph_slam.frontend.config import (
     THESIS_LEVELS,
     CloudConfig,
+    GicpConfig,
     LevelConfig,
     RegistrationConfig,
+    realtime_registration,
+    thesis_registration,
 )
 from graph_slam.frontend.floor import FloorConfig
 from graph_slam.terrain.builder import TerrainConfig
@@ -34,6 +37,30 @@ def _graph_registration() -> RegistrationConfig:
         ),
         kernel="tukey",
     )
+
+
+#: The graph's registration presets (``graph.registration: <name>`` in YAML): ``accurate``
+#: (the default: colored ICP 4/2 cm, Tukey), ``thesis`` (colored ICP 4/2/1 cm, no kernel, the
+#: thesis's), ``realtime`` (GICP on 2 cm voxels of every 2nd pixel, each frame prepared once:
+#: :mod:`graph_slam.frontend.realtime`). See docs/frontend.md.
+REGISTRATION_PRESETS = {
+    "accurate": _graph_registration,
+    "thesis": thesis_registration,
+    "realtime": realtime_registration,
+}
+
+
+def _registration_kind(value: Any) -> str:
+    method = value.get("method") if isinstance(value, dict) else getattr(value, "method", None)
+    return "gicp" if method == "gicp" else "icp"
+
+
+GraphRegistration = Annotated[
+    Annotated[RegistrationConfig, Tag("icp")] | Annotated[GicpConfig, Tag("gicp")],
+    Discriminator(_registration_kind),
+]
+"""Open3D ICP (:class:`RegistrationConfig`) or the real-time GICP (:class:`GicpConfig`,
+``method: gicp``)."""
 
 
 class BaselineConfig(ConfigModel):
@@ -68,7 +95,11 @@ class BaselineConfig(ConfigModel):
 class GraphFrontendConfig(ConfigModel):
     """How the graph variants register frames (frame-to-frame, within a stride)."""
 
-    registration: RegistrationConfig = Field(default_factory=_graph_registration)
+    registration: GraphRegistration = Field(
+        default_factory=_graph_registration,
+        description="a preset name (accurate, thesis, realtime) or a full config: Open3D ICP, "
+        "or GICP with 'method: gicp'",
+    )
     constant_velocity_guess: bool = Field(
         True, description="initial guess: the last online relative motion scaled by Δt"
     )
@@ -87,6 +118,19 @@ class GraphFrontendConfig(ConfigModel):
         default_factory=FloorConfig,
         description="the floor plane in the stride's first frame, fused into the anchor's tilt",
     )
+
+    @field_validator("registration", mode="before")
+    @classmethod
+    def _preset(cls, value: Any) -> Any:
+        """A preset name stands for its config."""
+        if isinstance(value, str):
+            if value not in REGISTRATION_PRESETS:
+                raise ValueError(
+                    f"unknown registration preset {value!r}; choose from "
+                    f"{', '.join(REGISTRATION_PRESETS)} or give a full config"
+                )
+            return REGISTRATION_PRESETS[value]()
+        return value
 
 
 class PipelineConfig(ConfigModel):

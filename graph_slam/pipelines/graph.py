@@ -14,7 +14,9 @@ import numpy as np
 from graph_slam.backend import StrideSLAM
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
-from graph_slam.frontend import build_pyramid, register
+from graph_slam.frontend import build_pyramid, depth_to_cloud, register
+from graph_slam.frontend.config import GicpConfig
+from graph_slam.frontend.realtime import prepare_frame, register_prepared
 from graph_slam.frontend.registration import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
@@ -81,7 +83,7 @@ class GraphPipeline:
         self.gravity = make_gravity(config)
         self.terrain = make_terrain(config, intrinsics)
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
-        self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, pyramid, pose, t
+        self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, target, pose, t
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
 
@@ -154,6 +156,8 @@ class GraphPipeline:
         step's time goes into ``stages``."""
         if not self.use_icp or not (self.cfg.graph.icp_in_swing or foot_loaded):
             return None, None, None, float("nan")
+        if isinstance(self.registration, GicpConfig):
+            return self._register_realtime(frame, index, stages)
         t0 = time.perf_counter()
         cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
         t1 = time.perf_counter()
@@ -175,6 +179,32 @@ class GraphPipeline:
             pyramid = None
         stages["preprocess"] = time.perf_counter() - t2
         return cloud, icp, pyramid, fitness
+
+    def _register_realtime(self, frame: RgbdFrame, index: int, stages: dict):
+        """:meth:`_register` with the real-time preset: the frame is prepared once (on the
+        previous frame's grid through the guess) and is kept, as it is, as the next target."""
+        cfg = self.registration
+        t0 = time.perf_counter()
+        step = cfg.pixel_step_for(self.intrinsics)
+        cloud, _ = depth_to_cloud(frame, self.intrinsics, self.cfg.cloud, step)
+        t1 = time.perf_counter()
+        stages["cloud"] = t1 - t0
+        icp, fitness, target, guess = None, float("nan"), None, None
+        if self._prev is not None and self._pending_strike is None:  # same stride
+            target, guess = self._prev[1], self._guess(frame.t_s)
+        grid_T_cloud = None if target is None else target.grid_T_cloud @ guess
+        prepared = prepare_frame(cloud, cfg, grid_T_cloud)
+        t2 = time.perf_counter()
+        stages["preprocess"] = t2 - t1
+        if target is not None:
+            try:
+                r = register_prepared(prepared, target, cfg, guess)
+                icp, fitness = icp_measurement(r, index, self._prev[0]), r.fitness
+            except RegistrationError as err:
+                icp = failed_icp_measurement(err, index, self._prev[0])
+                fitness = icp.fitness
+        stages["registration"] = time.perf_counter() - t2
+        return cloud, icp, prepared, fitness
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
