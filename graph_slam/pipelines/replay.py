@@ -41,9 +41,8 @@ from graph_slam.errors import ConfigError, SessionError
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
-from graph_slam.pipelines.runner import make_pipeline
-from graph_slam.strides.kinematics import leg_model_for
-from graph_slam.strides.streams import Streams, StrideEvents, session_streams
+from graph_slam.pipelines.runner import make_pipeline, open_pipeline
+from graph_slam.strides.streams import Streams, StrideEvents
 
 log = logging.getLogger(__name__)
 
@@ -376,22 +375,13 @@ def replay_session(
     arrived, frames in total)``. ``pipeline_factory``: ``make_pipeline``'s signature (tests
     pass a recording fake).
     """
-    from graph_slam.session import open_session
 
     if pace not in PACES:
         raise ConfigError(f"pace {pace!r}: choose virtual or wall")
     if compute_cost is not None and pace != "virtual":
         raise ConfigError("compute_cost rescales the virtual clock: use it with pace='virtual'")
     config = config or PipelineConfig()
-    if isinstance(session, str | Path):
-        session = open_session(session)
-    if session.intrinsics is None:
-        raise SessionError(f"{session.path}: the session has no camera; pipelines need frames")
-    streams = session_streams(session, config.event_source)
-    calib = session.calibration
-    leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
-    has_color = bool(session.manifest.sensors.camera.has_color)
-    pipe = pipeline_factory(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
+    session, streams, pipe = open_pipeline(session, config, pipeline_factory)
     n = session.n_frames if config.max_frames is None else min(config.max_frames, session.n_frames)
     if n == 0:
         raise SessionError(f"{session.path}: the session has no frames to replay")

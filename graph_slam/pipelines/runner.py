@@ -38,6 +38,26 @@ def make_pipeline(
     return GraphPipeline(config, intrinsics, camera_T_imu, leg_model, has_color)
 
 
+def open_pipeline(
+    session, config: PipelineConfig, factory: Callable[..., Pipeline] = make_pipeline
+):
+    """The session (opened when a folder is given), its streams on the camera clock and the
+    config's pipeline for it (leg model fitted to the calibration): what every way of running
+    a session starts from. ``factory``: ``make_pipeline``'s signature."""
+    from graph_slam.session import open_session
+
+    if isinstance(session, str | Path):
+        session = open_session(session)
+    if session.intrinsics is None:
+        raise SessionError(f"{session.path}: the session has no camera; pipelines need frames")
+    streams = session_streams(session, config.event_source)
+    calib = session.calibration
+    leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
+    has_color = bool(session.manifest.sensors.camera.has_color)
+    pipe = factory(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
+    return session, streams, pipe
+
+
 def run_session(
     session,
     config: PipelineConfig | None = None,
@@ -51,18 +71,8 @@ def run_session(
     happened since the previous frame, then the frame with its foot-loaded state (between a
     foot strike and the next toe-off); finish.
     """
-    from graph_slam.session import open_session
-
     config = config or PipelineConfig()
-    if isinstance(session, str | Path):
-        session = open_session(session)
-    if session.intrinsics is None:
-        raise SessionError(f"{session.path}: the session has no camera; pipelines need frames")
-    streams = session_streams(session, config.event_source)
-    calib = session.calibration
-    leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
-    has_color = bool(session.manifest.sensors.camera.has_color)
-    pipe = make_pipeline(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
+    session, streams, pipe = open_pipeline(session, config)
     if streams.imu_t_s is not None:
         pipe.add_imu(streams.imu_t_s, streams.gyro_rad_s, streams.accel_m_s2)
     if streams.joints_t_s is not None:
