@@ -22,8 +22,12 @@ def test_rows_are_variants_or_variant_colon_preset() -> None:
         rt.row_config("slam")
     with pytest.raises(ConfigError, match="icp has no graph"):
         rt.row_config("icp:realtime")
-    with pytest.raises(ConfigError, match="row 'icp\\+imu\\+kin:nope': the registration preset"):
+    with pytest.raises(ConfigError, match="row 'icp\\+imu\\+kin:nope': unknown pipeline preset"):
         rt.row_config("icp+imu+kin:nope")
+    real = rt.row_config("icp+imu+kin:realtime", base)  # every real-time setting, over base
+    assert real.graph.registration.method == "gicp" and real.graph.imu_guess
+    assert real.backend.defer_smoothing and real.terrain.poses == ("online",)
+    assert real.max_frames == 7
 
 
 def test_stat_in_milliseconds() -> None:

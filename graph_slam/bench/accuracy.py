@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from graph_slam.pipelines import VARIANTS, PipelineConfig, PipelineResults, run_session
+from graph_slam.pipelines.config import with_preset
 
 
 @dataclass
@@ -103,14 +104,16 @@ False), as if every swing registration failed; scored at the next foot strike.""
 def variant_config(name: str) -> PipelineConfig:
     """The pipeline configuration of a benchmark row (a variant or :data:`BRIDGE`, optionally
     ``:preset`` for a registration preset, e.g. ``icp+imu+kin:realtime``); no terrain maps
-    (this benchmark scores poses only)."""
-    terrain = {"enabled": False}
+    (this benchmark scores poses only). ``:preset``: a pipeline preset
+    (:data:`graph_slam.pipelines.config.PIPELINE_PRESETS`)."""
     name, _, preset = name.partition(":")
-    graph = {"registration": preset} if preset else {}
+    data: dict = {"variant": "icp+imu+kin" if name == BRIDGE else name, "graph": {}}
+    if preset:
+        data = with_preset(data, preset)
     if name == BRIDGE:
-        graph["icp_in_swing"] = False
-        return PipelineConfig(variant="icp+imu+kin", graph=graph, terrain=terrain)
-    return PipelineConfig(variant=name, graph=graph, terrain=terrain)
+        data["graph"] = {**data["graph"], "icp_in_swing": False}
+    data["terrain"] = {"enabled": False}
+    return PipelineConfig.model_validate(data)
 
 
 def run_pipelines_bench(

@@ -26,6 +26,7 @@ import numpy as np
 from graph_slam.config import config_from_dict
 from graph_slam.errors import ConfigError
 from graph_slam.pipelines import VARIANTS, PipelineConfig
+from graph_slam.pipelines.config import with_preset
 
 BASELINE_ROW = "icp"
 DEFAULT_ROWS: tuple[str, ...] = ("icp", "icp+imu+kin", "icp+imu+kin:realtime")
@@ -43,9 +44,9 @@ STAGES: tuple[tuple[str, str], ...] = (
 
 
 def row_config(row: str, base: PipelineConfig | None = None) -> PipelineConfig:
-    """The pipeline configuration of a row ``VARIANT`` or ``VARIANT:PRESET`` over ``base``
-    (``--config``). Raises :class:`ConfigError` naming the row when the variant or the
-    preset is unknown."""
+    """The pipeline configuration of a row ``VARIANT`` or ``VARIANT:PRESET`` (a
+    :data:`~graph_slam.pipelines.config.PIPELINE_PRESETS` name) over ``base`` (``--config``).
+    Raises :class:`ConfigError` naming the row when the variant or the preset is unknown."""
     name, _, preset = row.partition(":")
     if name not in VARIANTS:
         raise ConfigError(f"row {row!r}: unknown variant {name!r} (known: {', '.join(VARIANTS)})")
@@ -53,17 +54,12 @@ def row_config(row: str, base: PipelineConfig | None = None) -> PipelineConfig:
     data["variant"] = name
     if preset:
         if name == BASELINE_ROW:
-            raise ConfigError(f"row {row!r}: a preset sets graph.registration; icp has no graph")
-        data["graph"] = {**data.get("graph", {}), "registration": preset}
-    try:
-        return config_from_dict(PipelineConfig, data, source=f"row {row!r}")
-    except ConfigError as err:
-        if preset:
-            raise ConfigError(
-                f"row {row!r}: the registration preset {preset!r} is not available "
-                f"(graph.registration rejects it): {err}"
-            ) from None
-        raise
+            raise ConfigError(f"row {row!r}: a preset sets the graph's settings; icp has no graph")
+        try:
+            data = with_preset(data, preset)
+        except ConfigError as err:
+            raise ConfigError(f"row {row!r}: {err}") from None
+    return config_from_dict(PipelineConfig, data, source=f"row {row!r}")
 
 
 @dataclass(frozen=True)

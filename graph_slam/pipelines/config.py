@@ -197,3 +197,40 @@ class PipelineConfig(ConfigModel):
         elif isinstance(backend, dict):
             backend = {**backend, "variant": variant}
         return {**data, "backend": backend}
+
+
+#: Named settings of a whole pipeline, applied over a config (``VARIANT:PRESET`` rows of the
+#: benchmarks). ``realtime``: the real-time registration preset with the IMU's initial guess,
+#: the batch smoothing deferred off the foot strike (``backend.defer_smoothing``) and the
+#: terrain maps from the online poses only (no frame clouds kept for a later smoothed map).
+PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
+    "accurate": {"graph": {"registration": "accurate"}},
+    "thesis": {"graph": {"registration": "thesis"}},
+    "realtime": {
+        "graph": {"registration": "realtime", "imu_guess": True},
+        "backend": {"defer_smoothing": True},
+        "terrain": {"poses": ["online"]},
+    },
+}
+
+
+def with_preset(data: dict[str, Any], preset: str) -> dict[str, Any]:
+    """``data`` (a ``PipelineConfig`` as a dict) with the named preset's settings merged in;
+    a :class:`ConfigError` naming the presets when ``preset`` is unknown."""
+    from graph_slam.errors import ConfigError
+
+    if preset not in PIPELINE_PRESETS:
+        raise ConfigError(
+            f"unknown pipeline preset {preset!r}; choose from {', '.join(PIPELINE_PRESETS)}"
+        )
+
+    def merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+        out = dict(base)
+        for key, value in over.items():
+            if isinstance(value, dict) and isinstance(out.get(key), dict):
+                out[key] = merge(out[key], value)
+            else:
+                out[key] = value
+        return out
+
+    return merge(data, PIPELINE_PRESETS[preset])
