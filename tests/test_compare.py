@@ -204,3 +204,29 @@ def test_compare_without_ground_truth_runs_and_skips_scoring(tiny_session: Path,
     assert "ground_truth.tum" not in names
     md = (tmp_path / "report" / "report.md").read_text()
     assert f"Not scored (no ground truth): {report.sessions[0]}" in md
+
+
+def test_variants_strides_are_matched_by_their_frames_not_their_number() -> None:
+    """Regression: the graph numbers the part before the first foot strike as stride 0, the
+    baseline does not; a report that matched strides by number scored the graph's map of one
+    stride against the boxes of the next (Table 4.1 widths of 428 mm for a 265 mm box)."""
+    from types import SimpleNamespace
+
+    from graph_slam.report.scoring import SessionRun
+    from graph_slam.strides.reference import StrideReference
+    from graph_slam.variants import Variant
+
+    def results(cuts):
+        return SimpleNamespace(
+            strides=[SimpleNamespace(index=i, frame_indices=list(c)) for i, c in enumerate(cuts)]
+        )
+
+    baseline = results([range(22, 60), range(60, 95)])
+    graph = results([range(0, 22), range(22, 60), range(60, 95)])
+    ref = StrideReference(1, np.arange(60, 95), np.zeros(35), np.eye(4), np.zeros((35, 4, 4)),
+                          0.0, 1.0, None)  # fmt: skip
+    run = SessionRun(SimpleNamespace(path="mem"), "Slow",
+                     {Variant.ICP: baseline, Variant.ICP_IMU_KIN: graph}, [ref], 0)  # fmt: skip
+    run.check_same_strides()
+    assert run.stride_of(Variant.ICP, ref).index == 1
+    assert run.stride_of(Variant.ICP_IMU_KIN, ref).index == 2

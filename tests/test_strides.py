@@ -105,6 +105,7 @@ class _Session:
         from types import SimpleNamespace
 
         self.ground_truth = _Traj(t, poses) if with_gt else None
+        self.frame_times_s = t
         self.joints = _Joints(t, np.zeros((t.size, 2)))
         self.calibration = SimpleNamespace(joints_time_offset_s=0.0)
 
@@ -136,6 +137,20 @@ def test_reference_known_answer_and_complete_strides_only():
         stride_references(_Session(t, poses, with_gt=False), t, strides, ev, _Leg())
     with pytest.raises(EvaluationError, match="not at the frame times"):
         stride_references(_Session(t, poses), t + 0.003, strides, ev, _Leg())
+
+
+def test_a_stride_ending_with_the_session_counts_one_cut_by_max_frames_does_not():
+    t = np.arange(10) * 0.1
+    poses = np.tile(np.eye(4), (10, 1, 1))
+    ev = stride_events(
+        _events([0.0, 0.45, 0.95], ["foot_strike"] * 3, ["lc"] * 3), "lc"
+    )  # the last strike comes after the session's last frame
+    strides = [StrideCut(0, "foot_strike", range(0, 5)), StrideCut(1, "foot_strike", range(5, 10))]
+    refs = stride_references(_Session(t, poses), t, strides, ev, _Leg())
+    assert [r.stride_index for r in refs] == [0, 1]
+    cut = [StrideCut(0, "foot_strike", range(0, 5)), StrideCut(1, "foot_strike", range(5, 8))]
+    refs = stride_references(_Session(t, poses), t[:8], cut, ev, _Leg())  # max_frames = 8
+    assert [r.stride_index for r in refs] == [0]
 
 
 def test_truth_stride_frame_is_level_with_x_along_the_sole():

@@ -56,13 +56,21 @@ class SessionRun:
     def global_index(self, k: int) -> int:
         return self.first_stride + k
 
+    def stride_of(self, variant: Variant, ref: StrideReference):
+        """The variant's stride that ``ref`` scores (by its first frame: variants number their
+        strides differently, the graph counts the part before the first foot strike)."""
+        first = int(ref.frame_indices[0])
+        for s in self.results[variant].strides:
+            if s.frame_indices and int(s.frame_indices[0]) == first:
+                return s
+        return None
+
     def check_same_strides(self) -> None:
         """Every variant must cut the scored strides at the same frames."""
         first = next(iter(self.results))
-        for v, res in self.results.items():
-            by_start = {int(s.frame_indices[0]): s for s in res.strides if s.frame_indices}
+        for v in self.results:
             for ref in self.references:
-                s = by_start.get(int(ref.frame_indices[0]))
+                s = self.stride_of(v, ref)
                 if s is None or len(s.frame_indices) != ref.frame_indices.size:
                     raise EvaluationError(
                         f"{self.session.path}: variant {v!r} cut strides differently from "
@@ -170,9 +178,12 @@ def stride_maps(run: SessionRun, ref: StrideReference, sources, pipeline: Pipeli
         if source.is_truth:
             out[source] = truth_map(run, ref, pipeline)
             continue
-        res = run.results[source.variant]
-        stride = res.strides[ref.stride_index]
-        terrain = stride.terrain
+        terrain = run.stride_of(source.variant, ref).terrain
+        if terrain is not None and tuple(terrain.frame_indices) != tuple(ref.frame_indices):
+            raise EvaluationError(
+                f"{run.session.path}: the {source} map of the stride at frame "
+                f"{ref.frame_indices[0]} was fused from other frames"
+            )
         out[source] = None if terrain is None else terrain.by_kind(source.poses)
     return out
 

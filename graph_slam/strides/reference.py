@@ -2,7 +2,7 @@
 
 The comparison report, the benchmarks and the tests score a pipeline's ``stride_T_camera``
 against :func:`stride_references`: for every *complete* stride (started at a foot strike,
-the next foot strike known and the session going on past the stride's last frame) the true
+the next foot strike known, and the run not stopped inside it by ``max_frames``) the true
 camera poses in the true stride frame (:func:`truth_world_T_stride`), the stance mask and
 the position in the gait cycle.
 """
@@ -103,6 +103,15 @@ class StrideCut:
     frame_indices: Sequence[int]
 
 
+def _cut_short(idx: np.ndarray, frame_t_s: np.ndarray, session) -> bool:
+    """The run stopped inside this stride: its last frame is the run's last, and the run
+    ended before the session's frames did (``max_frames``)."""
+    if idx[-1] + 1 < frame_t_s.size:
+        return False
+    times = getattr(session, "frame_times_s", None)
+    return times is None or frame_t_s[-1] < float(np.asarray(times)[-1]) - 1e-9
+
+
 def stride_references(
     session, frame_t_s: np.ndarray, strides: Sequence, events: StrideEvents, leg_model
 ) -> list[StrideReference]:
@@ -130,8 +139,8 @@ def stride_references(
     out: list[StrideReference] = []
     for s in strides:
         idx = np.asarray(s.frame_indices, dtype=int)
-        if s.start != "foot_strike" or idx.size < 2 or idx[-1] + 1 >= frame_t_s.size:
-            continue  # not started at a strike, or the run ended inside it
+        if s.start != "foot_strike" or idx.size < 2 or _cut_short(idx, frame_t_s, session):
+            continue  # not started at a strike, or the run stopped inside it
         t = frame_t_s[idx]
         t_strike = events.last_strike_at_or_before(float(t[0]))
         t_next = events.next_strike_after(float(t[-1]))
