@@ -339,6 +339,33 @@ class _Feed:
 
 
 # --------------------------------------------------------------------------- the replay
+def _process(session, j: int, stamp_s: float, clock, feed: _Feed, pipe: Pipeline):
+    """Read frame ``j`` (the clock stands still), deliver the streams that cover it, process
+    it, advance the clock by the measured compute; its :class:`ProcessedFrame`."""
+    io_t0 = time.perf_counter()
+    frame = session.frame(j)
+    clock.pause(time.perf_counter() - io_t0)
+    start = clock.now()
+    w0 = time.perf_counter()
+    feed.until(frame.t_s)
+    loaded = feed.known_events().foot_loaded(frame.t_s)
+    w1, c1 = time.perf_counter(), time.process_time()
+    out = pipe.add_frame(frame, loaded)
+    w2, c2 = time.perf_counter(), time.process_time()
+    clock.spent(j, w2 - w0)
+    return ProcessedFrame(
+        session_index=j,
+        t_s=float(frame.t_s),
+        arrival_s=stamp_s,
+        start_s=start,
+        finish_s=clock.now(),
+        compute_s=w2 - w1,
+        cpu_s=c2 - c1,
+        feed_s=w1 - w0,
+        stages_s=dict(out.stages_s),
+    )
+
+
 def _warm_up(pipe: Pipeline, streams: Streams, session, n: int) -> None:
     """Run a throw-away pipeline over the first ``n`` frames (nothing kept)."""
     import gc
@@ -399,30 +426,7 @@ def replay_session(
         j, start = pick_frame(arrival, i, clock.now())
         clock.wait_until(start)
         skipped.extend(range(i, j))
-        io_t0 = time.perf_counter()
-        frame = session.frame(j)
-        clock.pause(time.perf_counter() - io_t0)
-        start = clock.now()
-        w0 = time.perf_counter()
-        feed.until(frame.t_s)
-        loaded = feed.known_events().foot_loaded(frame.t_s)
-        w1, c1 = time.perf_counter(), time.process_time()
-        out = pipe.add_frame(frame, loaded)
-        w2, c2 = time.perf_counter(), time.process_time()
-        clock.spent(j, w2 - w0)
-        frames.append(
-            ProcessedFrame(
-                session_index=j,
-                t_s=float(frame.t_s),
-                arrival_s=float(stamp[j]),
-                start_s=start,
-                finish_s=clock.now(),
-                compute_s=w2 - w1,
-                cpu_s=c2 - c1,
-                feed_s=w1 - w0,
-                stages_s=dict(out.stages_s),
-            )
-        )
+        frames.append(_process(session, j, float(stamp[j]), clock, feed, pipe))
         while marks and stamp[j] - t0 >= marks[0]:
             marks.pop(0)
             rss.append(RssSample(float(stamp[j] - t0), rss_mb(), peak_rss_mb()))
