@@ -230,3 +230,14 @@ def test_variants_strides_are_matched_by_their_frames_not_their_number() -> None
     run.check_same_strides()
     assert run.stride_of(Variant.ICP, ref).index == 1
     assert run.stride_of(Variant.ICP_IMU_KIN, ref).index == 2
+
+
+def test_compare_refuses_settings_without_the_maps_it_scores() -> None:
+    from graph_slam.errors import ConfigError
+    from graph_slam.report import CompareConfig
+
+    with pytest.raises(ConfigError, match=r"pipeline\.terrain\.enabled"):
+        CompareConfig(pipeline={"terrain": {"enabled": False}})
+    with pytest.raises(ConfigError, match=r"pipeline\.terrain\.poses.*add 'smoothed'"):
+        CompareConfig(pipeline={"terrain": {"poses": ["online"]}})
+    assert CompareConfig(pipeline={"terrain": {"poses": ["smoothed"]}}).truth_map

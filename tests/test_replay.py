@@ -257,3 +257,26 @@ def test_a_frame_is_ready_when_the_sensors_cover_its_time_stamp():
                  np.zeros(joint_t.size), np.zeros(joint_t.size), StrideEvents(np.zeros(0), np.zeros(0)))  # fmt: skip
     frames = np.array([0.0101, 0.0211, 0.0491, 0.0755])
     np.testing.assert_allclose(ready_times(frames, st), [0.0125, 0.0225, 0.05, 0.0775])
+
+
+def test_a_throwaway_pipeline_warms_up_before_the_clock_starts(online_session):
+    """``warmup_frames``: a first pipeline processes the first frames and is thrown away; the
+    measured one starts from the first frame (the cold first frame took seconds)."""
+    built = []
+
+    class Counting(RecordingPipeline):
+        def __init__(self, *a, **kw):
+            super().__init__(*a, **kw)
+            built.append(self)
+
+    res = replay_session(
+        online_session, PipelineConfig(max_frames=12), compute_cost=lambda i, s: 0.0,
+        warmup_frames=3, pipeline_factory=Counting,
+    )  # fmt: skip
+    assert len(built) == 2
+    assert [c[2] for c in built[0].calls if c[0] == "frame"] == [0, 1, 2]
+    assert res.session_indices.tolist() == list(range(12))
+    built.clear()
+    replay_session(online_session, PipelineConfig(max_frames=5), compute_cost=lambda i, s: 0.0,
+                   warmup_frames=0, pipeline_factory=Counting)  # fmt: skip
+    assert len(built) == 1

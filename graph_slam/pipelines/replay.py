@@ -408,6 +408,9 @@ def replay_session(
     if compute_cost is not None and pace != "virtual":
         raise ConfigError("compute_cost rescales the virtual clock: use it with pace='virtual'")
     config = config or PipelineConfig()
+    if warmup_frames:  # built first: the measured pipeline is the factory's last
+        session, streams, warm = open_pipeline(session, config, pipeline_factory)
+        _warm_up(warm, streams, session, min(warmup_frames, session.n_frames))
     session, streams, pipe = open_pipeline(session, config, pipeline_factory)
     n = session.n_frames if config.max_frames is None else min(config.max_frames, session.n_frames)
     if n == 0:

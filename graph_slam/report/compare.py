@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from graph_slam.config import ConfigModel, write_config
 from graph_slam.errors import EvaluationError
@@ -80,6 +80,25 @@ class CompareConfig(ConfigModel):
         description="map/elevation plots (last variant and true poses) for the first n strides "
         "of each session",
     )
+
+    @model_validator(mode="after")
+    def _maps_to_score(self) -> CompareConfig:
+        """Table 4.1 scores each stride's smoothed map: the pipelines must build it (checked
+        before minutes of work, not after)."""
+        from graph_slam.errors import ConfigError
+
+        terrain = self.pipeline.terrain
+        if not terrain.enabled:
+            raise ConfigError(
+                "field 'pipeline.terrain.enabled': compare scores the stride maps (Table 4.1); "
+                "it must be true"
+            )
+        if "smoothed" not in terrain.poses:
+            raise ConfigError(
+                "field 'pipeline.terrain.poses': compare scores the maps of the smoothed poses "
+                f"(Table 4.1); add 'smoothed' (got {list(terrain.poses)})"
+            )
+        return self
 
 
 @dataclass(frozen=True)

@@ -52,9 +52,16 @@ class MapSource:
 
     @property
     def poses(self) -> str:
+        """What the report calls the poses the map came from."""
         if self.variant is None:
             return "ground truth"
         return Kind.ONLINE if self.variant.is_baseline else Kind.SMOOTHED
+
+    @property
+    def map_kind(self) -> Kind:
+        """Which of the pipeline's stride maps it is: the smoothed one (for the baseline that
+        is the map of its online poses: it has no smoother)."""
+        return Kind.SMOOTHED
 
     def __str__(self) -> str:
         return "ground truth" if self.variant is None else str(self.variant)

@@ -159,11 +159,9 @@ def truth_map(run: SessionRun, ref: StrideReference, pipeline: PipelineConfig):
     clouds as the pipelines' maps."""
     from graph_slam.terrain.builder import TerrainBuilder
 
+    terrain = pipeline.terrain.model_copy(update={"enabled": True, "poses": ("online",)})
     builder = TerrainBuilder(
-        pipeline.terrain,
-        run.session.intrinsics,
-        pipeline.cloud.min_depth_m,
-        pipeline.cloud.max_depth_m,
+        terrain, run.session.intrinsics, pipeline.cloud.min_depth_m, pipeline.cloud.max_depth_m
     )
     for i in ref.frame_indices:
         builder.add_frame(int(i), run.session.frame(int(i)))
@@ -184,7 +182,7 @@ def stride_maps(run: SessionRun, ref: StrideReference, sources, pipeline: Pipeli
                 f"{run.session.path}: the {source} map of the stride at frame "
                 f"{ref.frame_indices[0]} was fused from other frames"
             )
-        out[source] = None if terrain is None else terrain.by_kind(source.poses)
+        out[source] = None if terrain is None else terrain.by_kind(source.map_kind)
     return out
 
 
@@ -201,8 +199,8 @@ def score_maps(
             smap = maps.get(source)
             if smap is None:
                 raise EvaluationError(
-                    f"{run.session.path}: no terrain map of stride {ref.stride_index} for "
-                    f"{source} (pipeline.terrain.enabled must be on to score maps)"
+                    f"{run.session.path}: no terrain map of the stride at frame "
+                    f"{ref.frame_indices[0]} for {source}"
                 )
             assessed = assess_stride(smap.obstacles, truth_boxes, margin_m, smap.obstacle_error)
             out[source].append(MapStride(run.global_index(k), run.label, k + 1, assessed))
