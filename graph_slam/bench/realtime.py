@@ -2,8 +2,9 @@
 (:func:`graph_slam.pipelines.replay.replay_session`), side by side.
 
 A row is a variant (``icp`` = the thesis baseline, ``icp+imu+kin`` = today's graph) or
-``VARIANT:PRESET``: the variant with the front end's registration preset ``PRESET``
-(``graph.registration``; ``icp+imu+kin:realtime`` = the real-time configuration). Each row
+``VARIANT:PRESET``: the variant with a pipeline preset (``pipelines.config.PIPELINE_PRESETS``;
+``icp+imu+kin:realtime`` = the real-time configuration: its registration preset, the IMU's
+initial guess, deferred smoothing, online-only terrain). Each row
 runs in a fresh process (its peak memory is its own) and reports per-stage latency, the full
 update, frames delivered / processed / skipped, the achieved rate, CPU time per frame, memory,
 and the online and smoothed stride-frame accuracy of the frames it processed

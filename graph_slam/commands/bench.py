@@ -135,8 +135,8 @@ def pipelines_bench(
         str,
         typer.Option(
             help="Comma-separated: icp, icp+imu, imu+kin, icp+imu+kin, bridge "
-            "(icp+imu+kin without ICP in swing); a graph variant may name a registration "
-            "preset: icp+imu+kin:realtime (accurate, thesis, realtime)."
+            "(icp+imu+kin without ICP in swing); a graph row may name a pipeline preset: "
+            "icp+imu+kin:realtime (accurate, thesis, realtime; docs/pipelines.md)."
         ),
     ] = "icp,icp+imu,imu+kin,icp+imu+kin,bridge",
 ) -> None:
@@ -145,16 +145,20 @@ def pipelines_bench(
     from graph_slam.bench import accuracy as bp
 
     names = tuple(v.strip() for v in variants.split(",") if v.strip())
-    from graph_slam.pipelines.config import REGISTRATION_PRESETS
+    from graph_slam.pipelines.config import PIPELINE_PRESETS
 
     known = (*bp.VARIANTS, bp.BRIDGE)
-    presets = ("", *REGISTRATION_PRESETS)
+    graph_rows = (*(v for v in bp.VARIANTS if v != "icp"), bp.BRIDGE)
     if unknown := [
-        v for v in names if v.partition(":")[0] not in known or v.partition(":")[2] not in presets
-    ]:
+        v
+        for v in names
+        if v.partition(":")[0] not in known
+        or (v.partition(":")[2] and (v.partition(":")[2] not in PIPELINE_PRESETS
+                                     or v.partition(":")[0] not in graph_rows))
+    ]:  # fmt: skip
         raise typer.BadParameter(
-            f"unknown {unknown}; choose from {', '.join(known)}, optionally with "
-            f":{'/'.join(REGISTRATION_PRESETS)}"
+            f"unknown {unknown}; choose from {', '.join(known)}, a graph row optionally with "
+            f":{'/'.join(PIPELINE_PRESETS)}"
         )
     typer.echo(bp.header_line())
 
@@ -181,8 +185,8 @@ def realtime_bench(
         str,
         typer.Option(
             help="Comma-separated rows: a variant (icp = the thesis baseline) or "
-            "VARIANT:PRESET (the graph front end's registration preset, e.g. "
-            "icp+imu+kin:realtime)."
+            "VARIANT:PRESET (a pipeline preset, e.g. icp+imu+kin:realtime: the real-time "
+            "registration, IMU guess, deferred smoothing; docs/pipelines.md)."
         ),
     ] = "icp,icp+imu+kin,icp+imu+kin:realtime",
     pace: Annotated[
