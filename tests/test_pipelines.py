@@ -205,12 +205,11 @@ def test_deferred_smoothing_keeps_the_accuracy_without_the_strike_spike(scored_f
         assert sc.smoothed_rmse_m < 0.005, sc
         assert sc.online_rmse_m < 0.008, sc
     assert all("smoothing_deferred" not in s.flags for s in r.strides)
-    moved = [
-        np.abs(s.smoothed_stride_T_camera - s.summary.online_stride_T_camera).max()
-        for s in r.strides
-        if len(s.frame_indices) > 5
-    ]
-    assert min(moved) > 1e-6  # the batch solution replaced iSAM2's
+    # the batch solution replaced the iSAM2 estimate the stride was closed with (a run without
+    # smoothing closes strides the same way and keeps that estimate)
+    r_isam, _ = scored_full(backend={"smoothing": False})
+    moved = np.nanmax(np.abs(r.smoothed_stride_T_camera - r_isam.smoothed_stride_T_camera))
+    assert moved > 1e-4, moved
     assert all(s.terrain.smoothed is not None for s in r.strides if s.frame_indices)
 
 

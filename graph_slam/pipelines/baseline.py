@@ -146,6 +146,7 @@ class ThesisBaseline:
         if self._stride is not None:
             self._stride.frames.append(index)
             self._stride.poses.append(np.full((4, 4), np.nan) if pose is None else pose)
+        self.gravity.drop_before(frame.t_s - self.gravity.keep_s)
         t1 = time.perf_counter()
         if self._stride is not None:
             self.terrain.add_frame(index, frame)
@@ -220,5 +221,10 @@ class ThesisBaseline:
         self._close_stride()
         n = len(self.results.frames)
         reg = int(sum(f.has_pose for f in self.results.frames))
-        self.results.counts = {"frames": n, "with_pose": reg, "without_pose": n - reg}
+        self.results.counts = {
+            "frames": n,
+            "with_pose": reg,
+            "without_pose": n - reg,
+            **{f"joints_{k}": v for k, v in self.joints.counts.items()},
+        }
         return self.results

@@ -227,6 +227,7 @@ class GraphPipeline:
         self._remember(index, pyramid, est, frame.t_s)
         self._close_strides()  # those closed by this frame (a strike, or a missed one)
         t3 = time.perf_counter()
+        self.gravity.drop_before(frame.t_s - self.gravity.keep_s)
         self.terrain.add_frame(index, frame)
         stages["terrain"] = time.perf_counter() - t3
         if t3 - t2 > 1e-4:  # the terrain maps of a stride that closed
@@ -318,6 +319,7 @@ class GraphPipeline:
             "icp_accepted": int(sum(s.n_icp_accepted for s in res.strides)),
             "icp_rejected": int(sum(s.n_icp_rejected for s in res.strides)),
             **{f"imu_{k}": v for k, v in res.imu_counts.items()},
+            **{f"joints_{k}": v for k, v in self.slam.leg.joints.counts.items()},
         }
         return self.results
 

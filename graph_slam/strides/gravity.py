@@ -71,9 +71,14 @@ class GravityEstimator:
         """Note a foot strike (sets the next window to the stride's duration); samples more
         than ``keep_s`` before it are forgotten."""
         self._strikes = [*self._strikes[-1:], float(t_s)]
-        keep = self._t >= t_s - self.keep_s
-        if not keep.all():
-            self._t, self._gyro, self._accel = self._t[keep], self._gyro[keep], self._accel[keep]
+        self.drop_before(t_s - self.keep_s)
+
+    def drop_before(self, t_s: float) -> None:
+        """Forget samples before ``t_s`` (the pipelines call it at every frame with
+        ``t - keep_s``: memory stays flat, with or without foot strikes)."""
+        k = int(np.searchsorted(self._t, t_s, side="left"))
+        if k:
+            self._t, self._gyro, self._accel = self._t[k:], self._gyro[k:], self._accel[k:]
 
     def window_before(self, t_s: float) -> float:
         """The previous stride's duration (the last strike more than 0.3 s before ``t_s`` to
