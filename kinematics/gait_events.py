@@ -84,7 +84,7 @@ class GaitEventConfig:
 class DetectedEvents:
     """What a detector found: the events and how (method, merged and rejected candidates).
 
-    Not a session record: ``graph_slam.session.records.DetectedEvents`` is the validated stream of
+    Not a session record: ``graph_slam.session.records.GaitEvents`` is the validated stream of
     events a session holds (time, kind and source per event)."""
 
     foot_strikes_s: np.ndarray

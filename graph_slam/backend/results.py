@@ -40,8 +40,8 @@ class StrideSummary:
     t_start_s: float
     t_end_s: float
     start: str
-    """How the stride started: ``first_stride``, ``foot_strike``, ``missed_foot_strike``,
-    ``no_anchor``."""
+    """How the stride started: ``first_stride``, ``foot_strike`` (flag ``no_anchor`` when the
+    strike had no kinematic anchor) or ``missed_foot_strike``."""
     world_T_stride: np.ndarray
     frame_indices: list[int]
     t_s: np.ndarray

@@ -15,9 +15,10 @@ Two strategies, chosen by :func:`make_stance_model` from ``kinematics.stance_mod
   foot_T_camera(q)`` as a prior, gated by its own sigmas (``kin_inconsistent``).
 
 A caller-given :class:`~graph_slam.backend.measurements.KinematicMeasurement` always takes
-the ``foot_pose`` path. In a stride without a known foothold (``missed_foot_strike``,
-``no_anchor``) no stance factor is added (``kin_unanchored``). Without any measurement:
-``no_kinematics``.
+the ``foot_pose`` path. In a stride started by a missed foot strike (``missed_foot_strike``:
+the foothold is unknown) no stance factor is added (``kin_unanchored``); a foot strike without
+an anchor (flag ``no_anchor``) is not refused this way, only by the Mahalanobis gate
+(docs/backend.md, "Known quirk"). Without any measurement: ``no_kinematics``.
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ from graph_slam.backend.stride_graph import NavEstimate, StrideGraph
 log = logging.getLogger(__name__)
 
 #: Strides whose foothold is unknown: no stance factors (``kin_unanchored``).
-UNANCHORED = ("missed_foot_strike", "no_anchor")
+UNANCHORED = ("missed_foot_strike",)
 
 
 def gravity_aligned_rotation(up_in_imu: np.ndarray) -> np.ndarray:

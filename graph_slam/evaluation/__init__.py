@@ -1,5 +1,5 @@
 """Evaluation against ground truth: trajectory metrics (via evo), frame counts, obstacle
-accuracy, timing, thesis-style tables, ``metrics.json`` and plots (``evaluation.plots``).
+accuracy, timing, thesis-style tables and ``metrics.json`` (scoring only; plots: ``viz.plots``).
 
 evo is GPL-3 and an optional extra (``pip install 'graph_slam[eval]'``): only this package
 imports it, lazily, when trajectory metrics are computed. Nothing in the estimator imports
