@@ -79,10 +79,7 @@ class GraphPipeline:
         self.use_icp = config.backend.factors["icp"]
         self.registration = sensor_registration(config.graph.registration, has_color)
         self.has_color = has_color
-        imu_guess = config.graph.imu_guess
-        self.imu_guess = (
-            isinstance(self.registration, ProjectiveConfig) if imu_guess is None else imu_guess
-        )
+        self.imu_guess = self._imu_guess_for(config)
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.gravity = make_gravity(config)
@@ -91,6 +88,14 @@ class GraphPipeline:
         self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, target, pose, t
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
+
+    @staticmethod
+    def _imu_guess_for(config: PipelineConfig) -> bool:
+        """``graph.imu_guess``; unset (None): on with the projective (realtime) registration,
+        whose one scale and tight correspondence distance need the IMU's guess."""
+        if config.graph.imu_guess is not None:
+            return config.graph.imu_guess
+        return isinstance(config.graph.registration, ProjectiveConfig)
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
