@@ -15,9 +15,14 @@ import pytest
 from test_frontend_realtime import off
 from test_frontend_registration import (
     BOXES,
+    A,
+    K,
+    camera_pose,
+    errors,
+)
+from test_frontend_registration import (
     CFG as SCENE,
 )
-from test_frontend_registration import A, K, camera_pose, errors
 
 from graph_slam.config import config_from_dict
 from graph_slam.errors import RegistrationError, RegistrationFailure
@@ -52,7 +57,9 @@ ROLLED = camera_pose(0.15, 0.05, 0.5, 40.0) @ np.block(
 def frame_at(world_T_camera: np.ndarray, boxes=None, seed: int = 0, color: bool = True):
     rng = np.random.default_rng(seed)
     phases = np.random.default_rng(99).uniform(0, 2 * np.pi, (3, 4))
-    frame = render_frame(SCENE, world_T_camera, 0.0, 0, rng, phases, BOXES if boxes is None else boxes)
+    frame = render_frame(
+        SCENE, world_T_camera, 0.0, 0, rng, phases, BOXES if boxes is None else boxes
+    )
     return frame if color else RgbdFrame(frame.t_s, frame.depth_m, None, frame.index)
 
 
@@ -88,7 +95,9 @@ def test_organized_normals_of_a_tilted_plane_are_exact() -> None:
     unit = n / np.linalg.norm(n, axis=0)
     np.testing.assert_allclose(unit.reshape(3, -1).T, np.tile(normal, (unit[0].size, 1)), atol=1e-9)
     tangent = grad_true - (grad_true @ normal) * normal
-    np.testing.assert_allclose(grads.reshape(3, -1).T, np.tile(tangent, (unit[0].size, 1)), atol=1e-6)
+    np.testing.assert_allclose(
+        grads.reshape(3, -1).T, np.tile(tangent, (unit[0].size, 1)), atol=1e-6
+    )
 
 
 def test_no_normal_across_a_depth_jump_or_next_to_a_hole() -> None:

@@ -82,7 +82,10 @@ METHODS: dict[str, tuple[str, Callable[[], RegistrationConfig | GicpConfig]]] = 
         "realtime: organised normals, projective colored ICP 2 cm (numpy)",
         realtime_registration,
     ),
-    "realtime-gicp": ("realtime-gicp: GICP 2 cm (small_gicp) + photometric stage", gicp_registration),
+    "realtime-gicp": (
+        "realtime-gicp: GICP 2 cm (small_gicp) + photometric stage",
+        gicp_registration,
+    ),
 }
 GUESSES = ("identity", "constant-velocity")
 
