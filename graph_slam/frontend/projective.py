@@ -364,21 +364,21 @@ def register_depth(
             raise _fail(reason, f"{name} has {len(frame)} points (min_points {config.min_points})")
     t0 = time.perf_counter()
     target_T_source = init
-    for _ in range(config.max_iterations):
+    for iteration in range(config.max_iterations + 1):
         corr = associate(source, target, target_T_source, config)
         _gate(config, corr, len(source))
         rows = _rows(source, target, corr, target_T_source, config)
-        step = _analyse(rows, config.degeneracy_threshold).step_origin
-        target_T_source = _exp_left(step) @ target_T_source
+        analysis = _analyse(rows, config.degeneracy_threshold)
+        # converged: this pose is the solution, its rows the final ones (the step, below
+        # min_step, is reported and not taken); else at most max_iterations steps
+        if np.linalg.norm(analysis.step_origin) < config.min_step:
+            break
+        if iteration == config.max_iterations:
+            break
+        target_T_source = _exp_left(analysis.step_origin) @ target_T_source
         if not np.isfinite(target_T_source).all():
             raise _fail(RegistrationFailure.NUMERICAL, "non-finite transform")
-        if np.linalg.norm(step) < config.min_step:
-            break
-    corr = associate(source, target, target_T_source, config)
-    _gate(config, corr, len(source))
     t1 = time.perf_counter()
-    rows = _rows(source, target, corr, target_T_source, config)
-    analysis = _analyse(rows, config.degeneracy_threshold)
     information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
     fitness, count = len(corr) / len(source), len(corr)
     if config.check_convergence and (
