@@ -8,10 +8,13 @@ Per pair (target = frame k, source = frame k+1), as a frame-to-frame pipeline pa
 new frame: ``cloud`` (depth → points), ``voxel`` (the new frame's target pyramid and its
 voxelisation on the previous frame's grid), ``normals`` (target pyramid), ``icp`` (Open3D levels
 and the optional refinement), ``information`` (information matrix, degeneracy, convergence gate).
-For the real-time preset (:class:`GicpConfig`) each frame is prepared once, on the previous
-frame's grid through the guess, and kept as the next pair's target, as the pipeline does:
-``cloud`` (decimated), ``voxel``, ``normals`` (covariances, normals, intensity gradients),
-``icp`` (GICP and the photometric stage), ``information``.
+For the real-time presets each frame is prepared once, on the previous frame's grid through the
+guess, and kept as the next pair's target, as the pipeline does. ``realtime``
+(:class:`ProjectiveConfig`): ``cloud`` (organised points), ``normals`` (pixel normals and
+intensity gradients), ``voxel`` (their voxel means), ``icp`` (projective Gauss-Newton),
+``information``. ``realtime-gicp`` (:class:`GicpConfig`): ``cloud`` (decimated), ``voxel``,
+``normals`` (covariances, normals, intensity gradients), ``icp`` (GICP and the photometric
+stage), ``information``.
 
 Sessions written by ``graph-slam simulate`` can be benchmarked too (:func:`session_dataset`),
 at their resolution or decimated (``step`` 2: 848×480 → 424×240, intrinsics scaled).

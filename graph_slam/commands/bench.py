@@ -67,8 +67,8 @@ def registration(
     methods: Annotated[
         str | None,
         typer.Option(
-            help="Comma-separated: thesis, default, refined, p2pl, fast, accurate, realtime "
-            "(default: the first five)."
+            help="Comma-separated: thesis, default, refined, p2pl, fast, accurate, realtime, "
+            "realtime-gicp (default: the first five)."
         ),
     ] = None,
     session: Annotated[
@@ -136,7 +136,7 @@ def pipelines_bench(
         typer.Option(
             help="Comma-separated: icp, icp+imu, imu+kin, icp+imu+kin, bridge "
             "(icp+imu+kin without ICP in swing); a graph variant may name a registration "
-            "preset: icp+imu+kin:realtime (accurate, thesis, realtime)."
+            "preset: icp+imu+kin:realtime (accurate, thesis, realtime, realtime-gicp)."
         ),
     ] = "icp,icp+imu,imu+kin,icp+imu+kin,bridge",
 ) -> None:
