@@ -17,7 +17,7 @@ from test_frontend_registration import A, K, camera_pose, cloud_at, errors, pair
 from graph_slam.config import config_from_dict
 from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailure
 from graph_slam.frontend import Cloud, depth_to_cloud, voxel_downsample
-from graph_slam.frontend.config import GicpConfig, realtime_registration
+from graph_slam.frontend.config import GicpConfig, gicp_registration, realtime_registration
 from graph_slam.frontend.realtime import (
     PLANE_EPSILON,
     PreparedFrame,
@@ -69,9 +69,10 @@ def test_swing_jump_with_a_guess_8_mm_and_1p5_deg_off() -> None:
 
 
 def test_the_preset_itself() -> None:
-    """The realtime preset (2 cm voxels; no decimation at 128×96) on the same pair, RGB-D."""
+    """The GICP preset (``realtime-gicp``: 2 cm voxels; no decimation at 128×96) on the same
+    pair, RGB-D."""
     target, source, truth = pair(A, SMALL)
-    config = realtime_registration()
+    config = gicp_registration()
     assert config.pixel_step_for(K) == 1  # 12k pixels, below the preset's 100k
     result = register_realtime(source, target, config)
     t_mm, r_deg = errors(result.target_T_source, truth)

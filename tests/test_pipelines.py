@@ -213,12 +213,15 @@ def test_deferred_smoothing_keeps_the_accuracy_without_the_strike_spike(scored_f
     assert all(s.terrain.smoothed is not None for s in r.strides if s.frame_indices)
 
 
-def test_full_graph_with_the_realtime_registration_preset(scored_full):
-    """``graph.registration: realtime`` (GICP + photometric stage, each frame prepared once and
-    kept as the next target): the same stride RMSE target as the default; every registered
-    frame reports its cloud, preprocess and registration stages."""
-    r, scores = scored_full(graph={"registration": "realtime"})
-    assert r.config["graph"]["registration"]["method"] == "gicp"
+@pytest.mark.parametrize("preset", ["realtime", "realtime-gicp"])
+def test_full_graph_with_the_realtime_registration_preset(scored_full, preset):
+    """``graph.registration: realtime`` (projective, organised normals, IMU guess) and
+    ``realtime-gicp`` (GICP + photometric stage), each frame prepared once and kept as the
+    next target: the same stride RMSE target as the default; every registered frame reports
+    its cloud, preprocess and registration stages."""
+    r, scores = scored_full(graph={"registration": preset})
+    method = {"realtime": "projective", "realtime-gicp": "gicp"}[preset]
+    assert r.config["graph"]["registration"]["method"] == method
     assert len(scores) == 2
     for sc in scores:
         assert sc.smoothed_rmse_m < 0.005, sc

@@ -67,8 +67,8 @@ def registration(
     methods: Annotated[
         str | None,
         typer.Option(
-            help="Comma-separated: thesis, default, refined, p2pl, fast, accurate, realtime "
-            "(default: the first five)."
+            help="Comma-separated: thesis, default, refined, p2pl, fast, accurate, realtime, "
+            "realtime-gicp (default: the first five)."
         ),
     ] = None,
     session: Annotated[
@@ -136,7 +136,7 @@ def pipelines_bench(
         typer.Option(
             help="Comma-separated: icp, icp+imu, imu+kin, icp+imu+kin, bridge "
             "(icp+imu+kin without ICP in swing); a graph row may name a pipeline preset: "
-            "icp+imu+kin:realtime (accurate, thesis, realtime; docs/pipelines.md)."
+            "icp+imu+kin:realtime (accurate, thesis, realtime, realtime-gicp; docs/pipelines.md)."
         ),
     ] = "icp,icp+imu,imu+kin,icp+imu+kin,bridge",
 ) -> None:

@@ -98,6 +98,13 @@ def _pack(index: np.ndarray) -> np.ndarray:
     return (index[:, 0] << (2 * _KEY_BITS)) | (index[:, 1] << _KEY_BITS) | index[:, 2]
 
 
+def voxel_groups(index: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Group points by voxel (N×3 ``index``): the first point of each voxel (sorted by voxel),
+    each point's voxel number and the number of voxels (for ``np.bincount`` sums)."""
+    keys, first, inverse = np.unique(_pack(index), return_index=True, return_inverse=True)
+    return first, inverse.ravel(), int(keys.size)
+
+
 @dataclass(frozen=True, eq=False)
 class VoxelSums:
     """Per-voxel point (and colour) sums and counts on a fixed grid: the one voxel mean.
@@ -122,8 +129,7 @@ class VoxelSums:
     ) -> VoxelSums:
         """Sum ``points`` (and ``colors``) by voxel ``index`` (N×3); ``weights`` are the
         counts the rows stand for (1 each by default; sums of earlier voxels carry theirs)."""
-        keys, first, inverse = np.unique(_pack(index), return_index=True, return_inverse=True)
-        inverse, n = inverse.ravel(), keys.size
+        first, inverse, n = voxel_groups(index)
 
         def sums(values: np.ndarray) -> np.ndarray:
             return np.column_stack([np.bincount(inverse, values[:, j], n) for j in range(3)])

@@ -13,7 +13,9 @@ from graph_slam.frontend.config import (
     CloudConfig,
     GicpConfig,
     LevelConfig,
+    ProjectiveConfig,
     RegistrationConfig,
+    gicp_registration,
     realtime_registration,
     thesis_registration,
 )
@@ -41,26 +43,32 @@ def _graph_registration() -> RegistrationConfig:
 
 #: The graph's registration presets (``graph.registration: <name>`` in YAML): ``accurate``
 #: (the default: colored ICP 4/2 cm, Tukey), ``thesis`` (colored ICP 4/2/1 cm, no kernel, the
-#: thesis's), ``realtime`` (GICP on 2 cm voxels of every 2nd pixel, each frame prepared once:
-#: :mod:`graph_slam.frontend.realtime`). See docs/frontend.md.
+#: thesis's), ``realtime`` (organised normals, projective association, colored ICP's objective
+#: on 2 cm voxels, each frame prepared once: :mod:`graph_slam.frontend.projective`; it turns
+#: the IMU guess on, see ``GraphFrontendConfig.imu_guess``), ``realtime-gicp`` (small_gicp's
+#: GICP + the photometric stage: :mod:`graph_slam.frontend.realtime`). See docs/frontend.md.
 REGISTRATION_PRESETS = {
     "accurate": _graph_registration,
     "thesis": thesis_registration,
     "realtime": realtime_registration,
+    "realtime-gicp": gicp_registration,
 }
 
 
 def _registration_kind(value: Any) -> str:
     method = value.get("method") if isinstance(value, dict) else getattr(value, "method", None)
-    return "gicp" if method == "gicp" else "icp"
+    return method if method in ("gicp", "projective") else "icp"
 
 
 GraphRegistration = Annotated[
-    Annotated[RegistrationConfig, Tag("icp")] | Annotated[GicpConfig, Tag("gicp")],
+    Annotated[RegistrationConfig, Tag("icp")]
+    | Annotated[GicpConfig, Tag("gicp")]
+    | Annotated[ProjectiveConfig, Tag("projective")],
     Discriminator(_registration_kind),
 ]
-"""Open3D ICP (:class:`RegistrationConfig`) or the real-time GICP (:class:`GicpConfig`,
-``method: gicp``)."""
+"""Open3D ICP (:class:`RegistrationConfig`), the real-time GICP (:class:`GicpConfig`,
+``method: gicp``) or the projective real-time front end (:class:`ProjectiveConfig`,
+``method: projective``)."""
 
 
 class BaselineConfig(ConfigModel):
@@ -103,11 +111,12 @@ class GraphFrontendConfig(ConfigModel):
     constant_velocity_guess: bool = Field(
         True, description="initial guess: the last online relative motion scaled by Δt"
     )
-    imu_guess: bool = Field(
-        False,
+    imu_guess: bool | None = Field(
+        None,
         description="initial guess: the IMU preintegrated from the graph's current estimate "
         "(StrideSLAM.predict_relative); falls back to constant velocity at a stride's start "
-        "or across an IMU gap",
+        "or across an IMU gap. None: on with the projective (realtime) registration, whose "
+        "single scale needs a close guess, off otherwise",
     )
     icp_in_swing: bool = Field(
         True,
@@ -208,6 +217,11 @@ PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
     "thesis": {"graph": {"registration": "thesis"}},
     "realtime": {
         "graph": {"registration": "realtime", "imu_guess": True},
+        "backend": {"defer_smoothing": True},
+        "terrain": {"poses": ["online"]},
+    },
+    "realtime-gicp": {
+        "graph": {"registration": "realtime-gicp", "imu_guess": True},
         "backend": {"defer_smoothing": True},
         "terrain": {"poses": ["online"]},
     },

@@ -14,8 +14,9 @@ import numpy as np
 from graph_slam.backend import StrideSLAM
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
-from graph_slam.frontend import build_pyramid, depth_to_cloud, register
-from graph_slam.frontend.config import GicpConfig
+from graph_slam.frontend import Cloud, build_pyramid, depth_to_cloud, register
+from graph_slam.frontend.config import GicpConfig, ProjectiveConfig
+from graph_slam.frontend.projective import prepare_depth, register_depth
 from graph_slam.frontend.realtime import prepare_frame, register_prepared
 from graph_slam.frontend.registration import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
@@ -78,6 +79,7 @@ class GraphPipeline:
         self.use_icp = config.backend.factors["icp"]
         self.registration = sensor_registration(config.graph.registration, has_color)
         self.has_color = has_color
+        self.imu_guess = self._imu_guess_for(config)
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.gravity = make_gravity(config)
@@ -86,6 +88,14 @@ class GraphPipeline:
         self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, target, pose, t
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
+
+    @staticmethod
+    def _imu_guess_for(config: PipelineConfig) -> bool:
+        """``graph.imu_guess``; unset (None): on with the projective (realtime) registration,
+        whose one scale and tight correspondence distance need the IMU's guess."""
+        if config.graph.imu_guess is not None:
+            return config.graph.imu_guess
+        return isinstance(config.graph.registration, ProjectiveConfig)
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
@@ -137,9 +147,10 @@ class GraphPipeline:
         return fit
 
     def _guess(self, t_s: float) -> np.ndarray:
-        """Initial ``prev_T_current``: the IMU's prediction (``graph.imu_guess``), else
-        constant velocity from the last two online poses, else identity."""
-        if self.cfg.graph.imu_guess:
+        """Initial ``prev_T_current``: the IMU's prediction (``graph.imu_guess``; by default
+        with the projective preset), else constant velocity from the last two online poses,
+        else identity."""
+        if self.imu_guess:
             guess = self.slam.predict_relative(t_s)
             if guess is not None:
                 return guess
@@ -158,6 +169,8 @@ class GraphPipeline:
             return None, None, None, float("nan")
         if isinstance(self.registration, GicpConfig):
             return self._register_realtime(frame, index, stages)
+        if isinstance(self.registration, ProjectiveConfig):
+            return self._register_projective(frame, index, stages)
         t0 = time.perf_counter()
         cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
         t1 = time.perf_counter()
@@ -205,6 +218,32 @@ class GraphPipeline:
                 fitness = icp.fitness
         stages["registration"] = time.perf_counter() - t2
         return cloud, icp, prepared, fitness
+
+    def _register_projective(self, frame: RgbdFrame, index: int, stages: dict):
+        """:meth:`_register` with the projective preset: the frame is prepared once from its
+        organised depth image (on the previous frame's grid through the guess) and kept, as it
+        is, as the next target."""
+        cfg = self.registration
+        t0 = time.perf_counter()
+        icp, fitness, target, guess = None, float("nan"), None, None
+        if self._prev is not None and self._pending_strike is None:  # same stride
+            target, guess = self._prev[1], self._guess(frame.t_s)
+        grid_T_cloud = None if target is None else target.grid_T_cloud @ guess
+        prepared = prepare_depth(
+            frame, self.intrinsics, cfg, self.cfg.cloud, grid_T_cloud, self.has_color
+        )
+        t1 = time.perf_counter()
+        stages["cloud"] = prepared.timing_s["cloud"]
+        stages["preprocess"] = t1 - t0 - stages["cloud"]
+        if target is not None:
+            try:
+                r = register_depth(prepared, target, cfg, guess)
+                icp, fitness = icp_measurement(r, index, self._prev[0]), r.fitness
+            except RegistrationError as err:
+                icp = failed_icp_measurement(err, index, self._prev[0])
+                fitness = icp.fitness
+        stages["registration"] = time.perf_counter() - t1
+        return Cloud(prepared.pixel_points_m), icp, prepared, fitness
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
