@@ -25,8 +25,8 @@ def test_rows_are_variants_or_variant_colon_preset() -> None:
     with pytest.raises(ConfigError, match="row 'icp\\+imu\\+kin:nope': unknown pipeline preset"):
         rt.row_config("icp+imu+kin:nope")
     real = rt.row_config("icp+imu+kin:realtime", base)  # every real-time setting, over base
-    assert real.graph.registration.method == "gicp" and real.graph.imu_guess
-    assert real.backend.defer_smoothing and real.terrain.poses == ("online",)
+    assert real.graph.registration.method == "projective" and real.graph.imu_guess
+    assert real.backend.defer_smoothing and not real.terrain.enabled
     assert real.max_frames == 7
 
 
