@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graph_slam.errors import RecordError, RegistrationError, RegistrationFailure
+from graph_slam.errors import RecordError, RegistrationFailure
 from graph_slam.frontend.cloud import voxel_groups, voxel_index
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
 from graph_slam.frontend.registration import (
@@ -42,7 +42,9 @@ from graph_slam.frontend.registration import (
     _exp_left,
     _information,
     _Rows,
+    conclude,
     kernel_weights,
+    registration_failure,
 )
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame, check_pose
 
@@ -309,8 +311,7 @@ def _cross_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
 
 
-def _fail(reason: RegistrationFailure, message: str, fitness=None, count=None):
-    return RegistrationError(reason, message, fitness=fitness, correspondences=count)
+_fail = registration_failure
 
 
 def _gate(config: ProjectiveConfig, corr: np.ndarray, n_source: int) -> None:
@@ -380,34 +381,9 @@ def register_depth(
             raise _fail(RegistrationFailure.NUMERICAL, "non-finite transform")
     t1 = time.perf_counter()
     information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
-    fitness, count = len(corr) / len(source), len(corr)
-    if config.check_convergence and (
-        analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad
-    ):
-        raise _fail(
-            RegistrationFailure.NOT_CONVERGED,
-            f"a Gauss-Newton step at the solution still moves {analysis.step_m * 1e3:.2f} mm, "
-            f"{np.degrees(analysis.step_rad):.3f} deg",
-            fitness,
-            count,
-        )
-    if config.fail_on_degenerate and analysis.degeneracy.is_degenerate:
-        raise _fail(
-            RegistrationFailure.DEGENERATE,
-            "under-constrained: " + "; ".join(analysis.degeneracy.describe()),
-            fitness,
-            count,
-        )
     gap = rows.q - target.points_m[corr[:, 1]]
-    return RegistrationResult(
-        target_T_source=target_T_source,
-        fitness=fitness,
-        inlier_rmse_m=float(np.sqrt(np.mean(np.sum(gap**2, axis=1)))),
-        correspondences=count,
-        information=information,
-        degeneracy=analysis.degeneracy,
-        residual_sigma=sigma,
-        final_step_m=analysis.step_m,
-        final_step_rad=analysis.step_rad,
-        timing_s={"icp": t1 - t0, "information": time.perf_counter() - t1},
-    )
+    return conclude(
+        target_T_source, analysis, information, sigma, len(corr), len(source),
+        float(np.sqrt(np.mean(np.sum(gap**2, axis=1)))), config,
+        {"icp": t1 - t0, "information": time.perf_counter() - t1},
+    )  # fmt: skip

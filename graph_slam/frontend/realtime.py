@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from graph_slam.errors import RegistrationError, RegistrationFailure
+from graph_slam.errors import RegistrationFailure
 from graph_slam.frontend.cloud import Cloud, voxel_downsample
 from graph_slam.frontend.config import GicpConfig
 from graph_slam.frontend.registration import (
@@ -33,6 +33,8 @@ from graph_slam.frontend.registration import (
     _exp_left,
     _information,
     _rows,
+    conclude,
+    registration_failure,
 )
 from graph_slam.session.records import check_pose
 from kinematics.conversions import adjoint_rot_first, skew
@@ -156,8 +158,7 @@ def _degeneracy(
     return DegeneracyReport(values, vectors, center, length, threshold)
 
 
-def _fail(reason: RegistrationFailure, message: str, fitness=None, count=None):
-    return RegistrationError(reason, message, fitness=fitness, correspondences=count)
+_fail = registration_failure
 
 
 def _gate(config: GicpConfig, fitness: float, count: int) -> None:
@@ -207,29 +208,11 @@ def _photometric(
     rows = rows_at(corr, target_T_source)
     analysis = _analyse(rows, config.degeneracy_threshold)
     information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
-    fitness, count = len(corr) / len(src), len(corr)
-    if config.check_convergence and (
-        analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad
-    ):
-        raise _fail(
-            RegistrationFailure.NOT_CONVERGED,
-            f"a Gauss-Newton step at the solution still moves {analysis.step_m * 1e3:.2f} mm, "
-            f"{np.degrees(analysis.step_rad):.3f} deg",
-            fitness,
-            count,
-        )
     gap = rows.q - tgt.points_m[corr[:, 1]]
-    return RegistrationResult(
-        target_T_source=target_T_source,
-        fitness=fitness,
-        inlier_rmse_m=float(np.sqrt(np.mean(np.sum(gap**2, axis=1)))),
-        correspondences=count,
-        information=information,
-        degeneracy=analysis.degeneracy,
-        residual_sigma=sigma,
-        final_step_m=analysis.step_m,
-        final_step_rad=analysis.step_rad,
-    )
+    return conclude(
+        target_T_source, analysis, information, sigma, len(corr), len(src),
+        float(np.sqrt(np.mean(np.sum(gap**2, axis=1)))), config,
+    )  # fmt: skip
 
 
 def register_prepared(

@@ -530,3 +530,58 @@ def register(
         final_step_rad=analysis.step_rad,
         timing_s=timing,
     )
+
+
+def registration_failure(
+    reason: RegistrationFailure, message: str, fitness=None, count=None
+) -> RegistrationError:
+    """The error of a registration that failed, with what is known of its fitness and
+    correspondences (the real-time front ends raise it)."""
+    return RegistrationError(reason, message, fitness=fitness, correspondences=count)
+
+
+def conclude(
+    target_T_source: np.ndarray,
+    analysis,
+    information: np.ndarray,
+    sigma: float,
+    n_correspondences: int,
+    n_source: int,
+    inlier_rmse_m: float,
+    config,
+    timing_s: dict[str, float] | None = None,
+) -> RegistrationResult:
+    """The checks at a Gauss-Newton solution (still moving: ``NOT_CONVERGED`` when
+    ``config.check_convergence``; under-constrained: ``DEGENERATE`` when
+    ``config.fail_on_degenerate``) and its :class:`RegistrationResult`, for the front ends that
+    solve the colored-ICP objective themselves (``realtime``, ``realtime-gicp``)."""
+    fitness, count = n_correspondences / n_source, n_correspondences
+    if config.check_convergence and (
+        analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad
+    ):
+        raise registration_failure(
+            RegistrationFailure.NOT_CONVERGED,
+            f"a Gauss-Newton step at the solution still moves {analysis.step_m * 1e3:.2f} mm, "
+            f"{np.degrees(analysis.step_rad):.3f} deg",
+            fitness,
+            count,
+        )
+    if config.fail_on_degenerate and analysis.degeneracy.is_degenerate:
+        raise registration_failure(
+            RegistrationFailure.DEGENERATE,
+            "under-constrained: " + "; ".join(analysis.degeneracy.describe()),
+            fitness,
+            count,
+        )
+    return RegistrationResult(
+        target_T_source=target_T_source,
+        fitness=fitness,
+        inlier_rmse_m=inlier_rmse_m,
+        correspondences=count,
+        information=information,
+        degeneracy=analysis.degeneracy,
+        residual_sigma=sigma,
+        final_step_m=analysis.step_m,
+        final_step_rad=analysis.step_rad,
+        timing_s=timing_s or {},
+    )
