@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graph_slam.errors import ConfigError
+from graph_slam.errors import ConfigError, EstimationError
 from graph_slam.pipelines import PipelineConfig, PipelineResults, run_session
 from graph_slam.pipelines.replay import pick_frame, ready_times, replay_session, schedule
 from graph_slam.pipelines.results import FrameOutput
@@ -48,7 +48,7 @@ def test_schedule_at_one_and_a_half_frame_periods_skips_every_third_frame() -> N
 def test_schedule_without_compute_skips_nothing() -> None:
     s = schedule([0.0, 0.0, 0.1], [0.0, 0.0, 0.0])  # same stamps: both taken in order
     assert s.processed.tolist() == [0, 1, 2] and s.skipped.size == 0
-    with pytest.raises(ValueError, match="non-decreasing"):
+    with pytest.raises(EstimationError, match="non-decreasing"):
         schedule([0.1, 0.0], [0.0, 0.0])
 
 

@@ -42,9 +42,20 @@ from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
 from graph_slam.pipelines.runner import make_pipeline, open_pipeline
+from graph_slam.pipelines.schedule import Schedule, pick_frame, schedule
 from graph_slam.strides.streams import Streams, StrideEvents
 
 log = logging.getLogger(__name__)
+
+__all__ = [
+    "ProcessedFrame",
+    "ReplayResult",
+    "Schedule",
+    "pick_frame",
+    "ready_times",
+    "replay_session",
+    "schedule",
+]
 
 Pace = Literal["virtual", "wall"]
 PACES: tuple[str, ...] = ("virtual", "wall")
@@ -54,68 +65,6 @@ ComputeCost = Callable[[int, float], float]
 
 RSS_MARKS_S: tuple[float, ...] = (60.0, 300.0, 600.0)
 """Session times (s after the first frame) at which the resident memory is sampled."""
-
-
-# --------------------------------------------------------------------------- the skip policy
-def pick_frame(arrival_s: np.ndarray, next_index: int, free_at_s: float) -> tuple[int, float]:
-    """The skip policy: which frame the estimator takes when it becomes free.
-
-    ``arrival_s``: every frame's arrival time (non-decreasing); ``next_index``: the first frame
-    not yet handled; ``free_at_s``: when the estimator is free. Returns ``(index, start_s)``:
-    the newest frame that has arrived by ``free_at_s``, started then (the frames
-    ``next_index..index-1`` are skipped); if none has arrived, the next one, started at its
-    arrival (nothing skipped).
-    """
-    if not 0 <= next_index < arrival_s.size:
-        raise IndexError(f"next_index {next_index} outside 0..{arrival_s.size - 1}")
-    if arrival_s[next_index] > free_at_s:
-        return next_index, float(arrival_s[next_index])
-    newest = int(np.searchsorted(arrival_s, free_at_s, side="right")) - 1
-    return max(newest, next_index), float(free_at_s)
-
-
-@dataclass(frozen=True)
-class Schedule:
-    """The policy applied to a timing trace: which frames were processed, when."""
-
-    processed: np.ndarray
-    """Indices of the processed frames."""
-    skipped: np.ndarray
-    """Indices of the skipped frames."""
-    start_s: np.ndarray
-    finish_s: np.ndarray
-    latency_s: np.ndarray
-    """finish − arrival of each processed frame."""
-
-
-def schedule(arrival_s: Sequence[float], compute_s: Sequence[float]) -> Schedule:
-    """Apply :func:`pick_frame` to a trace: ``compute_s[i]`` is how long frame ``i`` takes if
-    it is processed (the replay measures it as it goes; this is its pure core, for tests and
-    what-if questions such as "at twice the compute time")."""
-    arrival = np.asarray(arrival_s, float)
-    compute = np.asarray(compute_s, float)
-    if arrival.shape != compute.shape or arrival.ndim != 1:
-        raise ValueError("arrival_s and compute_s must be 1-D and of the same length")
-    if np.any(np.diff(arrival) < 0):
-        raise ValueError("arrival_s must be non-decreasing")
-    processed, skipped, start, finish = [], [], [], []
-    i, free_at = 0, -np.inf
-    while i < arrival.size:
-        j, t0 = pick_frame(arrival, i, free_at)
-        skipped.extend(range(i, j))
-        free_at = t0 + compute[j]
-        processed.append(j)
-        start.append(t0)
-        finish.append(free_at)
-        i = j + 1
-    p = np.array(processed, dtype=int)
-    return Schedule(
-        processed=p,
-        skipped=np.array(skipped, dtype=int),
-        start_s=np.array(start),
-        finish_s=np.array(finish),
-        latency_s=np.array(finish) - arrival[p] if p.size else np.zeros(0),
-    )
 
 
 # --------------------------------------------------------------------------- clocks
