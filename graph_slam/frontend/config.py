@@ -170,61 +170,30 @@ def fast_point_to_plane(voxel_m: float = 0.02) -> RegistrationConfig:
     )
 
 
-class GicpConfig(ConfigModel):
-    """The real-time front end: GICP (small_gicp) on one fixed-grid voxel scale.
+class PreparedFrameConfig(ConfigModel):
+    """What the real-time front ends share: a frame prepared once on a fixed-origin voxel grid
+    from a decimated depth image, colored ICP's objective, and the accurate path's quality
+    gates (as :class:`RegistrationConfig`'s)."""
 
-    Every frame is prepared once (:func:`graph_slam.frontend.realtime.prepare_frame`): the
-    depth image decimated by ``pixel_step``, voxel means on a fixed grid, per-point covariances
-    from ``covariance_neighbors`` neighbours, a k-d tree; it is the source of this frame's
-    registration and, unchanged, the target of the next one. One scale: the initial guess
-    (the graph's IMU prediction, or constant velocity) must be within about
-    ``max_correspondence_m``.
-    """
-
-    method: Literal["gicp"] = Field("gicp", description="selects this config type")
     pixel_step: int | None = Field(
         None,
         ge=1,
         le=16,
         description="use every n-th depth row and column; None: the step that leaves about "
-        "target_pixels pixels (424×240: 1, 848×480: 2)",
+        "target_pixels pixels",
     )
-    target_pixels: int = Field(100_000, ge=100, description="see pixel_step")
+    target_pixels: int = Field(25_000, ge=100, description="see pixel_step")
     voxel_m: float = Field(0.02, gt=0, description="voxel edge of the fixed-origin grid")
-    covariance_neighbors: int = Field(10, ge=5, le=100, description="k of each covariance")
-    max_correspondence_m: float = Field(
-        0.08, gt=0, description="GICP correspondence distance (reach of the initial guess)"
-    )
-    max_iterations: int = Field(20, gt=0, le=1000)
-    rotation_epsilon_rad: float = Field(
-        2e-3, gt=0, description="GICP converged when a step rotates less than this and ..."
-    )
-    translation_epsilon_m: float = Field(1e-3, gt=0, description="... moves less than this")
-    num_threads: int = Field(1, ge=1, le=64, description="small_gicp's OpenMP threads")
-    # --- photometric refinement (RGB-D): colored ICP's objective after GICP
-    photometric: bool = Field(
-        True,
-        description="when both frames have colours, refine GICP's result on colored ICP's "
-        "objective (point-to-plane + intensity, Park 2017): geometry alone leaves a floor's "
-        "slide free",
-    )
     lambda_geometric: float = Field(0.968, ge=0, le=1, description="as RegistrationConfig's")
     kernel_scale: float = Field(0.5, gt=0, description="Tukey k as a multiple of voxel_m")
-    photometric_max_correspondence_m: float = Field(0.04, gt=0)
-    color_neighbors: int = Field(8, ge=4, le=50, description="k of each intensity gradient")
-    refine_iterations: int = Field(5, ge=1, le=100)
-    refine_min_step: float = Field(1e-4, gt=0, description="stop when |Δξ| (rad, m) is below")
-    max_final_step_m: float = Field(
-        0.002, gt=0, description="photometric stage: a longer step at the solution = not converged"
-    )
-    max_final_step_rad: float = Field(0.004, gt=0)
-    # --- quality gates (as RegistrationConfig's)
-    min_points: int = Field(20, ge=3, description="fewer prepared points in a cloud = empty")
+    min_points: int = Field(20, ge=3, description="fewer prepared points in a frame = empty")
     min_correspondences: int = Field(100, ge=6)
     min_fitness: float = Field(0.3, ge=0, le=1, description="inlier fraction of the source")
-    check_convergence: bool = Field(
-        True, description="raise NOT_CONVERGED when max_iterations ran out before the epsilons"
+    max_final_step_m: float = Field(
+        0.002, gt=0, description="a longer Gauss-Newton step at the solution = not converged"
     )
+    max_final_step_rad: float = Field(0.004, gt=0)
+    check_convergence: bool = Field(True)
     degeneracy_threshold: float = Field(
         0.01,
         gt=0,
@@ -246,6 +215,47 @@ class GicpConfig(ConfigModel):
         return max(1, round((pixels / self.target_pixels) ** 0.5))
 
 
+class GicpConfig(PreparedFrameConfig):
+    """The real-time front end: GICP (small_gicp) on one fixed-grid voxel scale.
+
+    Every frame is prepared once (:func:`graph_slam.frontend.realtime.prepare_frame`): the
+    depth image decimated by ``pixel_step``, voxel means on a fixed grid, per-point covariances
+    from ``covariance_neighbors`` neighbours, a k-d tree; it is the source of this frame's
+    registration and, unchanged, the target of the next one. One scale: the initial guess
+    (the graph's IMU prediction, or constant velocity) must be within about
+    ``max_correspondence_m``.
+    """
+
+    method: Literal["gicp"] = Field("gicp", description="selects this config type")
+    target_pixels: int = Field(100_000, ge=100, description="see pixel_step")
+    covariance_neighbors: int = Field(10, ge=5, le=100, description="k of each covariance")
+    max_correspondence_m: float = Field(
+        0.08, gt=0, description="GICP correspondence distance (reach of the initial guess)"
+    )
+    max_iterations: int = Field(20, gt=0, le=1000)
+    rotation_epsilon_rad: float = Field(
+        2e-3, gt=0, description="GICP converged when a step rotates less than this and ..."
+    )
+    translation_epsilon_m: float = Field(1e-3, gt=0, description="... moves less than this")
+    num_threads: int = Field(1, ge=1, le=64, description="small_gicp's OpenMP threads")
+    # --- photometric refinement (RGB-D): colored ICP's objective after GICP
+    photometric: bool = Field(
+        True,
+        description="when both frames have colours, refine GICP's result on colored ICP's "
+        "objective (point-to-plane + intensity, Park 2017): geometry alone leaves a floor's "
+        "slide free",
+    )
+    photometric_max_correspondence_m: float = Field(0.04, gt=0)
+    color_neighbors: int = Field(8, ge=4, le=50, description="k of each intensity gradient")
+    refine_iterations: int = Field(5, ge=1, le=100)
+    refine_min_step: float = Field(1e-4, gt=0, description="stop when |Δξ| (rad, m) is below")
+    check_convergence: bool = Field(
+        True,
+        description="raise NOT_CONVERGED when max_iterations ran out before the epsilons (the "
+        "photometric stage: when its last step is longer than max_final_step_*)",
+    )
+
+
 def gicp_registration() -> GicpConfig:
     """GICP (small_gicp) on 2 cm voxels of about 100k depth pixels (every pixel at 424×240,
     every 2nd at 848×480), then the photometric stage; one thread (the first real-time
@@ -253,7 +263,7 @@ def gicp_registration() -> GicpConfig:
     return GicpConfig()
 
 
-class ProjectiveConfig(ConfigModel):
+class ProjectiveConfig(PreparedFrameConfig):
     """The real-time front end without nearest-neighbour searches
     (:mod:`graph_slam.frontend.projective`).
 
@@ -266,15 +276,7 @@ class ProjectiveConfig(ConfigModel):
     """
 
     method: Literal["projective"] = Field("projective", description="selects this config type")
-    pixel_step: int | None = Field(
-        None,
-        ge=1,
-        le=16,
-        description="use every n-th depth row and column; None: the step that leaves about "
-        "target_pixels pixels (424×240: 2, 848×480: 4)",
-    )
     target_pixels: int = Field(25_000, ge=100, description="see pixel_step")
-    voxel_m: float = Field(0.02, gt=0, description="voxel edge of the fixed-origin grid")
     normal_step: int = Field(
         1,
         ge=1,
@@ -306,33 +308,6 @@ class ProjectiveConfig(ConfigModel):
         description="with colours on both frames, colored ICP's objective (point-to-plane + "
         "intensity, Park 2017); otherwise point-to-plane",
     )
-    lambda_geometric: float = Field(0.968, ge=0, le=1, description="as RegistrationConfig's")
-    kernel_scale: float = Field(0.5, gt=0, description="Tukey k as a multiple of voxel_m")
-    # --- quality gates (as RegistrationConfig's)
-    min_points: int = Field(20, ge=3, description="fewer prepared points in a frame = empty")
-    min_correspondences: int = Field(100, ge=6)
-    min_fitness: float = Field(0.3, ge=0, le=1, description="inlier fraction of the source")
-    max_final_step_m: float = Field(
-        0.002, gt=0, description="a longer Gauss-Newton step at the solution = not converged"
-    )
-    max_final_step_rad: float = Field(0.004, gt=0)
-    check_convergence: bool = Field(True)
-    degeneracy_threshold: float = Field(
-        0.01,
-        gt=0,
-        description="normalised Hessian eigenvalue below which a direction is under-constrained",
-    )
-    fail_on_degenerate: bool = Field(False)
-    information_min_sigma_m: float = Field(
-        0.001, gt=0, description="floor of the residual sigma that scales the information"
-    )
-
-    def pixel_step_for(self, intrinsics) -> int:
-        """The depth decimation step for a camera (``pixel_step``, or the automatic one)."""
-        if self.pixel_step is not None:
-            return self.pixel_step
-        pixels = intrinsics.width_px * intrinsics.height_px
-        return max(1, round((pixels / self.target_pixels) ** 0.5))
 
 
 def realtime_registration() -> ProjectiveConfig:

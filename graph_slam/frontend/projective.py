@@ -43,6 +43,7 @@ from graph_slam.frontend.registration import (
     _information,
     _Rows,
     conclude,
+    gate_correspondences,
     kernel_weights,
     registration_failure,
 )
@@ -323,20 +324,7 @@ def _gate(config: ProjectiveConfig, corr: np.ndarray, n_source: int) -> None:
             0.0,
             0,
         )
-    if count < config.min_correspondences:
-        raise _fail(
-            RegistrationFailure.TOO_FEW_CORRESPONDENCES,
-            f"{count} correspondences (min_correspondences {config.min_correspondences})",
-            fitness,
-            count,
-        )
-    if fitness < config.min_fitness:
-        raise _fail(
-            RegistrationFailure.LOW_FITNESS,
-            f"fitness {fitness:.3f} (min_fitness {config.min_fitness})",
-            fitness,
-            count,
-        )
+    gate_correspondences(config, fitness, count)
 
 
 def register_depth(
@@ -383,7 +371,7 @@ def register_depth(
     information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
     gap = rows.q - target.points_m[corr[:, 1]]
     return conclude(
-        target_T_source, analysis, information, sigma, len(corr), len(source),
+        target_T_source, analysis, information, sigma, len(corr) / len(source), len(corr),
         float(np.sqrt(np.mean(np.sum(gap**2, axis=1)))), config,
         {"icp": t1 - t0, "information": time.perf_counter() - t1},
     )  # fmt: skip

@@ -34,6 +34,7 @@ from graph_slam.frontend.registration import (
     _information,
     _rows,
     conclude,
+    gate_correspondences,
     registration_failure,
 )
 from graph_slam.session.records import check_pose
@@ -161,23 +162,6 @@ def _degeneracy(
 _fail = registration_failure
 
 
-def _gate(config: GicpConfig, fitness: float, count: int) -> None:
-    if count < config.min_correspondences:
-        raise _fail(
-            RegistrationFailure.TOO_FEW_CORRESPONDENCES,
-            f"{count} correspondences (min_correspondences {config.min_correspondences})",
-            fitness,
-            count,
-        )
-    if fitness < config.min_fitness:
-        raise _fail(
-            RegistrationFailure.LOW_FITNESS,
-            f"fitness {fitness:.3f} (min_fitness {config.min_fitness})",
-            fitness,
-            count,
-        )
-
-
 def _photometric(
     source: PreparedFrame, target: PreparedFrame, target_T_source: np.ndarray, config: GicpConfig
 ) -> RegistrationResult:
@@ -200,7 +184,7 @@ def _photometric(
         nearest, sq_dist = target.tree.batch_knn_search(moved, 1, config.num_threads)
         found = np.flatnonzero(sq_dist[:, 0] <= config.photometric_max_correspondence_m**2)
         corr = np.column_stack([found, nearest[found, 0].astype(np.intp)])
-        _gate(config, len(corr) / len(src), len(corr))
+        gate_correspondences(config, len(corr) / len(src), len(corr))
         step = _analyse(rows_at(corr, target_T_source), config.degeneracy_threshold).step_origin
         target_T_source = _exp_left(step) @ target_T_source
         if np.linalg.norm(step) < config.refine_min_step:
@@ -210,7 +194,7 @@ def _photometric(
     information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
     gap = rows.q - tgt.points_m[corr[:, 1]]
     return conclude(
-        target_T_source, analysis, information, sigma, len(corr), len(src),
+        target_T_source, analysis, information, sigma, len(corr) / len(src), len(corr),
         float(np.sqrt(np.mean(np.sum(gap**2, axis=1)))), config,
     )  # fmt: skip
 
@@ -272,7 +256,7 @@ def register_prepared(
         raise _fail(
             RegistrationFailure.NUMERICAL, "non-finite transform or Hessian", fitness, count
         )
-    _gate(config, fitness, count)
+    gate_correspondences(config, fitness, count)
     # the solver's last step (Gauss-Newton, at the last linearisation)
     step = -np.linalg.lstsq(hessian, np.asarray(result.b).ravel(), rcond=1e-12)[0]
     step_m, step_rad = float(np.linalg.norm(step[3:])), float(np.linalg.norm(step[:3]))
@@ -286,14 +270,7 @@ def register_prepared(
             count,
         )
     if photometric:  # the photometric stage's own convergence gate decides
-        result = _photometric(source, target, target_T_source, config)
-        if config.fail_on_degenerate and result.degeneracy.is_degenerate:
-            raise _fail(
-                RegistrationFailure.DEGENERATE,
-                "under-constrained: " + "; ".join(result.degeneracy.describe()),
-                result.fitness,
-                result.correspondences,
-            )
+        result = _photometric(source, target, target_T_source, config)  # gates: conclude
         t2 = time.perf_counter()
         return replace(result, timing_s={"icp": t2 - t0, "information": 0.0})
     kappa_min = config.information_min_sigma_m**2 / (2.0 * PLANE_EPSILON)

@@ -409,7 +409,9 @@ def _check_inputs(source: Cloud, target: Pyramid, config: RegistrationConfig, in
         )
 
 
-def _gate(config: RegistrationConfig, fitness: float, count: int) -> None:
+def gate_correspondences(config, fitness: float, count: int) -> None:
+    """Too few correspondences or too low a fitness for ``config`` (any config with
+    ``min_correspondences`` and ``min_fitness``): a :class:`RegistrationError`."""
     if count < config.min_correspondences:
         raise RegistrationError(
             RegistrationFailure.TOO_FEW_CORRESPONDENCES,
@@ -477,7 +479,7 @@ def register(
     source_level = source_levels[len(config.levels) - 1]
     fitness, corr = float(result.fitness), np.asarray(result.correspondence_set)
     inlier_rmse_m = float(result.inlier_rmse)
-    _gate(config, fitness, len(corr))
+    gate_correspondences(config, fitness, len(corr))
 
     if config.refine is None:
         t0 = time.perf_counter()
@@ -490,7 +492,7 @@ def register(
         )
         timing["icp"] += time.perf_counter() - t0
         fitness = len(corr) / max(len(source_level), 1)
-        _gate(config, fitness, len(corr))
+        gate_correspondences(config, fitness, len(corr))
         t0 = time.perf_counter()
         rows = rows_at(corr, target_T_source)
         moved = source_level.points_m[corr[:, 0]] @ target_T_source[:3, :3].T
@@ -499,37 +501,10 @@ def register(
     analysis = _analyse(rows, config.degeneracy_threshold)
     information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
     timing["information"] = time.perf_counter() - t0
-    count = len(corr)
-    if config.check_convergence and (
-        analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad
-    ):
-        raise RegistrationError(
-            RegistrationFailure.NOT_CONVERGED,
-            f"a Gauss-Newton step at the solution still moves {analysis.step_m * 1e3:.2f} mm, "
-            f"{np.degrees(analysis.step_rad):.3f} deg (max_final_step_m "
-            f"{config.max_final_step_m}, max_final_step_rad {config.max_final_step_rad})",
-            fitness=fitness,
-            correspondences=count,
-        )
-    if config.fail_on_degenerate and analysis.degeneracy.is_degenerate:
-        raise RegistrationError(
-            RegistrationFailure.DEGENERATE,
-            "under-constrained: " + "; ".join(analysis.degeneracy.describe()),
-            fitness=fitness,
-            correspondences=count,
-        )
-    return RegistrationResult(
-        target_T_source=target_T_source,
-        fitness=fitness,
-        inlier_rmse_m=inlier_rmse_m,
-        correspondences=count,
-        information=information,
-        degeneracy=analysis.degeneracy,
-        residual_sigma=sigma,
-        final_step_m=analysis.step_m,
-        final_step_rad=analysis.step_rad,
-        timing_s=timing,
-    )
+    return conclude(
+        target_T_source, analysis, information, sigma, fitness, len(corr), inlier_rmse_m,
+        config, timing,
+    )  # fmt: skip
 
 
 def registration_failure(
@@ -545,8 +520,8 @@ def conclude(
     analysis,
     information: np.ndarray,
     sigma: float,
-    n_correspondences: int,
-    n_source: int,
+    fitness: float,
+    count: int,
     inlier_rmse_m: float,
     config,
     timing_s: dict[str, float] | None = None,
@@ -554,15 +529,16 @@ def conclude(
     """The checks at a Gauss-Newton solution (still moving: ``NOT_CONVERGED`` when
     ``config.check_convergence``; under-constrained: ``DEGENERATE`` when
     ``config.fail_on_degenerate``) and its :class:`RegistrationResult`, for the front ends that
-    solve the colored-ICP objective themselves (``realtime``, ``realtime-gicp``)."""
-    fitness, count = n_correspondences / n_source, n_correspondences
+    end in a Gauss-Newton solution (the accurate path, ``realtime``, ``realtime-gicp``'s
+    photometric stage)."""
     if config.check_convergence and (
         analysis.step_m > config.max_final_step_m or analysis.step_rad > config.max_final_step_rad
     ):
         raise registration_failure(
             RegistrationFailure.NOT_CONVERGED,
             f"a Gauss-Newton step at the solution still moves {analysis.step_m * 1e3:.2f} mm, "
-            f"{np.degrees(analysis.step_rad):.3f} deg",
+            f"{np.degrees(analysis.step_rad):.3f} deg (max_final_step_m "
+            f"{config.max_final_step_m}, max_final_step_rad {config.max_final_step_rad})",
             fitness,
             count,
         )
