@@ -187,85 +187,105 @@ def run_config(
         return _run_realtime(name, config, data, cloud_config, guess)
     if isinstance(config, ProjectiveConfig):
         return _run_projective(name, config, data, cloud_config, guess)
-    stage_s = dict.fromkeys(STAGES, 0.0)
-    t_err, r_err, statuses = [], [], Counter()
+    tally = _Tally.start()
     clouds = []
     for frame in data.frames:
         t0 = time.perf_counter()
         clouds.append(depth_to_cloud(frame, data.intrinsics, cloud_config)[0])
-        stage_s["cloud"] += time.perf_counter() - t0
-    stage_s["cloud"] *= (len(clouds) - 1) / len(clouds)  # one new frame per pair
+        tally.stage_s["cloud"] += time.perf_counter() - t0
+    tally.stage_s["cloud"] *= (len(clouds) - 1) / len(clouds)  # one new frame per pair
     for k in range(len(clouds) - 1):
         pyramid = build_pyramid(clouds[k], config)
-        stage_s["voxel"] += pyramid.timing_s["voxel"]
-        stage_s["normals"] += pyramid.timing_s["normals"]
+        tally.stage_s["voxel"] += pyramid.timing_s["voxel"]
+        tally.stage_s["normals"] += pyramid.timing_s["normals"]
+        tally.pair(
+            lambda k=k, pyramid=pyramid: register(
+                clouds[k + 1], pyramid, config, initial_guess(data, k, guess)
+            ),
+            data,
+            k,
+            ("voxel", "icp", "information"),
+        )
+    return tally.summary(name, len(clouds) - 1)
+
+
+@dataclass
+class _Tally:
+    """Per-stage seconds, errors against the truth and statuses over the pairs of a run."""
+
+    stage_s: dict[str, float]
+    t_err: list[float]
+    r_err: list[float]
+    statuses: Counter
+
+    @classmethod
+    def start(cls) -> _Tally:
+        return cls(dict.fromkeys(STAGES, 0.0), [], [], Counter())
+
+    def pair(self, register_now, data: Dataset, k: int, stages=("icp", "information")) -> None:
+        """Register pair ``k`` (frame ``k + 1`` onto frame ``k``) and count it."""
         t0 = time.perf_counter()
         try:
-            result = register(clouds[k + 1], pyramid, config, initial_guess(data, k, guess))
+            result = register_now()
         except RegistrationError as err:
-            stage_s["icp"] += time.perf_counter() - t0
-            statuses[f"failed {err.reason.value}"] += 1
-            continue
-        for stage in ("voxel", "icp", "information"):
-            stage_s[stage] += result.timing_s[stage]
-        statuses[result.status.value] += 1
+            self.stage_s["icp"] += time.perf_counter() - t0
+            self.statuses[f"failed {err.reason.value}"] += 1
+            return
+        for stage in stages:
+            self.stage_s[stage] += result.timing_s[stage]
+        self.statuses[result.status.value] += 1
         t, r = pose_error(result.target_T_source, relative_truth(data.world_T_camera, k))
-        t_err.append(t * 1e3)
-        r_err.append(np.degrees(r))
-    pairs = len(clouds) - 1
-    return ConfigSummary(
-        name=name,
-        pairs=pairs,
-        stage_ms={s: 1e3 * v / pairs for s, v in stage_s.items()},
-        translation_err_mm=np.asarray(t_err),
-        rotation_err_deg=np.asarray(r_err),
-        statuses=statuses,
-    )
+        self.t_err.append(t * 1e3)
+        self.r_err.append(np.degrees(r))
+
+    def summary(self, name: str, pairs: int) -> ConfigSummary:
+        return ConfigSummary(
+            name=name,
+            pairs=pairs,
+            stage_ms={s: 1e3 * v / pairs for s, v in self.stage_s.items()},
+            translation_err_mm=np.asarray(self.t_err),
+            rotation_err_deg=np.asarray(self.r_err),
+            statuses=self.statuses,
+        )
+
+
+def _run_prepared(name: str, data: Dataset, guess: str, prepare, register_pair) -> ConfigSummary:
+    """:func:`run_config` for a real-time preset: each frame prepared once
+    (``prepare(frame, grid_T_cloud) -> (prepared, {stage: s})``, on the previous frame's grid
+    through the guess) and kept as the next pair's target."""
+    tally = _Tally.start()
+    target = None
+    for k, frame in enumerate(data.frames):
+        init = None if k == 0 else initial_guess(data, k - 1, guess)
+        source, stages = prepare(frame, None if k == 0 else target.grid_T_cloud @ init)
+        if k > 0:  # the first frame's preparation is not a pair's cost
+            for stage, seconds in stages.items():
+                tally.stage_s[stage] += seconds
+            tally.pair(lambda s=source, t=target, i=init: register_pair(s, t, i), data, k - 1)
+        target = source
+    return tally.summary(name, len(data.frames) - 1)
 
 
 def _run_realtime(
     name: str, config: GicpConfig, data: Dataset, cloud_config: CloudConfig | None, guess: str
 ) -> ConfigSummary:
-    """:func:`run_config` for the real-time preset: each frame prepared once and kept as the
-    next pair's target."""
-    stage_s = dict.fromkeys(STAGES, 0.0)
-    t_err, r_err, statuses = [], [], Counter()
+    """The GICP preset (``realtime-gicp``): ``cloud``, ``voxel``, ``normals`` (covariances)."""
     step = config.pixel_step_for(data.intrinsics)
-    target = None
-    for k, frame in enumerate(data.frames):
+
+    def prepare(frame, grid_T_cloud):
         t0 = time.perf_counter()
         cloud, _ = depth_to_cloud(frame, data.intrinsics, cloud_config, step)
         t1 = time.perf_counter()
-        init = None if k == 0 else initial_guess(data, k - 1, guess)
-        source = prepare_frame(cloud, config, None if k == 0 else target.grid_T_cloud @ init)
-        if k > 0:  # the first frame's preparation is not a pair's cost
-            stage_s["cloud"] += t1 - t0
-            stage_s["voxel"] += source.timing_s["voxel"]
-            stage_s["normals"] += source.timing_s["covariances"]
-            t0 = time.perf_counter()
-            try:
-                result = register_prepared(source, target, config, init)
-            except RegistrationError as err:
-                stage_s["icp"] += time.perf_counter() - t0
-                statuses[f"failed {err.reason.value}"] += 1
-            else:
-                for stage in ("icp", "information"):
-                    stage_s[stage] += result.timing_s[stage]
-                statuses[result.status.value] += 1
-                t, r = pose_error(
-                    result.target_T_source, relative_truth(data.world_T_camera, k - 1)
-                )
-                t_err.append(t * 1e3)
-                r_err.append(np.degrees(r))
-        target = source
-    pairs = len(data.frames) - 1
-    return ConfigSummary(
-        name=name,
-        pairs=pairs,
-        stage_ms={s: 1e3 * v / pairs for s, v in stage_s.items()},
-        translation_err_mm=np.asarray(t_err),
-        rotation_err_deg=np.asarray(r_err),
-        statuses=statuses,
+        source = prepare_frame(cloud, config, grid_T_cloud)
+        timing = source.timing_s
+        return source, {
+            "cloud": t1 - t0,
+            "voxel": timing["voxel"],
+            "normals": timing["covariances"],
+        }
+
+    return _run_prepared(
+        name, data, guess, prepare, lambda s, t, i: register_prepared(s, t, config, i)
     )
 
 
@@ -276,43 +296,15 @@ def _run_projective(
     cloud_config: CloudConfig | None,
     guess: str,
 ) -> ConfigSummary:
-    """:func:`run_config` for the projective preset: each frame prepared once (``cloud``:
-    organised points, ``normals``: pixel normals and gradients, ``voxel``: their voxel means)
-    and kept as the next pair's target."""
-    stage_s = dict.fromkeys(STAGES, 0.0)
-    t_err, r_err, statuses = [], [], Counter()
-    target = None
-    for k, frame in enumerate(data.frames):
-        init = None if k == 0 else initial_guess(data, k - 1, guess)
-        grid_T_cloud = None if k == 0 else target.grid_T_cloud @ init
+    """The projective preset (``realtime``): ``cloud`` (organised points), ``normals`` (pixel
+    normals and gradients), ``voxel`` (their voxel means)."""
+
+    def prepare(frame, grid_T_cloud):
         source = prepare_depth(frame, data.intrinsics, config, cloud_config, grid_T_cloud)
-        if k > 0:  # the first frame's preparation is not a pair's cost
-            for stage in ("cloud", "normals", "voxel"):
-                stage_s[stage] += source.timing_s[stage]
-            t0 = time.perf_counter()
-            try:
-                result = register_depth(source, target, config, init)
-            except RegistrationError as err:
-                stage_s["icp"] += time.perf_counter() - t0
-                statuses[f"failed {err.reason.value}"] += 1
-            else:
-                for stage in ("icp", "information"):
-                    stage_s[stage] += result.timing_s[stage]
-                statuses[result.status.value] += 1
-                t, r = pose_error(
-                    result.target_T_source, relative_truth(data.world_T_camera, k - 1)
-                )
-                t_err.append(t * 1e3)
-                r_err.append(np.degrees(r))
-        target = source
-    pairs = len(data.frames) - 1
-    return ConfigSummary(
-        name=name,
-        pairs=pairs,
-        stage_ms={s: 1e3 * v / pairs for s, v in stage_s.items()},
-        translation_err_mm=np.asarray(t_err),
-        rotation_err_deg=np.asarray(r_err),
-        statuses=statuses,
+        return source, {stage: source.timing_s[stage] for stage in ("cloud", "normals", "voxel")}
+
+    return _run_prepared(
+        name, data, guess, prepare, lambda s, t, i: register_depth(s, t, config, i)
     )
 
 

@@ -62,6 +62,17 @@ def failed_icp_measurement(err: RegistrationError, source_index: int, target_ind
     )
 
 
+def _measured(register_now, source_index: int, target_index: int):
+    """Run a registration and make it the back end's record (a failure keeps its reason and is
+    never a zero-motion factor); returns ``(IcpMeasurement, fitness)``."""
+    try:
+        r = register_now()
+    except RegistrationError as err:
+        icp = failed_icp_measurement(err, source_index, target_index)
+        return icp, icp.fitness
+    return icp_measurement(r, source_index, target_index), r.fitness
+
+
 class GraphPipeline:
     """Front end + :class:`StrideSLAM` + the up vector at foot strikes + the terrain maps."""
 
@@ -178,12 +189,10 @@ class GraphPipeline:
         icp, fitness = None, float("nan")
         if self._prev is not None and self._pending_strike is None:  # same stride
             prev_index, prev_pyramid, _, _ = self._prev
-            try:
-                r = register(cloud, prev_pyramid, self.registration, self._guess(frame.t_s))
-                icp, fitness = icp_measurement(r, index, prev_index), r.fitness
-            except RegistrationError as err:
-                icp = failed_icp_measurement(err, index, prev_index)
-                fitness = icp.fitness
+            guess = self._guess(frame.t_s)
+            icp, fitness = _measured(
+                lambda: register(cloud, prev_pyramid, self.registration, guess), index, prev_index
+            )
         t2 = time.perf_counter()
         stages["registration"] = t2 - t1
         try:
@@ -210,12 +219,9 @@ class GraphPipeline:
         t2 = time.perf_counter()
         stages["preprocess"] = t2 - t1
         if target is not None:
-            try:
-                r = register_prepared(prepared, target, cfg, guess)
-                icp, fitness = icp_measurement(r, index, self._prev[0]), r.fitness
-            except RegistrationError as err:
-                icp = failed_icp_measurement(err, index, self._prev[0])
-                fitness = icp.fitness
+            icp, fitness = _measured(
+                lambda: register_prepared(prepared, target, cfg, guess), index, self._prev[0]
+            )
         stages["registration"] = time.perf_counter() - t2
         return cloud, icp, prepared, fitness
 
@@ -236,12 +242,9 @@ class GraphPipeline:
         stages["cloud"] = prepared.timing_s["cloud"]
         stages["preprocess"] = t1 - t0 - stages["cloud"]
         if target is not None:
-            try:
-                r = register_depth(prepared, target, cfg, guess)
-                icp, fitness = icp_measurement(r, index, self._prev[0]), r.fitness
-            except RegistrationError as err:
-                icp = failed_icp_measurement(err, index, self._prev[0])
-                fitness = icp.fitness
+            icp, fitness = _measured(
+                lambda: register_depth(prepared, target, cfg, guess), index, self._prev[0]
+            )
         stages["registration"] = time.perf_counter() - t1
         return Cloud(prepared.pixel_points_m), icp, prepared, fitness
 
