@@ -3,13 +3,15 @@ per-stride reference (known answers on hand-made data)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 
 from graph_slam.errors import EvaluationError, SessionError
 from graph_slam.session.records import GaitEvents
 from graph_slam.strides.gravity import GravityEstimator, rotated_mean_accel
-from graph_slam.strides.reference import StrideCut, stride_references, truth_world_T_stride
+from graph_slam.strides.reference import stride_references, truth_world_T_stride
 from graph_slam.strides.streams import stride_events
 
 
@@ -65,6 +67,15 @@ def test_gravity_skips_non_finite_samples_and_forgets_old_ones():
     assert np.isfinite(g.up_at(1.0, 1.0)).all()
     g.foot_strike(2.5)
     assert g.up_at(1.0, 0.5) is None  # older than keep_s before the strike: forgotten
+
+
+@dataclass(frozen=True)
+class StrideCut:
+    """What the reference reads of a pipeline's stride."""
+
+    index: int
+    start: str
+    frame_indices: range
 
 
 def _events(t, kind, source):

@@ -70,7 +70,7 @@ class ThesisBaseline:
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.leg_model = leg_model
         self.has_color = has_color
-        from graph_slam.pipelines.graph import make_gravity, make_terrain
+        from graph_slam.pipelines.protocol import make_gravity, make_terrain
 
         self.gravity = make_gravity(config)
         self.terrain = make_terrain(config, intrinsics)

@@ -20,7 +20,12 @@ from graph_slam.frontend.projective import prepare_depth, register_depth
 from graph_slam.frontend.realtime import prepare_frame, register_prepared
 from graph_slam.frontend.registration import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
-from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
+from graph_slam.pipelines.protocol import (
+    frame_cloud,
+    make_gravity,
+    make_terrain,
+    sensor_registration,
+)
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
@@ -364,19 +369,3 @@ class GraphPipeline:
             **{f"joints_{k}": v for k, v in self.slam.leg.joints.counts.items()},
         }
         return self.results
-
-
-def make_gravity(config: PipelineConfig):
-    """The up-vector component of a pipeline (:mod:`graph_slam.strides.gravity`)."""
-    from graph_slam.strides.gravity import GravityEstimator
-
-    return GravityEstimator(default_window_s=config.gravity_window_s)
-
-
-def make_terrain(config: PipelineConfig, intrinsics: CameraIntrinsics):
-    """The terrain-map component of a pipeline (:mod:`graph_slam.terrain.builder`)."""
-    from graph_slam.terrain.builder import TerrainBuilder
-
-    return TerrainBuilder(
-        config.terrain, intrinsics, config.cloud.min_depth_m, config.cloud.max_depth_m
-    )

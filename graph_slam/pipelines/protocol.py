@@ -1,4 +1,5 @@
-"""The one interface every pipeline variant implements."""
+"""The one interface every pipeline variant implements, and what both pipelines build the same
+way: the sensor's registration, the frame's cloud, the up-vector and terrain components."""
 
 from __future__ import annotations
 
@@ -55,3 +56,19 @@ class Pipeline(Protocol):
 
     def finish(self) -> PipelineResults:
         """Close the open stride and return everything."""
+
+
+def make_gravity(config):
+    """The up-vector component of a pipeline (:mod:`graph_slam.strides.gravity`)."""
+    from graph_slam.strides.gravity import GravityEstimator
+
+    return GravityEstimator(default_window_s=config.gravity_window_s)
+
+
+def make_terrain(config, intrinsics: CameraIntrinsics):
+    """The terrain-map component of a pipeline (:mod:`graph_slam.terrain.builder`)."""
+    from graph_slam.terrain.builder import TerrainBuilder
+
+    return TerrainBuilder(
+        config.terrain, intrinsics, config.cloud.min_depth_m, config.cloud.max_depth_m
+    )

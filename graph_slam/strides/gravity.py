@@ -70,7 +70,7 @@ class GravityEstimator:
     def foot_strike(self, t_s: float) -> None:
         """Note a foot strike (sets the next window to the stride's duration); samples more
         than ``keep_s`` before it are forgotten."""
-        self._strikes = [*self._strikes[-1:], float(t_s)]
+        self._strikes = [*self._strikes[-3:], float(t_s)]  # a double strike keeps the stride
         self.drop_before(t_s - self.keep_s)
 
     def drop_before(self, t_s: float) -> None:

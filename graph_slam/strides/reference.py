@@ -94,15 +94,6 @@ class StrideReference:
         )
 
 
-@dataclass(frozen=True)
-class StrideCut:
-    """What the reference needs of a pipeline's stride: where it starts and its frames."""
-
-    index: int
-    start: str
-    frame_indices: Sequence[int]
-
-
 def _cut_short(idx: np.ndarray, frame_t_s: np.ndarray, session) -> bool:
     """The run stopped inside this stride: its last frame is the run's last, and the run
     ended before the session's frames did (``max_frames``)."""

@@ -75,15 +75,6 @@ class Streams:
     def foot_loaded(self, t_s: float) -> bool:
         return self.events.foot_loaded(t_s)
 
-    def q_at(self, t_s: float) -> np.ndarray | None:
-        """Knee and ankle angles (rad) at ``t_s`` (:func:`~graph_slam.strides.joints.interp_q`);
-        None outside the samples."""
-        from graph_slam.strides.joints import interp_q
-
-        if self.joints_t_s is None:
-            return None
-        return interp_q(t_s, self.joints_t_s, np.column_stack([self.knee_rad, self.ankle_rad]))
-
 
 def session_streams(session, event_source: str | None) -> Streams:
     """Read a session's streams, shift IMU and joints onto the camera clock, select the
