@@ -1,0 +1,411 @@
+"""Online gait state from a thigh IMU: gait phase, cadence, foot strikes and toe-offs as they
+happen (causal: each sample is processed once, in order, and nothing reads ahead).
+
+Per sample (:meth:`OnlineGaitEstimator.update`):
+
+1. input checks: a non-finite sample is dropped, a saturated one is only predicted through, a
+   gap longer than ``max_gap_s`` drops the phase lock (re-acquired after it); each is counted in
+   :attr:`OnlineGaitEstimator.counts`; time going backwards is a :class:`GaitInputError`;
+2. the thigh's sagittal angle and rate (:mod:`kinematics.thigh_attitude`; the samples buffered
+   while the sagittal axis is learned are replayed once it is fixed);
+3. walking or standing, from the running RMS of the thigh rate (hysteresis); standing freezes
+   the phase (no prediction, no events);
+4. a filterpy :class:`~filterpy.kalman.ExtendedKalmanFilter` on ``x = [phase_cyc, rate_cyc_s]``
+   (constant-rate process with white rate noise) with the measurement model of
+   :mod:`kinematics.phase_model`: the thigh angle and rate normalised by the wearer's own running
+   offset and scale (the mean and standard deviation of the angle over the last walking cycle,
+   blended with the reference's values until a cycle is available);
+5. a foot strike when the phase crosses an integer, a toe-off when it crosses k + the reference
+   stance fraction at the current cadence; each with its detection time (this sample) and its
+   estimated time ``t - (φ - φ_event) / r``.
+
+:func:`estimate_online` runs a whole :class:`~kinematics.imu.ImuSeries` through the estimator one
+sample at a time (a loop; no look-ahead by construction).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinematics.errors import GaitInputError
+from kinematics.imu import ImuSeries
+from kinematics.phase_model import measurement, measurement_jacobian, phase_reference
+from kinematics.thigh_attitude import (
+    SagittalAxis,
+    SagittalAxisLearner,
+    ThighAngleFilter,
+    ThighAttitudeConfig,
+    ThighState,
+)
+
+COUNT_NAMES = ("samples", "nonfinite", "saturated", "gaps", "reacquired", "phase_jumps")
+
+
+@dataclass(frozen=True)
+class GaitPhaseConfig:
+    """Parameters of the phase EKF, the walking detector and the event rule."""
+
+    phase_walk_cyc_per_sqrt_s: float = 0.03
+    """Process noise of the phase beyond the constant-rate model."""
+    rate_walk_cyc_s_per_sqrt_s: float = 0.25
+    """Random walk of the stride rate (a change of ~0.25 strides/s within a second)."""
+    angle_sigma: float = 0.25
+    """σ of the normalised angle (model and shape mismatch, in units of the angle's std)."""
+    rate_sigma: float = 0.8
+    """σ of the normalised rate (units of the angle's std per second)."""
+    walk_on_rms_rad_s: float = 0.5
+    """Walking starts when the thigh-rate RMS over ``rms_window_s`` exceeds this."""
+    walk_off_rms_rad_s: float = 0.2
+    """... and stops (standing: the phase freezes) when it falls below this."""
+    rms_window_s: float = 0.25
+    still_window_s: float = 0.2
+    """Standing is also declared at once when the thigh rate stayed below ``still_rate_rad_s``
+    over this window."""
+    still_rate_rad_s: float = 0.2
+    max_gap_s: float = 0.05
+    """A longer gap between samples drops the phase lock (counted)."""
+    gyro_range_rad_s: float = 34.9
+    """Sensor range: a sample at or past it is saturated (counted, predicted through)."""
+    accel_range_m_s2: float = 156.0
+    max_nis: float = 12.0
+    """Mean normalised innovation squared (2 dof) over ``rms_window_s`` beyond which the phase
+    is re-acquired (counted)."""
+    max_phase_step_cyc: float = 0.08
+    """An update that moves the phase by more than this is a jump (counted, flagged)."""
+    min_event_spacing_s: float = 0.35
+    """Events of one kind closer than this are not emitted (a jump across a boundary)."""
+    attitude: ThighAttitudeConfig = field(default_factory=ThighAttitudeConfig)
+
+
+@dataclass(frozen=True)
+class OnlineEvent:
+    """A gait event as the estimator emits it: ``t_s`` the estimated event time, ``detected_t_s``
+    the time of the sample at which it was emitted (latency = detected - true)."""
+
+    kind: str
+    t_s: float
+    detected_t_s: float
+    phase_sigma_cyc: float
+
+
+@dataclass(frozen=True)
+class GaitState:
+    """The estimator's state after a sample (phase NaN when not walking)."""
+
+    t_s: float
+    walking: bool
+    phase_cyc: float
+    """Phase in [0, 1) (0 = foot strike); NaN while standing or before the first lock."""
+    phase_sigma_cyc: float
+    rate_cyc_s: float
+    angle_rad: float
+    rate_rad_s: float
+    flags: int = 0
+    """Bit 1 non-finite (dropped), 2 saturated, 4 after a gap, 8 phase jump, 16 re-acquired."""
+
+
+class OnlineGaitEstimator:
+    """Causal gait phase and events from a thigh IMU (see the module docstring)."""
+
+    def __init__(
+        self, config: GaitPhaseConfig | None = None, sagittal_axis: SagittalAxis | None = None
+    ) -> None:
+        self.cfg = config or GaitPhaseConfig()
+        self.ref = phase_reference()
+        self.learner = SagittalAxisLearner(self.cfg.attitude)
+        self.thigh: ThighAngleFilter | None = None
+        self._axis = sagittal_axis
+        self.counts = dict.fromkeys(COUNT_NAMES, 0)
+        self.events: list[OnlineEvent] = []
+        self.state: GaitState | None = None
+        self._t_last: float | None = None
+        self._ekf = None
+        self._walking = False
+        self._ms = 0.0  # running mean of rate² (window rms_window_s)
+        self._still_s = 0.0
+        self._nis = 0.0
+        self._walk_angles: deque[float] = deque(maxlen=600)
+        self._walk_dt: deque[float] = deque(maxlen=600)
+        self._norm = (0.0, 0.25)
+        self._standing_angle = 0.0
+        self._next_strike = 0
+        self._next_toe_off = 0
+        self._last_event_t = {"foot_strike": -math.inf, "toe_off": -math.inf}
+
+    # --- public ------------------------------------------------------------------------------
+    def update(
+        self, t_s: float, gyro_rad_s: np.ndarray, accel_m_s2: np.ndarray
+    ) -> list[OnlineEvent]:
+        """Process one sample; return the events emitted at it (usually none)."""
+        t_s = float(t_s)
+        gyro = np.asarray(gyro_rad_s, dtype=float).reshape(3)
+        accel = np.asarray(accel_m_s2, dtype=float).reshape(3)
+        self.counts["samples"] += 1
+        if not (math.isfinite(t_s) and np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel))):
+            self.counts["nonfinite"] += 1
+            self._set_state(t_s, None, flags=1)
+            return []
+        if self._t_last is not None and t_s <= self._t_last:
+            raise GaitInputError(
+                f"sample {self.counts['samples'] - 1}, column t_s: time must increase strictly "
+                f"({t_s} after {self._t_last})"
+            )
+        flags = 0
+        if self._t_last is not None and t_s - self._t_last > self.cfg.max_gap_s:
+            self.counts["gaps"] += 1
+            flags |= 4
+            self._lose_lock()
+            if self.thigh is not None:
+                self.thigh._first = True
+        self._t_last = t_s
+        saturated = bool(
+            np.any(np.abs(gyro) >= self.cfg.gyro_range_rad_s)
+            or np.any(np.abs(accel) >= self.cfg.accel_range_m_s2)
+        )
+        if saturated:
+            self.counts["saturated"] += 1
+            flags |= 2
+        if self.thigh is None:
+            return self._learn(t_s, gyro, accel, flags)
+        out = self._step(t_s, gyro, accel, saturated, flags, detected_t_s=t_s)
+        return out
+
+    # --- stages ------------------------------------------------------------------------------
+    def _learn(self, t_s, gyro, accel, flags) -> list[OnlineEvent]:
+        axis = self._axis
+        if axis is None:
+            axis = self.learner.add(t_s, gyro, accel)
+            if axis is None:
+                self._set_state(t_s, None, flags)
+                return []
+            buffered = list(zip(self.learner.t, self.learner.gyro, self.learner.accel, strict=True))
+        else:
+            buffered = [(t_s, gyro, accel)]
+        self.thigh = ThighAngleFilter(axis, buffered[0][0], self.cfg.attitude)
+        out: list[OnlineEvent] = []
+        for tb, gb, ab in buffered:  # replayed now: events carry this sample's time
+            sat = bool(np.any(np.abs(gb) >= self.cfg.gyro_range_rad_s))
+            out += self._step(tb, gb, ab, sat, flags if tb == t_s else 0, detected_t_s=t_s)
+        return out
+
+    def _step(self, t_s, gyro, accel, saturated, flags, detected_t_s) -> list[OnlineEvent]:
+        thigh = self._thigh_update(t_s, gyro, accel, saturated)
+        dt = thigh.t_s - (self.state.t_s if self.state is not None else thigh.t_s)
+        dt = dt if math.isfinite(dt) and dt > 0 else 0.0
+        walking = self._walking_now(thigh, dt)
+        if not walking:
+            if self._walking:
+                self._lose_lock()
+            self._standing_angle = thigh.angle_rad
+            self._set_state(t_s, thigh, flags)
+            return []
+        self._walking = True
+        self._track_norm(thigh.angle_rad, dt)
+        if self._ekf is None:
+            self._acquire(thigh)
+            flags |= 16
+        else:
+            flags |= self._ekf_step(thigh, dt, saturated)
+        self._set_state(t_s, thigh, flags)
+        return self._events(t_s, detected_t_s)
+
+    def _thigh_update(self, t_s, gyro, accel, saturated) -> ThighState:
+        assert self.thigh is not None
+        if not saturated:
+            return self.thigh.update(t_s, gyro, accel)
+        # saturated: predict only (the rate keeps its last estimate)
+        kf = self.thigh.kf
+        dt = t_s - self.thigh.t_s
+        self.thigh.t_s = t_s
+        kf.x[0] += dt * kf.x[1]
+        kf.P[0, 0] += (dt * 2.0) ** 2
+        return ThighState(t_s, float(kf.x[0]), float(kf.x[1]), float(kf.x[2]), 0.0, 0.0)
+
+    def _walking_now(self, thigh: ThighState, dt: float) -> bool:
+        cfg = self.cfg
+        a = min(1.0, dt / cfg.rms_window_s)
+        self._ms += a * (thigh.rate_rad_s**2 - self._ms)
+        rms = math.sqrt(self._ms)
+        self._still_s = self._still_s + dt if abs(thigh.rate_rad_s) < cfg.still_rate_rad_s else 0.0
+        if self._walking:
+            return rms > cfg.walk_off_rms_rad_s and self._still_s < cfg.still_window_s
+        return rms > cfg.walk_on_rms_rad_s
+
+    def _track_norm(self, angle_rad: float, dt: float) -> None:
+        """Running offset and scale of the angle over the last cycle of walking samples."""
+        self._walk_angles.append(angle_rad)
+        self._walk_dt.append(dt)
+        rate = float(self._ekf.x[1]) if self._ekf is not None else self.ref.rates_cyc_s[12]
+        ref_mean = self.ref.at_rate("mean_rad", rate)
+        ref_std = self.ref.at_rate("std_rad", rate)
+        prior = (self._standing_angle + ref_mean, ref_std)
+        if len(self._walk_angles) % 10 and self._ekf is not None:
+            return
+        cycle_s = 1.0 / max(rate, 0.3)
+        dts = np.asarray(self._walk_dt)
+        ang = np.asarray(self._walk_angles)
+        span = np.cumsum(dts[::-1])
+        n = int(np.searchsorted(span, cycle_s)) + 1
+        w = min(1.0, float(span[min(n, span.size) - 1]) / cycle_s)
+        recent = ang[-n:]
+        mean = w * float(recent.mean()) + (1 - w) * prior[0]
+        std = w * float(recent.std()) + (1 - w) * prior[1]
+        self._norm = (mean, max(std, 0.3 * ref_std))
+
+    def _z(self, thigh: ThighState) -> np.ndarray:
+        m, s = self._norm
+        return np.array([(thigh.angle_rad - m) / s, thigh.rate_rad_s / s])
+
+    def _acquire(self, thigh: ThighState) -> None:
+        """Start the EKF at the phase on the reference loop nearest the measurement."""
+        from filterpy.kalman import ExtendedKalmanFilter
+
+        cfg = self.cfg
+        rate = float(self._ekf_rate_prior())
+        a, b = self.ref.coefficients(rate)
+        grid = np.arange(200) / 200.0
+        z = self._z(thigh)
+        cost = [
+            ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
+            @ ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
+            for p in grid
+        ]
+        phase = float(grid[int(np.argmin(cost))])
+        ekf = ExtendedKalmanFilter(dim_x=2, dim_z=2)
+        ekf.x = np.array([phase, rate])
+        ekf.P = np.diag([0.1**2, 0.2**2])
+        ekf.R = np.diag([cfg.angle_sigma**2, cfg.rate_sigma**2])
+        self._ekf = ekf
+        self._nis = 2.0
+        self._next_strike = math.floor(phase) + 1
+        sf = self.ref.at_rate("stance_fraction", rate)
+        self._next_toe_off = math.floor(phase) + (1 if phase % 1.0 >= sf else 0)
+        self.counts["reacquired"] += 1
+
+    def _ekf_rate_prior(self) -> float:
+        return self._last_rate if hasattr(self, "_last_rate") else float(self.ref.rates_cyc_s[12])
+
+    def _ekf_step(self, thigh: ThighState, dt: float, saturated: bool) -> int:
+        cfg, ekf = self.cfg, self._ekf
+        flags = 0
+        ekf.F = np.array([[1.0, dt], [0.0, 1.0]])
+        qp = cfg.phase_walk_cyc_per_sqrt_s**2 * dt
+        qr = cfg.rate_walk_cyc_s_per_sqrt_s**2 * dt
+        ekf.Q = np.array([[qp + qr * dt**2 / 3, qr * dt / 2], [qr * dt / 2, qr]])
+        ekf.predict()
+        if saturated:
+            return flags
+        rate = float(np.clip(ekf.x[1], self.ref.rates_cyc_s[0], self.ref.rates_cyc_s[-1]))
+        a, b = self.ref.coefficients(rate)
+        before = float(ekf.x[0])
+        ekf.update(self._z(thigh), measurement_jacobian, measurement, args=(a, b), hx_args=(a, b))
+        ekf.x[1] = float(np.clip(ekf.x[1], 0.3, 2.0))
+        self._last_rate = float(ekf.x[1])
+        if abs(float(ekf.x[0]) - before) > cfg.max_phase_step_cyc:
+            self.counts["phase_jumps"] += 1
+            flags |= 8
+        nis = float(ekf.y @ ekf.SI @ ekf.y)
+        self._nis += min(1.0, dt / cfg.rms_window_s) * (nis - self._nis)
+        if self._nis > cfg.max_nis:
+            self._lose_lock()
+        return flags
+
+    def _events(self, t_s: float, detected_t_s: float) -> list[OnlineEvent]:
+        ekf = self._ekf
+        if ekf is None:
+            return []
+        phase, rate = float(ekf.x[0]), max(float(ekf.x[1]), 1e-3)
+        sigma = math.sqrt(float(ekf.P[0, 0]))
+        sf = self.ref.at_rate("stance_fraction", rate)
+        out = []
+        for kind, target in (
+            ("foot_strike", float(self._next_strike)),
+            ("toe_off", self._next_toe_off + sf),
+        ):
+            if phase < target:
+                continue
+            if kind == "foot_strike":
+                self._next_strike = math.floor(phase) + 1
+            else:
+                self._next_toe_off = math.floor(phase - sf) + 1
+            t_event = t_s - (phase - target) / rate
+            if t_event - self._last_event_t[kind] < self.cfg.min_event_spacing_s:
+                continue
+            self._last_event_t[kind] = t_event
+            out.append(OnlineEvent(kind, t_event, detected_t_s, sigma))
+        self.events += out
+        return out
+
+    def _lose_lock(self) -> None:
+        self._ekf = None
+        self._walking = False
+        self._ms = 0.0
+        self._walk_angles.clear()
+        self._walk_dt.clear()
+
+    def _set_state(self, t_s: float, thigh: ThighState | None, flags: int) -> None:
+        ekf = self._ekf if self._walking else None
+        self.state = GaitState(
+            t_s=t_s,
+            walking=ekf is not None,
+            phase_cyc=float(ekf.x[0] % 1.0) if ekf is not None else math.nan,
+            phase_sigma_cyc=math.sqrt(float(ekf.P[0, 0])) if ekf is not None else math.nan,
+            rate_cyc_s=float(ekf.x[1]) if ekf is not None else math.nan,
+            angle_rad=thigh.angle_rad if thigh is not None else math.nan,
+            rate_rad_s=thigh.rate_rad_s if thigh is not None else math.nan,
+            flags=flags,
+        )
+
+
+@dataclass(frozen=True)
+class OnlineGaitResult:
+    """Per-sample states and the events of :func:`estimate_online`."""
+
+    t_s: np.ndarray
+    phase_cyc: np.ndarray
+    phase_sigma_cyc: np.ndarray
+    rate_cyc_s: np.ndarray
+    angle_rad: np.ndarray
+    flags: np.ndarray
+    events: list[OnlineEvent]
+    counts: dict[str, int]
+
+    def times(self, kind: str, detected: bool = False) -> np.ndarray:
+        """Estimated (or detection) times of the events of ``kind``."""
+        return np.array(
+            [e.detected_t_s if detected else e.t_s for e in self.events if e.kind == kind]
+        )
+
+
+def estimate_online(
+    imu: ImuSeries,
+    config: GaitPhaseConfig | None = None,
+    sagittal_axis: SagittalAxis | None = None,
+) -> OnlineGaitResult:
+    """Run :class:`OnlineGaitEstimator` over a series one sample at a time (causal by
+    construction: the loop hands the estimator sample k before it has seen k + 1)."""
+    est = OnlineGaitEstimator(config, sagittal_axis)
+    t = np.asarray(imu.t_s, dtype=float)
+    gyro = np.asarray(imu.gyro_rad_s, dtype=float)
+    accel = np.asarray(imu.accel_m_s2, dtype=float)
+    rows = np.full((t.size, 5), np.nan)
+    flags = np.zeros(t.size, dtype=int)
+    for k in range(t.size):
+        est.update(t[k], gyro[k], accel[k])
+        s = est.state
+        rows[k] = (s.t_s, s.phase_cyc, s.phase_sigma_cyc, s.rate_cyc_s, s.angle_rad)
+        flags[k] = s.flags
+    return OnlineGaitResult(
+        t_s=t,
+        phase_cyc=rows[:, 1],
+        phase_sigma_cyc=rows[:, 2],
+        rate_cyc_s=rows[:, 3],
+        angle_rad=rows[:, 4],
+        flags=flags,
+        events=list(est.events),
+        counts=dict(est.counts),
+    )
