@@ -49,13 +49,13 @@ COUNT_NAMES = ("samples", "nonfinite", "saturated", "gaps", "reacquired", "phase
 class GaitPhaseConfig:
     """Parameters of the phase EKF, the walking detector and the event rule."""
 
-    phase_walk_cyc_per_sqrt_s: float = 0.03
+    phase_walk_cyc_per_sqrt_s: float = 0.015
     """Process noise of the phase beyond the constant-rate model."""
     rate_walk_cyc_s_per_sqrt_s: float = 0.25
     """Random walk of the stride rate (a change of ~0.25 strides/s within a second)."""
-    angle_sigma: float = 0.25
+    angle_sigma: float = 0.4
     """σ of the normalised angle (model and shape mismatch, in units of the angle's std)."""
-    rate_sigma: float = 0.8
+    rate_sigma: float = 1.5
     """σ of the normalised rate (units of the angle's std per second)."""
     walk_on_rms_rad_s: float = 0.5
     """Walking starts when the thigh-rate RMS over ``rms_window_s`` exceeds this."""
@@ -128,8 +128,10 @@ class OnlineGaitEstimator:
         self._ms = 0.0  # running mean of rate² (window rms_window_s)
         self._still_s = 0.0
         self._nis = 0.0
-        self._walk_angles: deque[float] = deque(maxlen=600)
-        self._walk_dt: deque[float] = deque(maxlen=600)
+        self._walk_angles: deque[float] = deque(maxlen=4000)  # >= 4 s at up to 1 kHz
+        self._walk_dt: deque[float] = deque(maxlen=4000)
+        self._last_rate: float | None = None
+        self._stride_s: float | None = None
         self._norm = (0.0, 0.25)
         self._standing_angle = 0.0
         self._next_strike = 0
@@ -200,7 +202,8 @@ class OnlineGaitEstimator:
         if not walking:
             if self._walking:
                 self._lose_lock()
-            self._standing_angle = thigh.angle_rad
+            if self._still_s > 0.0:
+                self._standing_angle = thigh.angle_rad
             self._set_state(t_s, thigh, flags)
             return []
         self._walking = True
@@ -236,25 +239,25 @@ class OnlineGaitEstimator:
         return rms > cfg.walk_on_rms_rad_s
 
     def _track_norm(self, angle_rad: float, dt: float) -> None:
-        """Running offset and scale of the angle over the last cycle of walking samples."""
+        """Running offset and scale of the angle: its mean and standard deviation over the last
+        cycle of walking samples, or the reference's values (relative to the standing posture)
+        until 3/4 of a cycle has been seen."""
         self._walk_angles.append(angle_rad)
         self._walk_dt.append(dt)
-        rate = float(self._ekf.x[1]) if self._ekf is not None else self.ref.rates_cyc_s[12]
-        ref_mean = self.ref.at_rate("mean_rad", rate)
-        ref_std = self.ref.at_rate("std_rad", rate)
-        prior = (self._standing_angle + ref_mean, ref_std)
         if len(self._walk_angles) % 10 and self._ekf is not None:
             return
-        cycle_s = 1.0 / max(rate, 0.3)
-        dts = np.asarray(self._walk_dt)
-        ang = np.asarray(self._walk_angles)
-        span = np.cumsum(dts[::-1])
+        rate = float(self._ekf.x[1]) if self._ekf is not None else self._rate_prior()
+        # the window is the last stride (strike to strike) when there is one: a window that
+        # follows the instantaneous rate would feed its errors back into the offset
+        cycle_s = self._stride_s if self._stride_s is not None else 1.0 / max(rate, 0.3)
+        span = np.cumsum(np.asarray(self._walk_dt)[::-1])
+        if span[-1] < 0.75 * cycle_s:
+            ref_mean = self.ref.at_rate("mean_rad", rate)
+            self._norm = (self._standing_angle + ref_mean, self.ref.at_rate("std_rad", rate))
+            return
         n = int(np.searchsorted(span, cycle_s)) + 1
-        w = min(1.0, float(span[min(n, span.size) - 1]) / cycle_s)
-        recent = ang[-n:]
-        mean = w * float(recent.mean()) + (1 - w) * prior[0]
-        std = w * float(recent.std()) + (1 - w) * prior[1]
-        self._norm = (mean, max(std, 0.3 * ref_std))
+        recent = np.asarray(self._walk_angles)[-n:]
+        self._norm = (float(recent.mean()), max(float(recent.std()), 0.02))
 
     def _z(self, thigh: ThighState) -> np.ndarray:
         m, s = self._norm
@@ -265,7 +268,7 @@ class OnlineGaitEstimator:
         from filterpy.kalman import ExtendedKalmanFilter
 
         cfg = self.cfg
-        rate = float(self._ekf_rate_prior())
+        rate = self._rate_prior()
         a, b = self.ref.coefficients(rate)
         grid = np.arange(200) / 200.0
         z = self._z(thigh)
@@ -286,8 +289,9 @@ class OnlineGaitEstimator:
         self._next_toe_off = math.floor(phase) + (1 if phase % 1.0 >= sf else 0)
         self.counts["reacquired"] += 1
 
-    def _ekf_rate_prior(self) -> float:
-        return self._last_rate if hasattr(self, "_last_rate") else float(self.ref.rates_cyc_s[12])
+    def _rate_prior(self) -> float:
+        """The last cadence estimate, else that of 1.2 m/s."""
+        return self._last_rate if self._last_rate is not None else float(self.ref.rates_cyc_s[12])
 
     def _ekf_step(self, thigh: ThighState, dt: float, saturated: bool) -> int:
         cfg, ekf = self.cfg, self._ekf
@@ -311,7 +315,7 @@ class OnlineGaitEstimator:
         nis = float(ekf.y @ ekf.SI @ ekf.y)
         self._nis += min(1.0, dt / cfg.rms_window_s) * (nis - self._nis)
         if self._nis > cfg.max_nis:
-            self._lose_lock()
+            self._lose_lock(forget=False)
         return flags
 
     def _events(self, t_s: float, detected_t_s: float) -> list[OnlineEvent]:
@@ -335,17 +339,23 @@ class OnlineGaitEstimator:
             t_event = t_s - (phase - target) / rate
             if t_event - self._last_event_t[kind] < self.cfg.min_event_spacing_s:
                 continue
+            if kind == "foot_strike" and 0.6 < t_event - self._last_event_t[kind] < 2.5:
+                self._stride_s = t_event - self._last_event_t[kind]
             self._last_event_t[kind] = t_event
             out.append(OnlineEvent(kind, t_event, detected_t_s, sigma))
         self.events += out
         return out
 
-    def _lose_lock(self) -> None:
+    def _lose_lock(self, forget: bool = True) -> None:
+        """Drop the phase (re-acquired at the next walking sample); ``forget`` also drops the
+        walking history (offset, scale, cadence): after standing or a gap."""
         self._ekf = None
-        self._walking = False
-        self._ms = 0.0
-        self._walk_angles.clear()
-        self._walk_dt.clear()
+        if forget:
+            self._walking = False
+            self._ms = 0.0
+            self._walk_angles.clear()
+            self._walk_dt.clear()
+            self._stride_s = None
 
     def _set_state(self, t_s: float, thigh: ThighState | None, flags: int) -> None:
         ekf = self._ekf if self._walking else None

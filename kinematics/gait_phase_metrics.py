@@ -68,8 +68,11 @@ def match_online(
     )
 
 
-def reference_phase(t_s: np.ndarray, strikes_s: np.ndarray) -> np.ndarray:
-    """Phase linear between consecutive true strikes (0 at a strike); NaN outside them."""
+def reference_phase(
+    t_s: np.ndarray, strikes_s: np.ndarray, max_stride_s: float = 2.5
+) -> np.ndarray:
+    """Phase linear between consecutive true strikes (0 at a strike); NaN outside them and
+    between strikes more than ``max_stride_s`` apart (standing between walking bouts)."""
     t = np.asarray(t_s, float)
     s = np.sort(np.asarray(strikes_s, float))
     out = np.full(t.size, np.nan)
@@ -77,7 +80,8 @@ def reference_phase(t_s: np.ndarray, strikes_s: np.ndarray) -> np.ndarray:
         return out
     inside = (t >= s[0]) & (t < s[-1])
     k = np.searchsorted(s, t[inside], side="right") - 1
-    out[inside] = (t[inside] - s[k]) / (s[k + 1] - s[k])
+    span = s[k + 1] - s[k]
+    out[inside] = np.where(span <= max_stride_s, (t[inside] - s[k]) / span, np.nan)
     return out
 
 
