@@ -40,9 +40,19 @@ from kinematics.thigh_attitude import (
     ThighAngleFilter,
     ThighAttitudeConfig,
     ThighState,
+    flipped,
 )
 
-COUNT_NAMES = ("samples", "nonfinite", "saturated", "gaps", "reacquired", "phase_jumps")
+COUNT_NAMES = (
+    "samples",
+    "nonfinite",
+    "saturated",
+    "gaps",
+    "reacquired",
+    "phase_jumps",
+    "axis_flipped",
+    "stops",
+)
 
 
 @dataclass(frozen=True)
@@ -51,11 +61,11 @@ class GaitPhaseConfig:
 
     phase_walk_cyc_per_sqrt_s: float = 0.015
     """Process noise of the phase beyond the constant-rate model."""
-    rate_walk_cyc_s_per_sqrt_s: float = 0.25
+    rate_walk_cyc_s_per_sqrt_s: float = 0.15
     """Random walk of the stride rate (a change of ~0.25 strides/s within a second)."""
-    angle_sigma: float = 0.4
+    angle_sigma: float = 0.6
     """σ of the normalised angle (model and shape mismatch, in units of the angle's std)."""
-    rate_sigma: float = 1.5
+    rate_sigma: float = 2.5
     """σ of the normalised rate (units of the angle's std per second)."""
     walk_on_rms_rad_s: float = 0.5
     """Walking starts when the thigh-rate RMS over ``rms_window_s`` exceeds this."""
@@ -78,6 +88,11 @@ class GaitPhaseConfig:
     """An update that moves the phase by more than this is a jump (counted, flagged)."""
     min_event_spacing_s: float = 0.35
     """Events of one kind closer than this are not emitted (a jump across a boundary)."""
+    stall_ratio: float = 0.25
+    """In stance (from ``stall_from_phase`` to toe-off) a thigh rate below this fraction of the
+    model's for ``stall_s`` is a stop: the phase freezes at once (counted as ``stops``)."""
+    stall_from_phase: float = 0.15
+    stall_s: float = 0.06
     attitude: ThighAttitudeConfig = field(default_factory=ThighAttitudeConfig)
 
 
@@ -105,7 +120,8 @@ class GaitState:
     angle_rad: float
     rate_rad_s: float
     flags: int = 0
-    """Bit 1 non-finite (dropped), 2 saturated, 4 after a gap, 8 phase jump, 16 re-acquired."""
+    """Bit 1 non-finite (dropped), 2 saturated, 4 after a gap, 8 phase jump, 16 re-acquired,
+    32 stop detected in stance."""
 
 
 class OnlineGaitEstimator:
@@ -128,6 +144,9 @@ class OnlineGaitEstimator:
         self._ms = 0.0  # running mean of rate² (window rms_window_s)
         self._still_s = 0.0
         self._nis = 0.0
+        self._nis_sum = 0.0
+        self._stall_s = 0.0
+        self._nis_n = 0
         self._walk_angles: deque[float] = deque(maxlen=4000)  # >= 4 s at up to 1 kHz
         self._walk_dt: deque[float] = deque(maxlen=4000)
         self._last_rate: float | None = None
@@ -178,21 +197,37 @@ class OnlineGaitEstimator:
 
     # --- stages ------------------------------------------------------------------------------
     def _learn(self, t_s, gyro, accel, flags) -> list[OnlineEvent]:
-        axis = self._axis
+        if self._axis is not None:
+            self.thigh = ThighAngleFilter(self._axis, t_s, self.cfg.attitude)
+            return self._step(t_s, gyro, accel, False, flags, detected_t_s=t_s)
+        axis = self.learner.add(t_s, gyro, accel)
         if axis is None:
-            axis = self.learner.add(t_s, gyro, accel)
-            if axis is None:
-                self._set_state(t_s, None, flags)
-                return []
-            buffered = list(zip(self.learner.t, self.learner.gyro, self.learner.accel, strict=True))
-        else:
-            buffered = [(t_s, gyro, accel)]
-        self.thigh = ThighAngleFilter(axis, buffered[0][0], self.cfg.attitude)
-        out: list[OnlineEvent] = []
-        for tb, gb, ab in buffered:  # replayed now: events carry this sample's time
-            sat = bool(np.any(np.abs(gb) >= self.cfg.gyro_range_rad_s))
-            out += self._step(tb, gb, ab, sat, flags if tb == t_s else 0, detected_t_s=t_s)
-        return out
+            self._set_state(t_s, None, flags)
+            return []
+        # Replay the buffer with both signs of the axis and keep the one whose phase model fits
+        # better (lower mean NIS): the peak asymmetry of a partial cycle can mislead.
+        buffered = list(zip(self.learner.t, self.learner.gyro, self.learner.accel, strict=True))
+        trials = []
+        for candidate in (axis, flipped(axis)):
+            trial = OnlineGaitEstimator(self.cfg, sagittal_axis=candidate)
+            for tb, gb, ab in buffered:
+                trial.update(tb, gb, ab)
+            trials.append(trial)
+        best = min(trials, key=lambda tr: tr.fit_cost())
+        keep = {"cfg", "learner", "counts"}
+        self.__dict__.update({k: v for k, v in best.__dict__.items() if k not in keep})
+        for name in ("reacquired", "phase_jumps", "saturated"):
+            self.counts[name] += best.counts[name]
+        self.counts["axis_flipped"] += int(best is trials[1])
+        # events found in the buffer are emitted now: they carry this sample's time
+        self.events = [OnlineEvent(e.kind, e.t_s, t_s, e.phase_sigma_cyc) for e in best.events]
+        self.state = GaitState(**{**self.state.__dict__, "flags": self.state.flags | flags})
+        return list(self.events)
+
+    def fit_cost(self) -> float:
+        """Mean NIS of the phase EKF's updates so far, plus 2 per re-acquisition beyond the
+        first (how badly the reference curves explain the signal)."""
+        return self._nis_sum / max(self._nis_n, 1) + 2.0 * max(self.counts["reacquired"] - 1, 0)
 
     def _step(self, t_s, gyro, accel, saturated, flags, detected_t_s) -> list[OnlineEvent]:
         thigh = self._thigh_update(t_s, gyro, accel, saturated)
@@ -306,6 +341,10 @@ class OnlineGaitEstimator:
         rate = float(np.clip(ekf.x[1], self.ref.rates_cyc_s[0], self.ref.rates_cyc_s[-1]))
         a, b = self.ref.coefficients(rate)
         before = float(ekf.x[0])
+        if self._stalled(thigh, a, b, rate, dt):
+            self.counts["stops"] += 1
+            self._lose_lock(forget=True)
+            return flags | 32
         ekf.update(self._z(thigh), measurement_jacobian, measurement, args=(a, b), hx_args=(a, b))
         ekf.x[1] = float(np.clip(ekf.x[1], 0.3, 2.0))
         self._last_rate = float(ekf.x[1])
@@ -313,10 +352,25 @@ class OnlineGaitEstimator:
             self.counts["phase_jumps"] += 1
             flags |= 8
         nis = float(ekf.y @ ekf.SI @ ekf.y)
+        self._nis_sum += nis
+        self._nis_n += 1
         self._nis += min(1.0, dt / cfg.rms_window_s) * (nis - self._nis)
         if self._nis > cfg.max_nis:
             self._lose_lock(forget=False)
         return flags
+
+    def _stalled(self, thigh: ThighState, a: np.ndarray, b: np.ndarray, rate: float, dt: float):
+        """A stop in stance: the thigh rate stays below ``stall_ratio`` of the model's (the
+        stance extension) for ``stall_s``; the rate filter alone would take a cycle to notice."""
+        cfg, x = self.cfg, self._ekf.x
+        frac = float(x[0]) % 1.0
+        expected = abs(float(measurement(x, a, b)[1]) * self._norm[1])
+        in_stance = cfg.stall_from_phase < frac < self.ref.at_rate("stance_fraction", rate)
+        if in_stance and abs(thigh.rate_rad_s) < cfg.stall_ratio * expected:
+            self._stall_s += dt
+        else:
+            self._stall_s = 0.0
+        return self._stall_s >= cfg.stall_s
 
     def _events(self, t_s: float, detected_t_s: float) -> list[OnlineEvent]:
         ekf = self._ekf

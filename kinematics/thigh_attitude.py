@@ -52,7 +52,7 @@ class ThighAttitudeConfig:
     initial bias."""
     min_swing_peak_rad_s: float = 1.2
     """The axis is fixed once the projected angular velocity has reached this peak."""
-    min_moving_s: float = 0.8
+    min_moving_s: float = 0.4
     """... and at least this much time of motion has been seen."""
     max_peak_ratio: float = 0.88
     """The sign is fixed once the smaller of the two projected peaks (flexion, extension) is
@@ -73,6 +73,17 @@ class SagittalAxis:
     gyro_bias_rad_s: float
     learned_at_s: float
     variance_share: float
+
+
+def flipped(axis: SagittalAxis) -> SagittalAxis:
+    """The same sagittal frame with the opposite flexion sense."""
+    return SagittalAxis(
+        axis=-axis.axis,
+        zero_up=axis.zero_up,
+        gyro_bias_rad_s=-axis.gyro_bias_rad_s,
+        learned_at_s=axis.learned_at_s,
+        variance_share=axis.variance_share,
+    )
 
 
 class SagittalAxisLearner:
