@@ -93,6 +93,10 @@ class GaitPhaseConfig:
     model's for ``stall_s`` is a stop: the phase freezes at once (counted as ``stops``)."""
     stall_from_phase: float = 0.15
     stall_s: float = 0.06
+    sign_check_s: float = 1.5
+    """After the axis is fixed, the other sign keeps running this long; the estimator switches to
+    it if its mean NIS since then is lower by ``sign_switch_margin`` (counted)."""
+    sign_switch_margin: float = 0.5
     attitude: ThighAttitudeConfig = field(default_factory=ThighAttitudeConfig)
 
 
@@ -146,6 +150,9 @@ class OnlineGaitEstimator:
         self._nis = 0.0
         self._nis_sum = 0.0
         self._stall_s = 0.0
+        self._shadow: OnlineGaitEstimator | None = None
+        self._shadow_until_s = math.inf
+        self._sum_mark = (0.0, 0.0, 0, 0)
         self._nis_n = 0
         self._walk_angles: deque[float] = deque(maxlen=4000)  # >= 4 s at up to 1 kHz
         self._walk_dt: deque[float] = deque(maxlen=4000)
@@ -193,6 +200,8 @@ class OnlineGaitEstimator:
         if self.thigh is None:
             return self._learn(t_s, gyro, accel, flags)
         out = self._step(t_s, gyro, accel, saturated, flags, detected_t_s=t_s)
+        if self._shadow is not None:
+            self._check_sign(t_s, gyro, accel)
         return out
 
     # --- stages ------------------------------------------------------------------------------
@@ -214,8 +223,10 @@ class OnlineGaitEstimator:
                 trial.update(tb, gb, ab)
             trials.append(trial)
         best = min(trials, key=lambda tr: tr.fit_cost())
-        keep = {"cfg", "learner", "counts"}
-        self.__dict__.update({k: v for k, v in best.__dict__.items() if k not in keep})
+        self._adopt(best)
+        self._shadow = trials[1] if best is trials[0] else trials[0]
+        self._shadow_until_s = t_s + self.cfg.sign_check_s
+        self._sum_mark = (self._nis_sum, self._shadow._nis_sum, self._nis_n, self._shadow._nis_n)
         for name in ("reacquired", "phase_jumps", "saturated"):
             self.counts[name] += best.counts[name]
         self.counts["axis_flipped"] += int(best is trials[1])
@@ -223,6 +234,25 @@ class OnlineGaitEstimator:
         self.events = [OnlineEvent(e.kind, e.t_s, t_s, e.phase_sigma_cyc) for e in best.events]
         self.state = GaitState(**{**self.state.__dict__, "flags": self.state.flags | flags})
         return list(self.events)
+
+    def _adopt(self, other: OnlineGaitEstimator) -> None:
+        keep = {"cfg", "learner", "counts", "events", "_shadow", "_shadow_until_s", "_sum_mark"}
+        self.__dict__.update({k: v for k, v in other.__dict__.items() if k not in keep})
+
+    def _check_sign(self, t_s, gyro, accel) -> None:
+        """Keep the other axis sign running for ``sign_check_s`` after the axis is fixed; switch
+        to it (counted as ``axis_flipped``) when its phase model fits clearly better since then."""
+        shadow = self._shadow
+        shadow.update(t_s, gyro, accel)
+        if t_s < self._shadow_until_s:
+            return
+        self._shadow = None
+
+        own = (self._nis_sum - self._sum_mark[0]) / max(self._nis_n - self._sum_mark[2], 1)
+        other = (shadow._nis_sum - self._sum_mark[1]) / max(shadow._nis_n - self._sum_mark[3], 1)
+        if other < own - self.cfg.sign_switch_margin:
+            self._adopt(shadow)
+            self.counts["axis_flipped"] += 1
 
     def fit_cost(self) -> float:
         """Mean NIS of the phase EKF's updates so far, plus 2 per re-acquisition beyond the

@@ -59,6 +59,10 @@ class ThighAttitudeConfig:
     below this fraction of the larger (reference: 0.53 at 0.6 m/s, 0.78 at 1.8 m/s)."""
     min_counter_peak_rad_s: float = 0.5
     """... and the other direction has reached this (one swing and one stance seen)."""
+    segment_fraction: float = 0.35
+    """The axis is fixed once the projected rate has gone beyond ±this fraction of its peak
+    three times in alternating directions (a whole cycle seen: a partial one can fake the
+    asymmetry; the fraction skips the small loading-response bump after a foot strike)."""
     max_learn_s: float = 8.0
     """Longest buffer kept while learning (older samples are dropped)."""
 
@@ -73,6 +77,13 @@ class SagittalAxis:
     gyro_bias_rad_s: float
     learned_at_s: float
     variance_share: float
+
+
+def _segments(rate: np.ndarray, deadband: float) -> int:
+    """Number of runs of one sign in ``rate`` beyond ±``deadband`` (three runs: one direction,
+    the other, the first again: a whole cycle has been seen)."""
+    signs = np.sign(rate[np.abs(rate) > deadband])
+    return int(1 + np.count_nonzero(np.diff(signs))) if signs.size else 0
 
 
 def flipped(axis: SagittalAxis) -> SagittalAxis:
@@ -129,7 +140,8 @@ class SagittalAxisLearner:
             return None
         full = self.t[-1] - self.t[0] >= self.cfg.max_learn_s * 0.99
         if not full and (
-            min(pos, neg) < self.cfg.min_counter_peak_rad_s
+            _segments(w, self.cfg.segment_fraction * peak) < 3
+            or min(pos, neg) < self.cfg.min_counter_peak_rad_s
             or min(pos, neg) > self.cfg.max_peak_ratio * peak
         ):
             return None  # not both directions yet, or no clear asymmetry: wait
