@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from kinematics.gait_events import detect_from_thigh_imu
-from kinematics.gait_phase import OnlineGaitEstimator, estimate_online
+from kinematics.gait_online import estimate_online
+from kinematics.gait_phase import OnlineGaitEstimator
 from kinematics.gait_phase_metrics import OnlineScore, score_online
 from kinematics.gait_scenarios import simulate_walks, speed_change
 from kinematics.gait_synth import (

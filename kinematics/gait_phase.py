@@ -19,7 +19,7 @@ Per sample (:meth:`OnlineGaitEstimator.update`):
    stance fraction at the current cadence; each with its detection time (this sample) and its
    estimated time ``t - (φ - φ_event) / r``.
 
-:func:`estimate_online` runs a whole :class:`~kinematics.imu.ImuSeries` through the estimator one
+:func:`kinematics.gait_online.estimate_online` runs a whole series through the estimator one
 sample at a time (a loop; no look-ahead by construction).
 """
 
@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinematics.errors import GaitInputError
-from kinematics.imu import ImuSeries
 from kinematics.phase_model import measurement, measurement_jacobian, phase_reference
 from kinematics.thigh_attitude import (
     SagittalAxis,
@@ -453,53 +452,3 @@ class OnlineGaitEstimator:
             rate_rad_s=thigh.rate_rad_s if thigh is not None else math.nan,
             flags=flags,
         )
-
-
-@dataclass(frozen=True)
-class OnlineGaitResult:
-    """Per-sample states and the events of :func:`estimate_online`."""
-
-    t_s: np.ndarray
-    phase_cyc: np.ndarray
-    phase_sigma_cyc: np.ndarray
-    rate_cyc_s: np.ndarray
-    angle_rad: np.ndarray
-    flags: np.ndarray
-    events: list[OnlineEvent]
-    counts: dict[str, int]
-
-    def times(self, kind: str, detected: bool = False) -> np.ndarray:
-        """Estimated (or detection) times of the events of ``kind``."""
-        return np.array(
-            [e.detected_t_s if detected else e.t_s for e in self.events if e.kind == kind]
-        )
-
-
-def estimate_online(
-    imu: ImuSeries,
-    config: GaitPhaseConfig | None = None,
-    sagittal_axis: SagittalAxis | None = None,
-) -> OnlineGaitResult:
-    """Run :class:`OnlineGaitEstimator` over a series one sample at a time (causal by
-    construction: the loop hands the estimator sample k before it has seen k + 1)."""
-    est = OnlineGaitEstimator(config, sagittal_axis)
-    t = np.asarray(imu.t_s, dtype=float)
-    gyro = np.asarray(imu.gyro_rad_s, dtype=float)
-    accel = np.asarray(imu.accel_m_s2, dtype=float)
-    rows = np.full((t.size, 5), np.nan)
-    flags = np.zeros(t.size, dtype=int)
-    for k in range(t.size):
-        est.update(t[k], gyro[k], accel[k])
-        s = est.state
-        rows[k] = (s.t_s, s.phase_cyc, s.phase_sigma_cyc, s.rate_cyc_s, s.angle_rad)
-        flags[k] = s.flags
-    return OnlineGaitResult(
-        t_s=t,
-        phase_cyc=rows[:, 1],
-        phase_sigma_cyc=rows[:, 2],
-        rate_cyc_s=rows[:, 3],
-        angle_rad=rows[:, 4],
-        flags=flags,
-        events=list(est.events),
-        counts=dict(est.counts),
-    )

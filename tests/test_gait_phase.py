@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from kinematics.errors import GaitInputError
-from kinematics.gait_phase import OnlineGaitEstimator, estimate_online
+from kinematics.gait_online import estimate_online
+from kinematics.gait_phase import OnlineGaitEstimator
 from kinematics.gait_phase_metrics import reference_phase, score_online
 from kinematics.gait_scenarios import simulate_walks, speed_change
 from kinematics.gait_synth import random_mounting, thigh_imu_from_reference
