@@ -40,6 +40,7 @@ from kinematics.thigh_attitude import (
     ThighAttitudeConfig,
     ThighState,
     flipped,
+    initial_angle,
 )
 
 COUNT_NAMES = (
@@ -75,12 +76,14 @@ class GaitPhaseConfig:
     """Standing is also declared at once when the thigh rate stayed below ``still_rate_rad_s``
     over this window."""
     still_rate_rad_s: float = 0.2
+    standing_posture_s: float = 0.5
+    """Still this long: the angle is the standing posture (the offset prior of the next walk)."""
     max_gap_s: float = 0.05
     """A longer gap between samples drops the phase lock (counted)."""
     gyro_range_rad_s: float = 34.9
     """Sensor range: a sample at or past it is saturated (counted, predicted through)."""
     accel_range_m_s2: float = 156.0
-    max_nis: float = 12.0
+    max_nis: float = 20.0
     """Mean normalised innovation squared (2 dof) over ``rms_window_s`` beyond which the phase
     is re-acquired (counted)."""
     max_phase_step_cyc: float = 0.08
@@ -92,7 +95,10 @@ class GaitPhaseConfig:
     model's for ``stall_s`` is a stop: the phase freezes at once (counted as ``stops``)."""
     stall_from_phase: float = 0.15
     stall_s: float = 0.06
-    sign_check_s: float = 1.5
+    sign_by_fit: bool = False
+    """Choose the axis sign by the phase model's fit over the learning buffer (else by the
+    learner's peak asymmetry over a whole cycle)."""
+    sign_check_s: float = 0.0
     """After the axis is fixed, the other sign keeps running this long; the estimator switches to
     it if its mean NIS since then is lower by ``sign_switch_margin`` (counted)."""
     sign_switch_margin: float = 0.5
@@ -131,13 +137,17 @@ class OnlineGaitEstimator:
     """Causal gait phase and events from a thigh IMU (see the module docstring)."""
 
     def __init__(
-        self, config: GaitPhaseConfig | None = None, sagittal_axis: SagittalAxis | None = None
+        self,
+        config: GaitPhaseConfig | None = None,
+        sagittal_axis: SagittalAxis | None = None,
+        initial_angle_rad: float | None = None,
     ) -> None:
         self.cfg = config or GaitPhaseConfig()
         self.ref = phase_reference()
         self.learner = SagittalAxisLearner(self.cfg.attitude)
         self.thigh: ThighAngleFilter | None = None
         self._axis = sagittal_axis
+        self._initial_angle = initial_angle_rad
         self.counts = dict.fromkeys(COUNT_NAMES, 0)
         self.events: list[OnlineEvent] = []
         self.state: GaitState | None = None
@@ -159,6 +169,7 @@ class OnlineGaitEstimator:
         self._stride_s: float | None = None
         self._norm = (0.0, 0.25)
         self._standing_angle = 0.0
+        self._standing_seen = False
         self._next_strike = 0
         self._next_toe_off = 0
         self._last_event_t = {"foot_strike": -math.inf, "toe_off": -math.inf}
@@ -206,7 +217,9 @@ class OnlineGaitEstimator:
     # --- stages ------------------------------------------------------------------------------
     def _learn(self, t_s, gyro, accel, flags) -> list[OnlineEvent]:
         if self._axis is not None:
-            self.thigh = ThighAngleFilter(self._axis, t_s, self.cfg.attitude)
+            self.thigh = ThighAngleFilter(
+                self._axis, t_s, self.cfg.attitude, initial_angle_rad=self._initial_angle
+            )
             return self._step(t_s, gyro, accel, False, flags, detected_t_s=t_s)
         axis = self.learner.add(t_s, gyro, accel)
         if axis is None:
@@ -216,16 +229,22 @@ class OnlineGaitEstimator:
         # better (lower mean NIS): the peak asymmetry of a partial cycle can mislead.
         buffered = list(zip(self.learner.t, self.learner.gyro, self.learner.accel, strict=True))
         trials = []
+        t_b, g_b, a_b = (
+            np.asarray(x) for x in (self.learner.t, self.learner.gyro, self.learner.accel)
+        )
         for candidate in (axis, flipped(axis)):
-            trial = OnlineGaitEstimator(self.cfg, sagittal_axis=candidate)
+            angle0 = initial_angle(candidate, t_b, g_b, a_b, self.cfg.attitude)
+            trial = OnlineGaitEstimator(self.cfg, sagittal_axis=candidate, initial_angle_rad=angle0)
             for tb, gb, ab in buffered:
                 trial.update(tb, gb, ab)
             trials.append(trial)
-        best = min(trials, key=lambda tr: tr.fit_cost())
+        best = min(trials, key=lambda tr: tr.fit_cost()) if self.cfg.sign_by_fit else trials[0]
         self._adopt(best)
-        self._shadow = trials[1] if best is trials[0] else trials[0]
-        self._shadow_until_s = t_s + self.cfg.sign_check_s
-        self._sum_mark = (self._nis_sum, self._shadow._nis_sum, self._nis_n, self._shadow._nis_n)
+        if self.cfg.sign_check_s > 0:
+            self._shadow = trials[1] if best is trials[0] else trials[0]
+            self._shadow_until_s = t_s + self.cfg.sign_check_s
+            shadow = self._shadow
+            self._sum_mark = (self._nis_sum, shadow._nis_sum, self._nis_n, shadow._nis_n)
         for name in ("reacquired", "phase_jumps", "saturated"):
             self.counts[name] += best.counts[name]
         self.counts["axis_flipped"] += int(best is trials[1])
@@ -266,8 +285,9 @@ class OnlineGaitEstimator:
         if not walking:
             if self._walking:
                 self._lose_lock()
-            if self._still_s > 0.0:
+            if self._still_s >= self.cfg.standing_posture_s:  # a real stand, not a pause
                 self._standing_angle = thigh.angle_rad
+                self._standing_seen = True
             self._set_state(t_s, thigh, flags)
             return []
         self._walking = True
@@ -316,8 +336,12 @@ class OnlineGaitEstimator:
         cycle_s = self._stride_s if self._stride_s is not None else 1.0 / max(rate, 0.3)
         span = np.cumsum(np.asarray(self._walk_dt)[::-1])
         if span[-1] < 0.75 * cycle_s:
-            ref_mean = self.ref.at_rate("mean_rad", rate)
-            self._norm = (self._standing_angle + ref_mean, self.ref.at_rate("std_rad", rate))
+            ref_std = self.ref.at_rate("std_rad", rate)
+            if self._standing_seen:  # the reference's mean walking angle above standing
+                mean = self._standing_angle + self.ref.at_rate("mean_rad", rate)
+            else:  # no standing posture seen (the zero is arbitrary): the partial mean
+                mean = float(np.mean(self._walk_angles))
+            self._norm = (mean, ref_std)
             return
         n = int(np.searchsorted(span, cycle_s)) + 1
         recent = np.asarray(self._walk_angles)[-n:]

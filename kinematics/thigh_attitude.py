@@ -79,11 +79,23 @@ class SagittalAxis:
     variance_share: float
 
 
-def _segments(rate: np.ndarray, deadband: float) -> int:
-    """Number of runs of one sign in ``rate`` beyond ±``deadband`` (three runs: one direction,
-    the other, the first again: a whole cycle has been seen)."""
-    signs = np.sign(rate[np.abs(rate) > deadband])
-    return int(1 + np.count_nonzero(np.diff(signs))) if signs.size else 0
+def _segments(t_s: np.ndarray, rate: np.ndarray, deadband: float, min_run_s: float) -> int:
+    """Number of alternating runs of one sign in ``rate`` beyond ±``deadband`` that last at
+    least ``min_run_s`` (three: one direction, the other, the first again — a whole cycle; the
+    short loading-response bump after a foot strike does not count)."""
+    beyond = np.abs(rate) > deadband
+    signs, times = np.sign(rate[beyond]), t_s[beyond]
+    if signs.size == 0:
+        return 0
+    cuts = np.flatnonzero(np.diff(signs)) + 1
+    starts = np.concatenate([[0], cuts])
+    ends = np.concatenate([cuts, [signs.size]]) - 1
+    long_runs = [
+        signs[a] for a, b in zip(starts, ends, strict=True) if times[b] - times[a] >= min_run_s
+    ]
+    if not long_runs:
+        return 0
+    return int(1 + np.count_nonzero(np.diff(long_runs)))
 
 
 def flipped(axis: SagittalAxis) -> SagittalAxis:
@@ -95,6 +107,32 @@ def flipped(axis: SagittalAxis) -> SagittalAxis:
         learned_at_s=axis.learned_at_s,
         variance_share=axis.variance_share,
     )
+
+
+def initial_angle(
+    axis: SagittalAxis,
+    t_s: np.ndarray,
+    gyro_rad_s: np.ndarray,
+    accel_m_s2: np.ndarray,
+    config: ThighAttitudeConfig | None = None,
+) -> float:
+    """The sagittal angle at ``t_s[0]`` from a buffer of samples: the gyro integral over the
+    buffer is exact up to its start value, the gravity angle is right on average (each sample
+    weighted by its σ): start value = weighted mean of (gravity angle - gyro integral). Much
+    better than the first sample's gravity angle, which the thigh's own acceleration corrupts."""
+    cfg = config or ThighAttitudeConfig()
+    t = np.asarray(t_s, dtype=float)
+    g = np.asarray(gyro_rad_s, dtype=float) @ axis.axis - axis.gyro_bias_rad_s
+    a = np.asarray(accel_m_s2, dtype=float)
+    integral = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(t))])
+    e2 = np.cross(axis.axis, axis.zero_up)
+    grav = -np.arctan2(a @ e2, a @ axis.zero_up)
+    diff = np.unwrap(grav - integral)
+    sigma = cfg.accel_angle_sigma_rad + cfg.accel_angle_sigma_per_m_s2 * np.abs(
+        np.linalg.norm(a, axis=1) - GRAVITY_M_S2
+    )
+    w = 1.0 / sigma**2
+    return float(math.remainder(float(np.sum(w * diff) / np.sum(w)), 2 * math.pi))
 
 
 class SagittalAxisLearner:
@@ -140,7 +178,7 @@ class SagittalAxisLearner:
             return None
         full = self.t[-1] - self.t[0] >= self.cfg.max_learn_s * 0.99
         if not full and (
-            _segments(w, self.cfg.segment_fraction * peak) < 3
+            _segments(np.asarray(self.t), w, self.cfg.segment_fraction * peak, 0.12) < 3
             or min(pos, neg) < self.cfg.min_counter_peak_rad_s
             or min(pos, neg) > self.cfg.max_peak_ratio * peak
         ):
@@ -177,7 +215,13 @@ class ThighState:
 class ThighAngleFilter:
     """Kalman filter (filterpy) of the sagittal angle, rate and gyro bias about a known axis."""
 
-    def __init__(self, axis: SagittalAxis, t0_s: float, config: ThighAttitudeConfig | None = None):
+    def __init__(
+        self,
+        axis: SagittalAxis,
+        t0_s: float,
+        config: ThighAttitudeConfig | None = None,
+        initial_angle_rad: float | None = None,
+    ):
         from filterpy.kalman import KalmanFilter
 
         self.cfg = config or ThighAttitudeConfig()
@@ -189,7 +233,10 @@ class ThighAngleFilter:
         kf.H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
         self.kf = kf
         self.t_s = t0_s
-        self._first = True
+        self._first = initial_angle_rad is None
+        if initial_angle_rad is not None:
+            kf.x[0] = initial_angle_rad
+            kf.P[0, 0] = 0.05**2
 
     def gravity_angle(self, accel: np.ndarray) -> float:
         """Sagittal angle measured by gravity: the thigh flexing by θ about the axis turns the
