@@ -7,9 +7,11 @@ Per sample (:meth:`OnlineGaitEstimator.update`):
    gap longer than ``max_gap_s`` drops the phase lock (re-acquired after it); each is counted in
    :attr:`OnlineGaitEstimator.counts`; time going backwards is a :class:`GaitInputError`;
 2. the thigh's sagittal angle and rate (:mod:`kinematics.thigh_attitude`; the samples buffered
-   while the sagittal axis is learned are replayed once it is fixed);
-3. walking or standing, from the running RMS of the thigh rate (hysteresis); standing freezes
-   the phase (no prediction, no events);
+   while the sagittal axis is learned are replayed once it is fixed, and the events found in
+   them are emitted then, with that sample's time as their detection time);
+3. walking or standing, from the running RMS of the thigh rate (hysteresis) and a stop test in
+   stance (the thigh rate below a quarter of the model's for 60 ms); standing freezes the phase
+   (no prediction, no events) and the next walk re-acquires it;
 4. a filterpy :class:`~filterpy.kalman.ExtendedKalmanFilter` on ``x = [phase_cyc, rate_cyc_s]``
    (constant-rate process with white rate noise) with the measurement model of
    :mod:`kinematics.phase_model`: the thigh angle and rate normalised by the wearer's own running

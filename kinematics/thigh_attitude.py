@@ -5,13 +5,16 @@ Two stages, both causal:
 
 1. :class:`SagittalAxisLearner`: the sagittal (flexion) axis in the sensor frame is the principal
    axis of the angular velocity, as in the offline detector
-   (:func:`kinematics.gait_events.sagittal_axis`), but learned from the samples seen so far:
-   the learner buffers samples until it has seen a swing (a projected angular-velocity peak of at
-   least ``min_swing_peak_rad_s``); the axis sign makes flexion positive, chosen by the gait's
-   asymmetry (the mid-swing flexion-velocity peak is about twice the stance extension velocity).
-   The zero angle is the gravity direction of the quiet samples before the first motion (the
-   standing posture), or the mean of the buffer when there were none. The learner never looks
-   at a sample after the one being processed.
+   (:func:`kinematics.gait_events.sagittal_axis`), but learned from the samples seen so far: the
+   learner buffers samples until it has seen a whole cycle (the projected rate beyond ±35 % of
+   its peak for at least 0.12 s three times in alternating directions, the larger peak at least
+   ``min_swing_peak_rad_s``); the axis sign makes flexion positive, chosen by the gait's
+   asymmetry (the mid-swing flexion-velocity peak is 1.3-1.9 times the stance extension
+   velocity; a partial cycle can fake it, hence the whole-cycle rule). The zero angle is the
+   gravity direction of the quiet samples before the first motion (the standing posture), or
+   the mean of the buffer when there were none; :func:`initial_angle` gives the angle at the
+   buffer's start from the gyro integral matched to gravity. The learner never looks at a
+   sample after the one being processed.
 2. :class:`ThighAngleFilter`: a filterpy :class:`~filterpy.kalman.KalmanFilter` with the state
    ``[angle_rad, rate_rad_s, gyro_bias_rad_s]`` (sagittal angle from the standing posture,
    flexion +; its rate; the gyro bias about the axis). The angle is propagated with the rate
