@@ -74,7 +74,7 @@ class GaitPhaseConfig:
     walk_off_rms_rad_s: float = 0.2
     """... and stops (standing: the phase freezes) when it falls below this."""
     rms_window_s: float = 0.25
-    still_window_s: float = 0.2
+    still_window_s: float = 0.35
     """Standing is also declared at once when the thigh rate stayed below ``still_rate_rad_s``
     over this window."""
     still_rate_rad_s: float = 0.2
@@ -90,6 +90,8 @@ class GaitPhaseConfig:
     is re-acquired (counted)."""
     max_phase_step_cyc: float = 0.08
     """An update that moves the phase by more than this is a jump (counted, flagged)."""
+    acquire_grace_cyc: float = 0.05
+    """At (re-)acquisition, an event phase passed by less than this is still emitted."""
     min_event_spacing_s: float = 0.35
     """Events of one kind closer than this are not emitted (a jump across a boundary)."""
     stall_ratio: float = 0.25
@@ -374,9 +376,12 @@ class OnlineGaitEstimator:
         ekf.R = np.diag([cfg.angle_sigma**2, cfg.rate_sigma**2])
         self._ekf = ekf
         self._nis = 2.0
-        self._next_strike = math.floor(phase) + 1
+        # an event the lock has just passed (a re-acquisition near it) is still emitted, once:
+        # the spacing rule drops it if it was emitted before the lock was lost
+        grace = self.cfg.acquire_grace_cyc
+        self._next_strike = math.floor(phase) + (0 if phase % 1.0 < grace else 1)
         sf = self.ref.at_rate("stance_fraction", rate)
-        self._next_toe_off = math.floor(phase) + (1 if phase % 1.0 >= sf else 0)
+        self._next_toe_off = math.floor(phase) + (1 if phase % 1.0 >= sf + grace else 0)
         self.counts["reacquired"] += 1
 
     def _rate_prior(self) -> float:
@@ -390,6 +395,7 @@ class OnlineGaitEstimator:
         qp = cfg.phase_walk_cyc_per_sqrt_s**2 * dt
         qr = cfg.rate_walk_cyc_s_per_sqrt_s**2 * dt
         ekf.Q = np.array([[qp + qr * dt**2 / 3, qr * dt / 2], [qr * dt / 2, qr]])
+        self._phase_floor = float(ekf.x[0])
         ekf.predict()
         if saturated:
             return flags
@@ -402,6 +408,11 @@ class OnlineGaitEstimator:
             return flags | 32
         ekf.update(self._z(thigh), measurement_jacobian, measurement, args=(a, b), hx_args=(a, b))
         ekf.x[1] = float(np.clip(ekf.x[1], 0.3, 2.0))
+        # the gait phase does not run backwards: an update that would move it behind the
+        # previous estimate holds it there (the innovation then grows and, if the model keeps
+        # failing, the NIS test re-acquires)
+        ekf.x[0] = max(float(ekf.x[0]), self._phase_floor)
+        self._phase_floor = float(ekf.x[0])
         self._last_rate = float(ekf.x[1])
         if abs(float(ekf.x[0]) - before) > cfg.max_phase_step_cyc:
             self.counts["phase_jumps"] += 1
