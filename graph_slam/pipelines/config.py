@@ -161,7 +161,8 @@ class PipelineConfig(ConfigModel):
     terrain: TerrainConfig = TerrainConfig()
     event_source: str | None = Field(
         "load_cell",
-        description="events.csv source used to cut strides (None: every source in the file)",
+        description="events.csv source used to cut strides (None: every source in the file), "
+        "or 'imu-online': the causal thigh-IMU gait estimator (kinematics.gait_phase)",
     )
     mount_pitch_deg: float | None = Field(
         None,
