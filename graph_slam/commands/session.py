@@ -87,6 +87,8 @@ def register(app: typer.Typer) -> None:
 
         with progress_bar("decoding frames") as update:
             report = validate_session(session, every_frame=not quick, progress=update)
+        for warning in report.warnings:
+            typer.echo(f"warning: {warning}", err=True)
         if report.ok:
             counts = ", ".join(f"{k} {v}" for k, v in report.counts.items())
             typer.echo(f"valid: {session} ({counts}; {report.frames_checked} frames decoded)")

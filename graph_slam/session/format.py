@@ -32,6 +32,7 @@ from types import TracebackType
 import numpy as np
 import yaml
 
+from graph_slam.config import yaml_error_text
 from graph_slam.errors import (
     DepthScaleError,
     GraphSlamError,
@@ -173,8 +174,10 @@ def _scene_from_yaml(path: Path) -> SceneTruth:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise SessionError(f"{path}: scene file is missing") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise SessionError(f"{path}: cannot read ({err})") from None
     except yaml.YAMLError as err:
-        raise SessionError(f"{path}: not valid YAML ({err})") from None
+        raise SessionError(f"{path}: {yaml_error_text(err)}") from None
     if not isinstance(data, dict) or not isinstance(data.get("objects", []), list):
         raise SessionError(f"{path}: must be a mapping with a list 'objects'")
     objects = []
@@ -397,9 +400,7 @@ class SessionWriter:
         self._name = name
         if self.path.exists():
             if not overwrite:
-                raise SessionError(
-                    f"{self.path}: already exists (pass overwrite=True to replace it)"
-                )
+                raise SessionError(f"{self.path}: already exists (pass --overwrite to replace it)")
             if not (self.path / MANIFEST_NAME).is_file() and any(self.path.iterdir()):
                 raise SessionError(
                     f"{self.path}: exists, is not empty and is not a session; refusing to overwrite"
@@ -585,6 +586,8 @@ class ValidationReport:
     frames_checked: int = 0
     counts: dict[str, int] = field(default_factory=dict)
     problems: list[GraphSlamError] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    """Caveats (graph_slam.session.plausibility) that do not make the session invalid."""
 
     @property
     def ok(self) -> bool:
@@ -664,4 +667,19 @@ def validate_session(
             report.problems.append(err)
         if callable(progress):
             progress(done, len(indices))
+    if not report.problems:
+        _check_plausibility(session, report)
     return report
+
+
+def _check_plausibility(session: Session, report: ValidationReport) -> None:
+    """What compare would refuse (fatal findings) become problems; the rest, warnings."""
+    from graph_slam.session.plausibility import safe_findings
+
+    for finding in safe_findings(session):
+        if isinstance(finding, GraphSlamError):
+            report.problems.append(finding)
+        elif finding.fatal:
+            report.problems.append(SessionError(str(finding)))
+        else:
+            report.warnings.append(str(finding))

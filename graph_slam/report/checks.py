@@ -1,0 +1,102 @@
+"""compare's checks before and after the run: refuse what would be meaningless, list caveats.
+
+:func:`preflight` runs before any work (every session's plausibility and the streams each
+variant needs; :mod:`graph_slam.session.plausibility`); :func:`run_warnings` adds what only the
+run knows (strides dropped and why, samples rejected by reason). Both return
+:class:`~graph_slam.session.plausibility.Finding` s, written to report.md and metrics.json.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from graph_slam.session.plausibility import (
+    Finding,
+    raise_fatal,
+    session_findings,
+    variant_findings,
+)
+
+
+def preflight(sessions, variants: list[str]) -> list[Finding]:
+    """Raise a :class:`SessionError` for the first fatal finding; return the caveats."""
+    found: list[Finding] = []
+    for session in sessions:
+        found += variant_findings(session, variants) + session_findings(session)
+    return raise_fatal(found)
+
+
+def _dropped_strides(session, run) -> list[Finding]:
+    """Strides the run cut that no table scores, counted by reason."""
+    from graph_slam.strides.reference import _cut_short
+
+    first = next(iter(run.results.values()))
+    scored = {int(r.frame_indices[0]) for r in run.references}
+    t = first.t_s
+    why: Counter[str] = Counter()
+    for s in first.strides:
+        idx = np.asarray(s.frame_indices, dtype=int)
+        if idx.size and int(idx[0]) in scored:
+            continue
+        if s.start != "foot_strike":
+            why["before the first foot strike"] += 1
+        elif idx.size < 2:
+            why["fewer than 2 frames"] += 1
+        elif _cut_short(idx, t, session):
+            why["the recording ends inside it"] += 1
+        elif session.ground_truth is None:
+            why["no ground truth"] += 1
+        else:
+            why["no foot strike after it"] += 1
+    lost = {k: n for k, n in why.items() if k != "before the first foot strike"}
+    if not lost:
+        return []
+    total = len(first.strides)
+    detail = ", ".join(f"{n} {k}" for k, n in sorted(lost.items()))
+    return [
+        Finding(
+            "strides_dropped",
+            str(session.path),
+            f"{sum(lost.values())} of {total} strides not scored ({detail}); "
+            f"{len(run.references)} scored",
+        )
+    ]
+
+
+def _rejected(session, run) -> list[Finding]:
+    out = []
+    for variant, res in run.results.items():
+        bad = {
+            k: v
+            for k, v in res.counts.items()
+            if v and k.startswith(("imu_", "joints_")) and not k.endswith("_used")
+        }
+        if bad:
+            detail = ", ".join(f"{k} {v}" for k, v in sorted(bad.items()))
+            out.append(
+                Finding("samples_rejected", str(session.path), f"variant {variant}: {detail}")
+            )
+    return out
+
+
+def run_warnings(session, run, variants) -> list[Finding]:
+    """Caveats only the run knows: strides dropped and why, samples rejected by reason."""
+    return _dropped_strides(session, run) + _rejected(session, run)
+
+
+def write_compare_config(cfg, path: Path) -> Path:
+    """The resolved config; ``pipeline.variant`` is left out (each run sets it from
+    ``variants``), so the file never names a variant that did not run."""
+    data = cfg.model_dump(mode="json")
+    data["pipeline"].pop("variant", None)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(
+        "# pipeline.variant is set per run from 'variants' below\n"
+        + yaml.safe_dump(data, sort_keys=False),
+        encoding="utf-8",
+    )
+    return path
