@@ -53,7 +53,9 @@ def _csv(path: Path) -> tuple[str, np.ndarray]:
 
 
 def _write_csv(path: Path, header: str, data: np.ndarray) -> None:
-    path.write_text(header + "\n" + "".join(",".join(repr(float(x)) for x in r) + "\n" for r in data))
+    path.write_text(
+        header + "\n" + "".join(",".join(repr(float(x)) for x in r) + "\n" for r in data)
+    )
 
 
 def _compare_refuses(session: Path, tmp_path: Path, capsys, *needles: str, variants="icp"):
@@ -118,7 +120,9 @@ def test_gait_events_on_a_png_is_one_line(tmp_path, capsys) -> None:
 
 
 def test_gait_events_accepts_the_session_imu_header(synthetic_session, tmp_path, capsys) -> None:
-    code, _, err = cli(["gait-events", synthetic_session / "imu.csv", "--out", tmp_path / "e.csv"], capsys)
+    code, _, err = cli(
+        ["gait-events", synthetic_session / "imu.csv", "--out", tmp_path / "e.csv"], capsys
+    )
     assert code == 0, err
     assert (tmp_path / "e.csv").read_text().startswith("t_s,kind")
 
@@ -258,7 +262,9 @@ def test_yaml_errors_are_one_line_with_the_position(synthetic_session, capsys, t
 def test_config_yaml_error_is_one_line(synthetic_session, tmp_path, capsys) -> None:
     cfg = tmp_path / "c.yaml"
     cfg.write_text("variants: [icp\npipeline: {\n")
-    code, _, err = cli(["compare", synthetic_session, "--out", tmp_path / "r", "--config", cfg], capsys)
+    code, _, err = cli(
+        ["compare", synthetic_session, "--out", tmp_path / "r", "--config", cfg], capsys
+    )
     assert code == 2
     one_line_error(err, str(cfg), "not valid YAML at line")
     assert len(err.strip().splitlines()) == 1
@@ -455,7 +461,9 @@ def test_missing_session_folder(tmp_path, capsys) -> None:
 
 
 def test_unknown_variant_names_the_choices(synthetic_session, tmp_path, capsys) -> None:
-    code, _, err = cli(["compare", synthetic_session, "--out", tmp_path / "r", "--variants", "icp+gps"], capsys)
+    code, _, err = cli(
+        ["compare", synthetic_session, "--out", tmp_path / "r", "--variants", "icp+gps"], capsys
+    )
     assert code == 2
     one_line_error(err, "--variants", "icp+gps", "choose from")
 

@@ -317,6 +317,7 @@ def _rosbag_errors() -> tuple[type[BaseException], ...]:
         IndexError,
         KeyError,
         OverflowError,
+        OSError,  # a seek to a negative offset (a damaged index position)
     )
 
 
