@@ -475,3 +475,11 @@ def test_valid_session_stays_valid(synthetic_session, capsys) -> None:
     shutil.rmtree(synthetic_session / "color")  # colour is optional per frame set: now invalid
     code, _, err = cli(["validate", "--quick", synthetic_session], capsys)
     assert code == 2 and "color" in err
+
+
+def test_missing_evo_is_named_before_any_work(synthetic_session, tmp_path, capsys, monkeypatch):
+    import sys
+
+    for name in ("evo", "evo.core", "evo.core.metrics", "evo.core.trajectory"):
+        monkeypatch.setitem(sys.modules, name, None)
+    _compare_refuses(synthetic_session, tmp_path, capsys, "need evo", "pip install")

@@ -23,7 +23,12 @@ from graph_slam.session.plausibility import (
 
 
 def preflight(sessions, variants: list[str]) -> list[Finding]:
-    """Raise a :class:`SessionError` for the first fatal finding; return the caveats."""
+    """Raise a :class:`SessionError` for the first fatal finding, or an
+    :class:`EvaluationError` when scoring needs evo and it is missing; return the caveats."""
+    from graph_slam.evaluation._evo import require_evo
+
+    if any(s.ground_truth is not None for s in sessions):
+        require_evo()  # the optional extra, before minutes of work rather than after
     found: list[Finding] = []
     for session in sessions:
         found += variant_findings(session, variants) + session_findings(session)
