@@ -96,6 +96,11 @@ class FrameIndex:
 
 def _read_frame_index(session_dir: Path, rel: str) -> FrameIndex:
     path = resolve_inside(session_dir, rel, what=f"{MANIFEST_NAME} field 'files.frames'")
+    with io.text_errors(path):
+        return _read_frame_rows(session_dir, rel, path)
+
+
+def _read_frame_rows(session_dir: Path, rel: str, path: Path) -> FrameIndex:
     io.read_header(path, FRAME_COLUMNS)
     times: list[float] = []
     depth: list[str] = []
@@ -140,6 +145,11 @@ def _read_frame_index(session_dir: Path, rel: str) -> FrameIndex:
 
 
 def _read_events(path: Path) -> GaitEvents:
+    with io.text_errors(path):
+        return _read_event_rows(path)
+
+
+def _read_event_rows(path: Path) -> GaitEvents:
     io.read_header(path, EVENT_COLUMNS)
     times: list[float] = []
     kinds: list[str] = []

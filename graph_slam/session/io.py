@@ -10,7 +10,8 @@ from __future__ import annotations
 import io
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
@@ -95,6 +96,17 @@ def _line_of(row: int) -> int:
     return row + 2
 
 
+@contextmanager
+def text_errors(path: Path) -> Iterator[None]:
+    """A text file that is not UTF-8 (or a binary file) becomes a :class:`StreamError`."""
+    try:
+        yield
+    except UnicodeDecodeError as err:
+        raise StreamError(
+            f"{path}: not UTF-8 text (byte {err.start} cannot be decoded); streams are CSV text"
+        ) from None
+
+
 def read_header(path: Path, columns: Sequence[str]) -> None:
     """Check that the first line of ``path`` is exactly the expected comma-separated header."""
     try:
@@ -116,6 +128,11 @@ def read_numeric_csv(path: Path, columns: Sequence[str]) -> np.ndarray:
     and column), NaN or inf (:class:`NonFiniteError`, with the count and the first row).
     """
     read_header(path, columns)
+    with text_errors(path):
+        return _read_numeric_rows(path, columns)
+
+
+def _read_numeric_rows(path: Path, columns: Sequence[str]) -> np.ndarray:
     try:
         with warnings.catch_warnings():  # a header-only file: counted by the caller, not warned
             warnings.filterwarnings("ignore", "loadtxt: input contained no data")

@@ -318,6 +318,7 @@ def _rosbag_errors() -> tuple[type[BaseException], ...]:
         KeyError,
         OverflowError,
         OSError,  # a seek to a negative offset (a damaged index position)
+        AssertionError,  # rosbags' own consistency checks on a damaged chunk
     )
 
 
