@@ -187,6 +187,12 @@ def test_a_variant_without_its_stream_is_refused(synthetic_session, tmp_path, ca
         variants="icp+imu+kin",
     )  # fmt: skip
     assert "IMU factors" in line
+    code, _, err = cli(["validate", "--quick", synthetic_session], capsys)
+    assert code == 0, err  # a session without an IMU is valid ...
+    code, _, err = cli(
+        ["validate", "--quick", synthetic_session, "--variants", "icp,icp+imu"], capsys
+    )
+    assert code == 2 and "variant 'icp+imu' needs IMU factors" in err  # ... but not for icp+imu
 
 
 @pytest.mark.parametrize("case", ["toe-off only", "strikes after the recording"])
@@ -483,3 +489,79 @@ def test_missing_evo_is_named_before_any_work(synthetic_session, tmp_path, capsy
     for name in ("evo", "evo.core", "evo.core.metrics", "evo.core.trajectory"):
         monkeypatch.setitem(sys.modules, name, None)
     _compare_refuses(synthetic_session, tmp_path, capsys, "need evo", "pip install")
+
+
+# ----------------------------------------------------------------------------- more rows
+
+
+def test_events_csv_with_only_its_header_is_refused(synthetic_session, tmp_path, capsys):
+    (synthetic_session / "events.csv").write_text("t_s,kind,source\n")
+    _compare_refuses(synthetic_session, tmp_path, capsys, "events.csv", "no foot strike inside")
+
+
+def test_session_without_camera_is_refused_by_compare(synthetic_session, tmp_path, capsys):
+    data = _manifest(synthetic_session)
+    data["sensors"]["camera"] = None
+    _write_manifest(synthetic_session, data)
+    (synthetic_session / "frames.csv").write_text("index,t_s,depth,color\n")
+    _compare_refuses(synthetic_session, tmp_path, capsys, "sensors.camera", "without a camera")
+
+
+@pytest.mark.parametrize(
+    ("text", "rule"),
+    [("", "top level must be a mapping"), ("\xff\xfe", "cannot read")],
+    ids=["empty", "binary"],
+)
+def test_manifest_empty_or_binary(synthetic_session, capsys, text: str, rule: str) -> None:
+    (synthetic_session / "session.yaml").write_bytes(text.encode("latin-1"))
+    code, _, err = cli(["info", synthetic_session], capsys)
+    assert code == 2
+    one_line_error(err, "session.yaml", rule)
+
+
+def test_missing_stream_file_is_named(synthetic_session, capsys) -> None:
+    (synthetic_session / "imu.csv").unlink()
+    _validate_refuses(synthetic_session, capsys, "imu.csv", "file is missing")
+
+
+@pytest.mark.parametrize(
+    ("row", "rule"),
+    [("0.0 1 2 3 0 0 0 2", "quaternion norm"), ("0.0 1 2 3", "8 entries")],
+    ids=["non-unit-quaternion", "short-row"],
+)
+def test_bad_ground_truth_row(synthetic_session, capsys, row: str, rule: str) -> None:
+    path = synthetic_session / "groundtruth.txt"
+    lines = [x for x in path.read_text().splitlines() if x and not x.startswith("#")]
+    lines[0] = row
+    path.write_text("\n".join(lines) + "\n")
+    _validate_refuses(synthetic_session, capsys, "groundtruth.txt", rule)
+
+
+def test_simulate_bad_option_values(tmp_path, capsys) -> None:
+    for argv, needle in (
+        (["simulate", "--out", tmp_path / "s", "--strides", "0"], "strides"),
+        (["simulate", "--out", tmp_path / "s", "--speed", "warp"], "--speed 'warp'"),
+        (["simulate", "--out", tmp_path / "s", "--scene", "atlantis"], "atlantis"),
+    ):
+        code, _, err = cli(argv, capsys)
+        assert code == 2, argv
+        one_line_error(err, needle)
+    assert not (tmp_path / "s").exists()
+
+
+def test_compare_config_file_missing(synthetic_session, tmp_path, capsys) -> None:
+    cfg = tmp_path / "nope.yaml"
+    code, _, err = cli(
+        ["compare", synthetic_session, "--out", tmp_path / "r", "--config", cfg], capsys
+    )
+    assert code == 2
+    one_line_error(err, str(cfg), "cannot read config file")
+
+
+def test_convert_missing_source_and_overlap(synthetic_session, tmp_path, capsys) -> None:
+    code, _, err = cli(["convert", tmp_path / "nothing.bag", tmp_path / "s"], capsys)
+    assert code == 2
+    one_line_error(err, "nothing.bag", "no such file or folder")
+    code, _, err = cli(["convert", synthetic_session, synthetic_session / "inside"], capsys)
+    assert code == 2
+    one_line_error(err, "overlaps the source")

@@ -627,11 +627,14 @@ def validate_session(
     *,
     every_frame: bool = True,
     progress: object | None = None,
+    variants: list[str] | None = None,
 ) -> ValidationReport:
     """Check a session completely: manifest, streams, every frame's PNGs and the depth scale.
 
     Returns a report listing every problem (a problem in the manifest or frame index stops the
     check, since nothing else can be read). ``progress`` may be a callable ``(done, total)``.
+    Then what ``compare`` would refuse (:mod:`graph_slam.session.plausibility`), including the
+    streams that ``variants`` need, are problems; caveats are ``warnings``.
     """
     report = ValidationReport(Path(path))
     try:
@@ -678,14 +681,16 @@ def validate_session(
         if callable(progress):
             progress(done, len(indices))
     if not report.problems:
-        _check_plausibility(session, report)
+        _check_plausibility(session, report, variants or [])
     return report
 
 
-def _check_plausibility(session: Session, report: ValidationReport) -> None:
+def _check_plausibility(session: Session, report: ValidationReport, variants: list[str]) -> None:
     """What compare would refuse (fatal findings) become problems; the rest, warnings."""
-    from graph_slam.session.plausibility import safe_findings
+    from graph_slam.session.plausibility import safe_findings, variant_findings
 
+    for finding in variant_findings(session, variants) if variants else []:
+        report.problems.append(SessionError(str(finding)))
     for finding in safe_findings(session):
         if isinstance(finding, GraphSlamError):
             report.problems.append(finding)

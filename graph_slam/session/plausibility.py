@@ -324,6 +324,16 @@ def variant_findings(session, variants: list[str]) -> list[Finding]:
                         fatal=True,
                     )
                 )
+    if session.intrinsics is None:
+        out.append(
+            Finding(
+                "variant_input",
+                str(Path(session.path) / "session.yaml"),
+                "every variant registers depth frames but field 'sensors.camera' is null (a "
+                "session without a camera)",
+                fatal=True,
+            )
+        )
     if session.events is None:
         out.append(
             Finding(
