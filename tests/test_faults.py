@@ -214,27 +214,35 @@ def test_strides_dropped_are_counted_with_their_reason(synthetic_session) -> Non
     from graph_slam.report.checks import run_warnings
     from graph_slam.session import open_session
 
+    # frames at 30 Hz from t=0; strikes at frames 3, 4, 5 and 30
+    t = open_session(synthetic_session).frame_times_s
+    strikes = [t[3], t[4], t[5], t[30]]
+    (synthetic_session / "events.csv").write_text(
+        "t_s,kind,source\n" + "".join(f"{float(x)!r},foot_strike,load_cell\n" for x in strikes)
+    )
     session = open_session(synthetic_session)
     stride = SimpleNamespace
     first = SimpleNamespace(
-        t_s=session.frame_times_s,
+        t_s=t,
         strides=[
-            stride(start="start", frame_indices=[0, 1, 2]),
+            stride(start="foot_strike", frame_indices=[0, 1, 2]),  # before the first strike
             stride(start="foot_strike", frame_indices=[3]),  # too short
             stride(start="foot_strike", frame_indices=[4]),  # too short
             stride(start="foot_strike", frame_indices=list(range(5, 30))),  # scored
-            stride(start="foot_strike", frame_indices=list(range(30, 40))),  # no next strike
+            stride(start="foot_strike", frame_indices=list(range(30, t.size))),  # no next strike
         ],
         counts={"imu_used": 10, "imu_out_of_range": 3, "joints_used": 5},
     )
     run = SimpleNamespace(
         results={"icp": first}, references=[SimpleNamespace(frame_indices=np.arange(5, 30))]
     )
-    found = {f.code: f for f in run_warnings(session, run, ["icp"])}
-    assert found["strides_dropped"].message.startswith("3 of 5 strides not scored")
-    assert "2 fewer than 2 frames" in found["strides_dropped"].message
-    assert "1 no foot strike after it" in found["strides_dropped"].message
+    found = {f.code: f for f in run_warnings(session, run, "load_cell")}
+    assert found["strides_dropped"].message == (
+        "3 strides not scored (2 fewer than 2 frames, 1 no foot strike after it); 1 scored"
+    )
     assert found["samples_rejected"].message == "variant icp: imu_out_of_range 3"
+    first.strides = first.strides[:1] + first.strides[3:4]
+    assert "strides_dropped" not in {f.code for f in run_warnings(session, run, "load_cell")}
 
 
 def test_foot_strikes_every_50_ms_are_a_caveat(synthetic_session) -> None:
@@ -565,3 +573,8 @@ def test_convert_missing_source_and_overlap(synthetic_session, tmp_path, capsys)
     code, _, err = cli(["convert", synthetic_session, synthetic_session / "inside"], capsys)
     assert code == 2
     one_line_error(err, "overlaps the source")
+
+
+def test_event_source_missing_is_refused_before_the_run(synthetic_session, tmp_path, capsys):
+    # the synthetic session's events come from source 'synthetic'; compare cuts at 'load_cell'
+    _compare_refuses(synthetic_session, tmp_path, capsys, "events.csv", "source 'load_cell'")

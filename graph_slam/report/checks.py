@@ -22,52 +22,58 @@ from graph_slam.session.plausibility import (
 )
 
 
-def preflight(sessions, variants: list[str]) -> list[Finding]:
+def preflight(sessions, variants: list[str], event_source: str | None) -> list[Finding]:
     """Raise a :class:`SessionError` for the first fatal finding, or an
     :class:`EvaluationError` when scoring needs evo and it is missing; return the caveats."""
     from graph_slam.evaluation._evo import require_evo
+    from graph_slam.strides.streams import stride_events
 
     if any(s.ground_truth is not None for s in sessions):
         require_evo()  # the optional extra, before minutes of work rather than after
     found: list[Finding] = []
     for session in sessions:
         found += variant_findings(session, variants) + session_findings(session)
-    return raise_fatal(found)
+    caveats = raise_fatal(found)
+    for session in sessions:  # the pipelines' event source must be in events.csv
+        stride_events(session.events, event_source, str(session.path / "events.csv"))
+    return caveats
 
 
-def _dropped_strides(session, run) -> list[Finding]:
-    """Strides the run cut that no table scores, counted by reason."""
+def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
+    """Strides the run cut that no table scores, counted by reason (the rules of
+    :func:`graph_slam.strides.reference.stride_references`)."""
     from graph_slam.strides.reference import _cut_short
+    from graph_slam.strides.streams import stride_events
 
+    events = stride_events(session.events, event_source)
     first = next(iter(run.results.values()))
     scored = {int(r.frame_indices[0]) for r in run.references}
-    t = first.t_s
+    t = np.asarray(first.t_s)
     why: Counter[str] = Counter()
     for s in first.strides:
         idx = np.asarray(s.frame_indices, dtype=int)
-        if idx.size and int(idx[0]) in scored:
+        if not idx.size or int(idx[0]) in scored:
             continue
-        if s.start != "foot_strike":
-            why["before the first foot strike"] += 1
-        elif idx.size < 2:
+        if s.start != "foot_strike" or events.last_strike_at_or_before(float(t[idx[0]])) is None:
+            continue  # the part before the first foot strike is no stride
+        if idx.size < 2:
             why["fewer than 2 frames"] += 1
         elif _cut_short(idx, t, session):
             why["the recording ends inside it"] += 1
         elif session.ground_truth is None:
             why["no ground truth"] += 1
-        else:
+        elif events.next_strike_after(float(t[idx[-1]])) is None:
             why["no foot strike after it"] += 1
-    lost = {k: n for k, n in why.items() if k != "before the first foot strike"}
-    if not lost:
+        else:
+            why["other"] += 1
+    if not why:
         return []
-    total = len(first.strides)
-    detail = ", ".join(f"{n} {k}" for k, n in sorted(lost.items()))
+    detail = ", ".join(f"{n} {k}" for k, n in sorted(why.items()))
     return [
         Finding(
             "strides_dropped",
             str(session.path),
-            f"{sum(lost.values())} of {total} strides not scored ({detail}); "
-            f"{len(run.references)} scored",
+            f"{sum(why.values())} strides not scored ({detail}); {len(run.references)} scored",
         )
     ]
 
@@ -88,9 +94,9 @@ def _rejected(session, run) -> list[Finding]:
     return out
 
 
-def run_warnings(session, run, variants) -> list[Finding]:
+def run_warnings(session, run, event_source: str | None) -> list[Finding]:
     """Caveats only the run knows: strides dropped and why, samples rejected by reason."""
-    return _dropped_strides(session, run) + _rejected(session, run)
+    return _dropped_strides(session, run, event_source) + _rejected(session, run)
 
 
 def write_compare_config(cfg, path: Path) -> Path:

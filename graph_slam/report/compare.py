@@ -202,7 +202,7 @@ def compare(
     cfg = config or CompareConfig()
     specs, opened = _open_sessions(sessions)
     out = check_output(out, overwrite=overwrite)
-    warnings = preflight(opened, [str(v) for v in cfg.variants])
+    warnings = preflight(opened, [str(v) for v in cfg.variants], cfg.pipeline.event_source)
     with atomic_folder(out, overwrite=overwrite) as tmp:
         report = _write_report(tmp, specs, opened, cfg, progress, warnings)
         report.wall_s = time.perf_counter() - t_start
@@ -225,7 +225,7 @@ def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnin
         run = _run_variants(session, _speed_of(spec, session), cfg, tick, study.n_strides)
         if not run.references:
             unscored.append(session.name)
-        warnings += run_warnings(session, run, cfg.variants)
+        warnings += run_warnings(session, run, cfg.pipeline.event_source)
         run.maps = [stride_maps(run, ref, study.sources, cfg.pipeline) for ref in run.references]
         _score(run, study, cfg)
         files += views.write_trajectories(tmp / "trajectories" / session.name, run)
