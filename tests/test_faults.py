@@ -578,3 +578,11 @@ def test_convert_missing_source_and_overlap(synthetic_session, tmp_path, capsys)
 def test_event_source_missing_is_refused_before_the_run(synthetic_session, tmp_path, capsys):
     # the synthetic session's events come from source 'synthetic'; compare cuts at 'load_cell'
     _compare_refuses(synthetic_session, tmp_path, capsys, "events.csv", "source 'load_cell'")
+
+
+def test_planar_out_below_a_file(tmp_path, capsys) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code, _, err = cli(["planar", "--out", blocker / "sub"], capsys)
+    assert code == 2
+    one_line_error(err, "sub", "cannot create the output folder")
