@@ -59,11 +59,13 @@ def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
         if idx.size < 2:
             why["fewer than 2 frames"] += 1
         elif _cut_short(idx, t, session):
-            why["the recording ends inside it"] += 1
+            why["the run stopped inside it"] += 1
         elif session.ground_truth is None:
             why["no ground truth"] += 1
         elif events.next_strike_after(float(t[idx[-1]])) is None:
-            why["no foot strike after it"] += 1
+            if int(idx[-1]) < session.n_frames - 1:
+                why["no foot strike after it"] += 1
+            # else: the recording's tail after its last strike, like its head: no stride
         else:
             why["other"] += 1
     if not why:
