@@ -353,3 +353,36 @@ def test_imu_predicted_relative_motion_is_an_icp_guess_to_millimetres():
     errs = np.array(errs)
     assert nones >= 1 + sum(f.strike_before for f in frames[1:])  # first frame, each stride start
     assert errs[:, 0].max() < 0.002 and np.degrees(errs[:, 1].max()) < 0.1, errs.max(axis=0)
+
+
+def test_deferred_smoothing_drains_oldest_first_down_to_keep():
+    """``smooth_deferred(keep)`` smooths the oldest queued strides until ``keep`` wait; the
+    rest, smoothed later, end as an all-at-once drain at the end does."""
+    _, frames = run()
+    st = synthetic_streams(SyntheticConfig(duration_s=4.5, seed=0))
+
+    def streamed(keep_during: int | None):
+        slam = StrideSLAM(BackendConfig(defer_smoothing=True), st.calibration.camera_T_imu)
+        t, gyro, accel = st.imu.t_s, st.imu.gyro_rad_s, st.imu.accel_m_s2
+        for chunk in np.array_split(np.arange(t.size), 20):
+            slam.add_imu(t[chunk], gyro[chunk], accel[chunk])
+        early = []
+        for f in frames:
+            if f.strike_before:
+                slam.foot_strike(f.t_s)
+            slam.add_frame(f.t_s, f.icp, f.foot_loaded, f.kinematics)
+            if keep_during is not None:
+                early += slam.smooth_deferred(keep_during)
+                assert len(slam.strides.deferred) <= keep_during
+        res = slam.finish()
+        return res, early, slam.smooth_deferred()
+
+    res_end, early_end, late_end = streamed(None)
+    res_now, early_now, late_now = streamed(1)
+    n = len(res_end.strides)
+    assert early_end == [] and [s.index for s in late_end] == list(range(n))
+    assert [s.index for s in early_now] == list(range(n - 2))  # oldest first, one left open
+    assert [s.index for s in late_now] == [n - 2, n - 1]
+    np.testing.assert_allclose(
+        res_now.smoothed_stride_T_camera, res_end.smoothed_stride_T_camera, atol=1e-9
+    )

@@ -1,8 +1,9 @@
 """``graph-slam demo`` end to end on a tiny configuration, and ``graph-slam view`` without a viewer.
 
-The demo test simulates one stride per walking speed at quarter resolution, runs the demo's two
-variants (the baseline with one coarse ICP level) and checks the report folder holds everything
-docs/evaluation.md promises. It takes about a minute on two loaded cores.
+The demo test simulates one stride per walking speed at 212x120 (the default is 424x240), runs
+the demo's four variants (the baseline with one coarse ICP level, the graph variants on the
+real-time preset) and checks the report folder holds everything docs/evaluation.md promises. It
+takes about a minute on two loaded cores.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def demo_run(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
     out = base / "out"
     run = subprocess.run(
         [sys.executable, "-m", "graph_slam", "demo", "--out", str(out), "--strides", "1,1,1",
-         "--config", str(base / "tiny.yaml")],
+         "--resolution", "212x120", "--config", str(base / "tiny.yaml")],
         capture_output=True, text=True, timeout=400, check=False,
     )  # fmt: skip
     return out, run
@@ -61,13 +62,14 @@ def test_demo_writes_the_whole_report(demo_run) -> None:
 
     doc = read_metrics_json(report / "metrics.json")
     assert doc["schema_version"] == 2
-    assert set(doc["variants"]) == {"icp", "icp+imu+kin", "icp+imu+kin smoothed"}
+    graphs = ("icp+imu", "imu+kin", "icp+imu+kin")
+    assert set(doc["variants"]) == {"icp", *graphs, *(f"{g} smoothed" for g in graphs)}
     for name, variant in doc["variants"].items():
         assert set(variant) == {"strides", "summary", "timing", "obstacles"}, name
         assert [s["speed"] for s in variant["strides"]] == ["Slow", "Normal", "Fast"], name
         assert variant["summary"]["strides"] == 3
         assert variant["timing"]["n"] > 0
-    assert set(doc["maps"]) == {"icp", "icp+imu+kin", "ground truth"}
+    assert set(doc["maps"]) == {"icp", *graphs, "ground truth"}
     truth_map = doc["maps"]["ground truth"]
     assert truth_map["poses"] == "ground truth" and doc["maps"]["icp"]["poses"] == "online"
     assert set(truth_map["counts"]) == {
@@ -89,13 +91,17 @@ def test_demo_writes_the_whole_report(demo_run) -> None:
         for name in ("ground_truth", "icp_online", "icp_imu_kin_online", "icp_imu_kin_smoothed"):
             t_s, poses = read_tum(folder / f"{name}.tum")
             assert t_s.size > 5 and poses.shape == (t_s.size, 4, 4), (speed_tag, name)
-    for source in ("icp", "icp_imu_kin", "ground_truth"):
+    for source in ("icp", "icp_imu", "imu_kin", "icp_imu_kin", "ground_truth"):
         plys = sorted((report / "maps" / source).glob("*.ply"))
         assert len(plys) == 3, source
         assert len(read_ply(plys[0]).points_m) > 1000, source
     plots = {p.name.split("_")[0] for p in (report / "plots").glob("*.png")}
     assert {"trajectory", "error", "map", "elevation", "obstacles"} <= plots
-    assert (report / "config.yaml").is_file()
+    import yaml
+
+    resolved = yaml.safe_load((report / "config.yaml").read_text())
+    assert resolved["pipeline"]["graph"]["registration"]["method"] == "projective"  # realtime
+    assert resolved["pipeline"]["baseline"]["pixel_step"] == 1  # 212x120: every pixel
     rrd = report / "recording.rrd"
     assert rrd.is_file() and rrd.stat().st_size > 10_000
 
@@ -110,6 +116,14 @@ def test_view_finds_the_demo_recording_without_a_display(demo_run, monkeypatch, 
     assert exc.value.code == 0
     printed = capsys.readouterr().out
     assert "no display" in printed and f"rerun {out / 'report' / 'recording.rrd'}" in printed
+
+
+def test_demo_resolution_option_is_checked(tmp_path: Path, capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["demo", "--out", str(tmp_path / "d"), "--resolution", "640x480"])
+    assert exc.value.code == 2
+    assert "--resolution" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()
 
 
 def test_demo_strides_option_is_checked(tmp_path: Path, capsys) -> None:

@@ -230,3 +230,17 @@ def test_full_graph_with_the_realtime_registration_preset(scored_full, preset):
     assert registered and all(
         {"cloud", "preprocess", "registration"} <= f.stages_s.keys() for f in registered
     )
+
+
+def test_a_bounded_smoothing_queue_smooths_the_same_strides_earlier(scored_full):
+    """``backend.max_deferred_strides: 0`` smooths each closed stride at the next frame (its
+    graph released there, memory flat over a long run) instead of at ``finish``: the same
+    graphs, so the same smoothed poses."""
+    r_end, _ = scored_full(backend={"defer_smoothing": True})
+    r_now, _ = scored_full(backend={"defer_smoothing": True, "max_deferred_strides": 0})
+    np.testing.assert_allclose(
+        r_now.smoothed_stride_T_camera, r_end.smoothed_stride_T_camera, atol=1e-9
+    )
+    closes = [f.stages_s.get("stride_close", 0.0) for f in r_now.frames]
+    assert sum(c > 0 for c in closes) >= len(r_now.strides) - 1  # smoothed inside the run
+    assert all("smoothing_deferred" not in s.flags for s in r_now.strides)

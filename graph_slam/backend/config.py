@@ -162,6 +162,14 @@ class BackendConfig(ConfigModel):
         "StrideSLAM.smooth_deferred() (the pipeline runs it at finish): no smoothing spike "
         "at the foot strike",
     )
+    max_deferred_strides: int | None = Field(
+        None,
+        ge=0,
+        description="with defer_smoothing: at most this many closed strides wait for their "
+        "smoothing (each holds its graph); when a stride close makes more, the oldest are "
+        "smoothed then (their cost falls on that frame). None: all wait for the end of the run "
+        "(memory grows with the run's length)",
+    )
     covariances: bool = Field(False, description="per-frame marginal covariances (slower)")
     isam2_relinearize_threshold: float = Field(0.01, gt=0)
     gap_bridge_rot_sigma_rad: float = Field(0.3, gt=0)

@@ -111,10 +111,11 @@ class StrideSLAM:
         last_T_new_imu = np.linalg.inv(last.stride_T_imu.matrix()) @ nav.pose().matrix()
         return self.camera_T_imu @ last_T_new_imu @ np.linalg.inv(self.camera_T_imu)
 
-    def smooth_deferred(self) -> list[StrideSummary]:
+    def smooth_deferred(self, keep: int = 0) -> list[StrideSummary]:
         """Batch-smooth the strides closed with ``defer_smoothing`` (off the real-time path:
-        at the end of a run, or when the host is idle); returns the strides updated."""
-        return self.strides.smooth_deferred()
+        at the end of a run, or when the host is idle), oldest first, until ``keep`` wait;
+        returns the strides updated."""
+        return self.strides.smooth_deferred(keep)
 
     # ------------------------------------------------------------------ frames
     def add_frame(

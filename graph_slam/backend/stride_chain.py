@@ -318,12 +318,13 @@ class StrideChain:
         self.graph = None
         return summary
 
-    def smooth_deferred(self) -> list[StrideSummary]:
-        """Run the queued smoothings: each summary's smoothed poses (and covariances, when
-        asked for) are replaced by the batch solution; returns the strides updated."""
+    def smooth_deferred(self, keep: int = 0) -> list[StrideSummary]:
+        """Run the queued smoothings, oldest first, until ``keep`` strides wait: each
+        summary's smoothed poses (and covariances, when asked for) are replaced by the batch
+        solution and its graph is released; returns the strides updated."""
         done = []
         inv_ext = np.linalg.inv(self.camera_T_imu)
-        while self.deferred:
+        while len(self.deferred) > keep:
             summary, g = self.deferred.pop(0)
             result, marginals, smoothing_s = g.smooth(True, marginals=self.cfg.covariances)
             summary.smoothed_stride_T_camera = np.array(

@@ -119,16 +119,25 @@ class RealtimeRow:
 
 
 def run_row(
-    session_path: str | Path, row: str, base: PipelineConfig | None = None, pace: str = "virtual"
+    session_path: str | Path,
+    row: str,
+    base: PipelineConfig | None = None,
+    pace: str = "virtual",
+    minutes: float | None = None,
 ) -> RealtimeRow:
-    """Replay one row on one session and score what it processed (in this process)."""
+    """Replay one row on one session and score what it processed (in this process).
+    ``minutes``: the session looped to that length (:class:`~graph_slam.session.looped.
+    LoopedSession`: memory over a long run)."""
     from graph_slam.bench.accuracy import score
     from graph_slam.pipelines.replay import replay_session
     from graph_slam.session import open_session
+    from graph_slam.session.looped import LoopedSession
     from graph_slam.strides.kinematics import leg_model_for
 
     cfg = row_config(row, base)
     session = open_session(session_path)
+    if minutes is not None:
+        session = LoopedSession(session, minutes, cfg.event_source)
     t0 = time.perf_counter()
     res = replay_session(session, cfg, pace=pace)  # type: ignore[arg-type]
     wall = time.perf_counter() - t0
@@ -170,13 +179,13 @@ def machine() -> dict:
     }
 
 
-def _run_row_isolated(session_path, row, base, pace) -> RealtimeRow:
+def _run_row_isolated(session_path, row, base, pace, minutes) -> RealtimeRow:
     """:func:`run_row` in a fresh process, so that its peak memory is its own."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn")) as pool:
-        return pool.submit(run_row, str(session_path), row, base, pace).result()
+        return pool.submit(run_row, str(session_path), row, base, pace, minutes).result()
 
 
 def run_realtime_bench(
@@ -186,15 +195,19 @@ def run_realtime_bench(
     pace: str = "virtual",
     *,
     isolate: bool = True,
+    minutes: float | None = None,
     on_start: Callable[[str, str], None] | None = None,
     on_row: Callable[[RealtimeRow], None] | None = None,
 ) -> list[RealtimeRow]:
     """Every row on every session. Every row's configuration is built first (an unknown
-    variant or preset fails before any work). ``isolate``: each row in a fresh process."""
+    variant or preset fails before any work). ``isolate``: each row in a fresh process.
+    ``minutes``: each session looped to that length (:func:`run_row`)."""
     from graph_slam.pipelines.replay import PACES
 
     if pace not in PACES:
         raise ConfigError(f"pace {pace!r}: choose virtual or wall")
+    if minutes is not None and not minutes > 0:
+        raise ConfigError(f"minutes: must be > 0, got {minutes}")
     for row in rows:
         row_config(row, base)
     out = []
@@ -203,7 +216,7 @@ def run_realtime_bench(
             if on_start is not None:
                 on_start(Path(path).name, row)
             run = _run_row_isolated if isolate else run_row
-            result = run(path, row, base, pace)
+            result = run(path, row, base, pace, minutes)
             out.append(result)
             if on_row is not None:
                 on_row(result)

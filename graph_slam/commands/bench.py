@@ -196,6 +196,13 @@ def realtime_bench(
         Path | None, typer.Option("--config", help="YAML of PipelineConfig overrides (base).")
     ] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Write the figures as JSON.")] = None,
+    minutes: Annotated[
+        float | None,
+        typer.Option(
+            help="Loop each session's strides to this many minutes (memory over a long run; "
+            "resident memory printed at 1, 5 and 10 min)."
+        ),
+    ] = None,
 ) -> None:
     """Issue 14: every row replayed causally (streams in timestamp order, newest frame taken
     when the estimator is free): per-stage latency, frames processed / skipped, rate, CPU,
@@ -221,7 +228,9 @@ def realtime_bench(
         for line in rt.row_lines(r):
             typer.echo(line)
 
-    results = rt.run_realtime_bench(sessions, rows, base, pace, on_start=start, on_row=show)
+    results = rt.run_realtime_bench(
+        sessions, rows, base, pace, minutes=minutes, on_start=start, on_row=show
+    )
     for line in rt.headline_lines(results):
         typer.echo(line)
     if out is not None:

@@ -18,8 +18,12 @@ DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
     ("fast", "Fast", 7),
 )
 """The thesis's 25 strides (Table 4.2): 9 slow, 9 normal, 7 fast."""
-DEMO_VARIANTS = "icp,icp+imu+kin"
-"""Variants the demo runs by default: the thesis baseline and the full graph (fits 10 min)."""
+DEMO_VARIANTS = "icp,icp+imu,imu+kin,icp+imu+kin"
+"""Variants the demo runs by default: the thesis baseline and the three graph variants."""
+DEMO_RESOLUTION = "424x240"
+"""The D455's real-time mode the demo simulates (848x480 and 212x120 are options)."""
+DEMO_PRESET = "realtime"
+"""The graph variants' pipeline preset in the demo: the real-time front end (issue 14)."""
 
 
 def _parse_variants(text: str) -> list[str]:
@@ -38,6 +42,41 @@ def _load_compare_config(path: Path | None, variants: str | None):
             {**cfg.model_dump(), "variants": _parse_variants(variants)}
         )
     return cfg
+
+
+def _with_preset(cfg, preset: str):
+    """``cfg`` with the pipeline preset applied to its graph variants' settings (``none``:
+    as it is); the stride maps stay on, since the report scores them."""
+    if preset == "none":
+        return cfg
+    from graph_slam.pipelines.config import with_preset
+    from graph_slam.report import CompareConfig
+
+    data = cfg.model_dump(mode="json")
+    pipeline = with_preset(data["pipeline"], preset)
+    pipeline["terrain"] = {**pipeline.get("terrain", {}), "enabled": True}
+    return CompareConfig.model_validate({**data, "pipeline": pipeline})
+
+
+def _with_baseline_step(cfg, size: str, step: int | None):
+    """The thesis baseline's cloud from every ``step``-th pixel; None: the demo's budget, a
+    212x120 cloud at any resolution."""
+    from graph_slam.report import CompareConfig
+
+    data = cfg.model_dump(mode="json")
+    data["pipeline"]["baseline"]["pixel_step"] = step or int(size.split("x", maxsplit=1)[0]) // 212
+    return CompareConfig.model_validate(data)
+
+
+def _demo_resolution(resolution: str | None, full_resolution: bool) -> str:
+    from graph_slam.errors import ConfigError
+
+    if full_resolution and resolution not in (None, "848x480"):
+        raise ConfigError(f"--full-resolution is 848x480; --resolution {resolution} contradicts it")
+    size = "848x480" if full_resolution else (resolution or DEMO_RESOLUTION)
+    if size not in ("848x480", "424x240", "212x120"):
+        raise ConfigError(f"--resolution {size!r}: choose 848x480, 424x240 or 212x120")
+    return size
 
 
 def _run_compare(sessions, out: Path, cfg, overwrite: bool = False):
@@ -139,13 +178,36 @@ def register(app: typer.Typer) -> None:
                 "--strides-scale."
             ),
         ] = None,
+        resolution: Annotated[
+            str | None,
+            typer.Option(
+                help=f"Image size: 848x480, 424x240 or 212x120 (default {DEMO_RESOLUTION})."
+            ),
+        ] = None,
         full_resolution: Annotated[
-            bool, typer.Option(help="Simulate 848×480 instead of quarter resolution (slow).")
+            bool, typer.Option(help="Same as --resolution 848x480.")
         ] = False,
         variants: Annotated[
             str,
-            typer.Option(help="Variants to compare (all four: icp,icp+imu,imu+kin,icp+imu+kin)."),
+            typer.Option(help="Variants to compare (a subset of icp,icp+imu,imu+kin,icp+imu+kin)."),
         ] = DEMO_VARIANTS,
+        preset: Annotated[
+            str,
+            typer.Option(
+                help="Pipeline preset of the graph variants, applied over --config: realtime "
+                "(the real-time front end), accurate (colored ICP), thesis, realtime-gicp or none."
+            ),
+        ] = DEMO_PRESET,
+        baseline_pixel_step: Annotated[
+            int | None,
+            typer.Option(
+                min=1,
+                max=8,
+                help="The thesis baseline's cloud from every n-th pixel, over --config "
+                "(default: the 212x120 cloud at any resolution, its cost in the demo's budget; "
+                "1 = every pixel).",
+            ),
+        ] = None,
         seed: Annotated[int, typer.Option(help="Simulator seed.")] = 1,
         config: Annotated[
             Path | None,
@@ -158,8 +220,8 @@ def register(app: typer.Typer) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
 
-        Quarter resolution and two variants by default, aiming at 10 minutes on 2 cores
-        (8.0 min measured idle; docs/benchmarks.md, "Demo (issue 7)").
+        424×240, the thesis baseline and the three graph variants on the real-time front end by
+        default (docs/benchmarks.md, "Demo").
         """
         from graph_slam.commands._common import progress_bar
         from graph_slam.report import SessionSpec
@@ -167,7 +229,9 @@ def register(app: typer.Typer) -> None:
 
         t0 = time.perf_counter()
         counts = _demo_strides(strides, strides_scale)
-        cfg = _load_compare_config(config, variants)
+        size = _demo_resolution(resolution, full_resolution)
+        cfg = _with_preset(_load_compare_config(config, variants), preset)
+        cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
         _check_demo_out(out, overwrite)
         specs = []
         for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):
@@ -177,7 +241,7 @@ def register(app: typer.Typer) -> None:
                 strides=n_strides,
                 seed=seed,
                 drops="bursty",
-                fast=not full_resolution,
+                resolution=size,
                 quicklook=False,
             )
             with progress_bar(f"simulating {label.lower()} ({n_strides} strides)") as update:
@@ -187,9 +251,8 @@ def register(app: typer.Typer) -> None:
             specs.append(SessionSpec(path.path, label))
         t_sim = time.perf_counter() - t0
         typer.echo(
-            f"simulated {len(specs)} sessions in {t_sim:.0f} s "
-            f"({'848×480' if full_resolution else 'quarter resolution (--full-resolution for 848×480)'}, "
-            f"variants {', '.join(cfg.variants)})"
+            f"simulated {len(specs)} sessions in {t_sim:.0f} s ({size}; variants "
+            f"{', '.join(cfg.variants)}; graph preset {preset})"
         )
         report = _run_compare(specs, out / "report", cfg, overwrite)
         _print_report(report)

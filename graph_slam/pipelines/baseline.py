@@ -121,7 +121,9 @@ class ThesisBaseline:
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         t0 = time.perf_counter()
         index = len(self.results.frames)
-        cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
+        cloud = frame_cloud(
+            frame, self.intrinsics, self.cfg.cloud, self.has_color, self.cfg.baseline.pixel_step
+        )
         t_cloud = time.perf_counter()
         pose: np.ndarray | None = None
         fitness = float("nan")

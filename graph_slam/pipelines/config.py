@@ -89,6 +89,13 @@ class BaselineConfig(ConfigModel):
     stop_fitness: float = Field(
         0.3, ge=0, le=1, description="fitness below this stops registration for the stride"
     )
+    pixel_step: int = Field(
+        1,
+        ge=1,
+        le=8,
+        description="the cloud from every n-th row and column of the depth image (2 at "
+        "424x240 gives the 212x120 cloud and cost; the demo sets it so)",
+    )
     stop_on_any_failure: bool = Field(
         True,
         description="a registration that fails otherwise also stops the stride; with the "

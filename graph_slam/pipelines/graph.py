@@ -273,6 +273,8 @@ class GraphPipeline:
         stages["graph"] = t2 - t1  # a missed strike's smoothing included
         self._remember(index, pyramid, est, frame.t_s)
         self._close_strides()  # those closed by this frame (a strike, or a missed one)
+        if (keep := self.cfg.backend.max_deferred_strides) is not None:
+            self._smooth_deferred(keep)  # the oldest queued strides, beyond the bound
         t3 = time.perf_counter()
         self.gravity.drop_before(frame.t_s - self.gravity.keep_s)
         self.terrain.add_frame(index, frame)
@@ -335,10 +337,10 @@ class GraphPipeline:
                 )
             )
 
-    def _smooth_deferred(self) -> None:
+    def _smooth_deferred(self, keep: int = 0) -> None:
         """The batch smoothing of strides closed in real time (``backend.defer_smoothing``),
-        and their maps from the smoothed poses."""
-        for s in self.slam.smooth_deferred():
+        oldest first until ``keep`` wait, and their maps from the smoothed poses."""
+        for s in self.slam.smooth_deferred(keep):
             out = self.results.strides[s.index]
             out.smoothed_stride_T_camera = s.smoothed_stride_T_camera
             out.flags = s.flags

@@ -22,12 +22,17 @@ def sensor_registration(reg: RegistrationConfig, has_color: bool) -> Registratio
 
 
 def frame_cloud(
-    frame: RgbdFrame, intrinsics: CameraIntrinsics, config: CloudConfig, has_color: bool
+    frame: RgbdFrame,
+    intrinsics: CameraIntrinsics,
+    config: CloudConfig,
+    has_color: bool,
+    pixel_step: int = 1,
 ):
-    """The frame's cloud in the camera frame (colours dropped for a depth-only sensor)."""
+    """The frame's cloud in the camera frame (colours dropped for a depth-only sensor), from
+    every ``pixel_step``-th row and column."""
     from graph_slam.frontend import depth_to_cloud
 
-    cloud, _ = depth_to_cloud(frame, intrinsics, config)
+    cloud, _ = depth_to_cloud(frame, intrinsics, config, pixel_step)
     return cloud if has_color else type(cloud)(cloud.points_m)
 
 
