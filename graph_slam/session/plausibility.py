@@ -281,8 +281,9 @@ def timing_findings(session) -> list[Finding]:
     if gt is not None and len(gt.t_s):
         t_gt = np.asarray(gt.t_s)
         covered = t[(t >= t_gt[0] - 1e-6) & (t <= t_gt[-1] + 1e-6)]
-        gi = np.clip(np.searchsorted(t_gt, covered - 1e-6), 0, t_gt.size - 1)
-        off = np.abs(t_gt[gi] - covered)
+        hi = np.clip(np.searchsorted(t_gt, covered), 0, t_gt.size - 1)
+        lo = np.clip(hi - 1, 0, t_gt.size - 1)
+        off = np.minimum(np.abs(t_gt[hi] - covered), np.abs(t_gt[lo] - covered))
         if covered.size and float(off.max()) > 1e-6:
             j = int(np.argmax(off))
             out.append(
