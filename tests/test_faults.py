@@ -318,3 +318,19 @@ def test_bad_ground_truth_row(synthetic_session, capsys, row: str, rule: str) ->
 def test_event_source_missing_is_refused_before_the_run(synthetic_session, tmp_path, capsys):
     # the synthetic session's events come from source 'synthetic'; compare cuts at 'load_cell'
     compare_refuses(synthetic_session, tmp_path, capsys, "events.csv", "source 'load_cell'")
+
+
+def test_imu_online_strides_need_the_imu_not_events(synthetic_session) -> None:
+    from graph_slam.session import open_session
+    from graph_slam.session.plausibility import session_findings, variant_findings
+
+    (synthetic_session / "events.csv").write_text("t_s,kind,source\n")  # no strike at all
+    session = open_session(synthetic_session)
+    assert not [f for f in session_findings(session, events_cut_strides=False) if f.fatal]
+    assert not variant_findings(session, ["icp"], events_cut_strides=False)
+    data = manifest(synthetic_session)
+    data["files"]["imu"] = None
+    data["sensors"]["imu"] = None
+    write_manifest(synthetic_session, data)
+    (found,) = variant_findings(open_session(synthetic_session), ["icp"], events_cut_strides=False)
+    assert found.fatal and "IMU gait events" in found.message and "files.imu" in found.message

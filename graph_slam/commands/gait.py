@@ -23,8 +23,18 @@ def register(app: typer.Typer) -> None:
             Path | None,
             typer.Option("--out", help="Write t_s,kind rows here (default: standard output)."),
         ] = None,
+        online: Annotated[
+            bool,
+            typer.Option(
+                "--online",
+                help="Use the causal estimator (kinematics.gait_phase: one sample at a time, no "
+                "look-ahead) and write t_s,kind,detected_t_s rows (estimated event time, kind, "
+                "time of the sample at which it was emitted).",
+            ),
+        ] = False,
     ) -> None:
-        """Detect foot strikes and toe-offs from a thigh IMU alone (kinematics.gait_events)."""
+        """Detect foot strikes and toe-offs from a thigh IMU alone (kinematics.gait_events;
+        --online: kinematics.gait_phase)."""
         import logging
 
         from kinematics.gait_events import (
@@ -36,6 +46,9 @@ def register(app: typer.Typer) -> None:
         if not logging.getLogger().handlers:
             logging.basicConfig(level=logging.WARNING, format="warning: %(message)s")
         imu = read_imu_csv(imu_csv)
+        if online:
+            _online(imu_csv, imu, out)
+            return
         events = detect_from_thigh_imu(imu)
         if out is not None:
             write_events_csv(out, events)
@@ -52,3 +65,24 @@ def register(app: typer.Typer) -> None:
             f"frame, flexion +) {axis_text}" + (f"; wrote {out}" if out is not None else ""),
             err=True,
         )
+
+
+def _online(imu_csv: Path, imu, out: Path | None) -> None:
+    from kinematics.gait_online import estimate_online, write_online_events_csv
+
+    result = estimate_online(imu)
+    if out is not None:
+        write_online_events_csv(out, result.events)
+    else:
+        typer.echo("t_s,kind,detected_t_s")
+        for e in result.events:
+            typer.echo(f"{e.t_s:.6f},{e.kind},{e.detected_t_s:.6f}")
+    n_fs = sum(e.kind == "foot_strike" for e in result.events)
+    counts = ", ".join(f"{k} {v}" for k, v in result.counts.items())
+    delays = [e.detected_t_s - e.t_s for e in result.events]
+    delay = f"{1e3 * max(delays):.0f} ms" if delays else "–"
+    typer.echo(
+        f"{imu_csv}: online: {n_fs} foot strikes, {len(result.events) - n_fs} toe-offs; "
+        f"longest detection delay {delay}; {counts}" + (f"; wrote {out}" if out else ""),
+        err=True,
+    )

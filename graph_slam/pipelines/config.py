@@ -161,7 +161,8 @@ class PipelineConfig(ConfigModel):
     terrain: TerrainConfig = TerrainConfig()
     event_source: str | None = Field(
         "load_cell",
-        description="events.csv source used to cut strides (None: every source in the file)",
+        description="events.csv source used to cut strides (None: every source in the file), "
+        "or 'imu-online': the causal thigh-IMU gait estimator (kinematics.gait_phase)",
     )
     mount_pitch_deg: float | None = Field(
         None,
@@ -217,8 +218,9 @@ class PipelineConfig(ConfigModel):
 
 #: Named settings of a whole pipeline, applied over a config (``VARIANT:PRESET`` rows of the
 #: benchmarks). ``realtime``: the real-time registration preset with the IMU's initial guess,
-#: the batch smoothing deferred off the foot strike (``backend.defer_smoothing``) and no stride
-#: maps: fusing a stride's map at its close takes 0.3–1.2 s at 424×240, which the real-time
+#: the batch smoothing deferred off the foot strike (``backend.defer_smoothing``; at most two
+#: strides wait, so memory stays flat over a long run: ``backend.max_deferred_strides``) and
+#: no stride maps: fusing a stride's map at its close takes 0.3–1.2 s at 424×240, which the real-time
 #: path cannot afford; the terrain for the controller is to be an incremental map updated at
 #: every frame (issue 16). ``terrain.enabled: true`` over the preset measures that cost.
 PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
@@ -226,12 +228,12 @@ PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
     "thesis": {"graph": {"registration": "thesis"}},
     "realtime": {
         "graph": {"registration": "realtime", "imu_guess": True},
-        "backend": {"defer_smoothing": True},
+        "backend": {"defer_smoothing": True, "max_deferred_strides": 2},
         "terrain": {"enabled": False},
     },
     "realtime-gicp": {
         "graph": {"registration": "realtime-gicp", "imu_guess": True},
-        "backend": {"defer_smoothing": True},
+        "backend": {"defer_smoothing": True, "max_deferred_strides": 2},
         "terrain": {"enabled": False},
     },
 }

@@ -249,8 +249,10 @@ class _Feed:
     def __init__(self, pipe: Pipeline, streams: Streams) -> None:
         self.pipe = pipe
         self.s = streams
-        self.i_imu = self.i_joint = self.i_strike = self.i_toe = 0
+        self.i_imu = self.i_joint = self.i_strike = 0
+        self.t_known = -np.inf
         self.strikes = streams.events.foot_strikes_s
+        self.strikes_known = streams.events.strikes_known_s
         self.toe_offs = streams.events.toe_offs_s
 
     def _samples_until(self, t_s: float) -> None:
@@ -272,19 +274,17 @@ class _Feed:
     def until(self, t_s: float) -> None:
         """Samples and foot strikes stamped at or before ``t_s``; each strike after the
         samples up to it."""
-        while self.i_strike < self.strikes.size and self.strikes[self.i_strike] <= t_s:
+        while self.i_strike < self.strikes.size and self.strikes_known[self.i_strike] <= t_s:
             t_strike = float(self.strikes[self.i_strike])
-            self._samples_until(t_strike)
+            self._samples_until(float(self.strikes_known[self.i_strike]))
             self.pipe.foot_strike(t_strike)
             self.i_strike += 1
         self._samples_until(t_s)
-        self.i_toe = int(np.searchsorted(self.toe_offs, t_s, side="right"))
+        self.t_known = t_s
 
     def known_events(self) -> StrideEvents:
-        """The load-cell events delivered so far."""
-        return StrideEvents(
-            self.strikes[: self.i_strike], self.toe_offs[: self.i_toe], self.s.events.source
-        )
+        """The events delivered (known) so far."""
+        return self.s.events.known_at(self.t_known)
 
 
 # --------------------------------------------------------------------------- the replay

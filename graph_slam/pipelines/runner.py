@@ -78,15 +78,17 @@ def run_session(
     if streams.joints_t_s is not None:
         pipe.add_joints(streams.joints_t_s, streams.knee_rad, streams.ankle_rad)
     n = session.n_frames if config.max_frames is None else min(config.max_frames, session.n_frames)
-    strikes = list(streams.foot_strikes_s)
+    # a strike is announced once known (an online source knows it after it happened)
+    strikes = list(zip(streams.events.strikes_known_s, streams.foot_strikes_s, strict=True))
     t_prev = -np.inf
     for i, frame in enumerate(session.iter_frames(0, n)):
-        for t_strike in (t for t in strikes if t_prev < t <= frame.t_s):
+        for t_strike in (t for known, t in strikes if t_prev < known <= frame.t_s):
             pipe.foot_strike(t_strike)
         pipe.add_frame(frame, streams.foot_loaded(frame.t_s))
         t_prev = frame.t_s
         if progress is not None:
             progress(i + 1, n)
     results = pipe.finish()
-    results.counts["foot_strikes"] = int(np.sum(streams.foot_strikes_s <= t_prev))
+    results.counts["foot_strikes"] = int(np.sum(streams.events.strikes_known_s <= t_prev))
+    results.config.setdefault("strides_cut_by", streams.events.source or "all events.csv sources")
     return results

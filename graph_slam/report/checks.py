@@ -26,15 +26,18 @@ def preflight(sessions, variants: list[str], event_source: str | None) -> list[F
     """Raise a :class:`SessionError` for the first fatal finding, or an
     :class:`EvaluationError` when scoring needs evo and it is missing; return the caveats."""
     from graph_slam.evaluation._evo import require_evo
+    from graph_slam.strides.online_events import ONLINE_SOURCE
     from graph_slam.strides.streams import stride_events
 
     if any(s.ground_truth is not None for s in sessions):
         require_evo()  # the optional extra, before minutes of work rather than after
+    from_events = event_source != ONLINE_SOURCE
     found: list[Finding] = []
     for session in sessions:
-        found += variant_findings(session, variants) + session_findings(session)
+        found += variant_findings(session, variants, events_cut_strides=from_events)
+        found += session_findings(session, events_cut_strides=from_events)
     caveats = raise_fatal(found)
-    for session in sessions:  # the pipelines' event source must be in events.csv
+    for session in sessions if from_events else []:  # the event source must be in events.csv
         stride_events(session.events, event_source, str(session.path / "events.csv"))
     return caveats
 
@@ -43,10 +46,10 @@ def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
     """Strides the run cut that no table scores, counted by reason (the rules of
     :func:`graph_slam.strides.reference.stride_references`)."""
     from graph_slam.strides.reference import _cut_short
-    from graph_slam.strides.streams import stride_events
+    from graph_slam.strides.streams import session_streams
 
-    events = stride_events(session.events, event_source)
     first = next(iter(run.results.values()))
+    events = session_streams(session, event_source).events  # as SessionRun.build reads them
     scored = {int(r.frame_indices[0]) for r in run.references}
     t = np.asarray(first.t_s)
     why: Counter[str] = Counter()

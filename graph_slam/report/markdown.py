@@ -46,6 +46,16 @@ def _warnings_section(report) -> list[str]:
     return [*lines, ""]
 
 
+def _strides_cut_by(cfg) -> str:
+    """The events that cut the strides, in words (``pipeline.event_source``)."""
+    source = cfg.pipeline.event_source
+    if source is None:
+        return "every events.csv source"
+    if source == "imu-online":
+        return "imu-online (the causal thigh-IMU gait estimator, kinematics.gait_phase)"
+    return f"events.csv source {source!r}"
+
+
 def report_markdown(report, cfg) -> str:
     """``report.md``: what was run, Tables 4.2 and 4.1, the box counts, plots and files."""
     out = report.out
@@ -55,6 +65,7 @@ def report_markdown(report, cfg) -> str:
         "# graph_slam comparison report",
         "",
         f"Sessions: {', '.join(report.sessions)}. Variants: {', '.join(cfg.variants)}. "
+        f"Strides cut by: {_strides_cut_by(cfg)}. "
         f"Wall time {report.wall_s:.0f} s. Resolved config: `config.yaml`; every number: "
         "`metrics.json`; layout: docs/evaluation.md.",
         "",

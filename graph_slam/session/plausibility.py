@@ -245,14 +245,15 @@ def camera_findings(session, depth_samples: int = 3) -> list[Finding]:
     return out
 
 
-def timing_findings(session) -> list[Finding]:
-    """Foot strikes inside the recording; ground truth at the frame times."""
+def timing_findings(session, *, events_cut_strides: bool = True) -> list[Finding]:
+    """Foot strikes inside the recording (when events.csv cuts the strides); ground truth at
+    the frame times."""
     out: list[Finding] = []
     t = session.frame_times_s
     if t.size < 2:
         return out
     events = session.events
-    if events is not None:
+    if events is not None and events_cut_strides:
         strikes = np.asarray(events.t_s)[np.asarray(events.kind) == "foot_strike"]
         inside = strikes[(strikes >= t[0]) & (strikes <= t[-1])]
         close = np.flatnonzero(np.diff(np.sort(strikes)) < MIN_STRIDE_S)
@@ -299,16 +300,25 @@ def timing_findings(session) -> list[Finding]:
     return out
 
 
-def session_findings(session, *, depth: bool = True) -> list[Finding]:
-    """Every static finding on ``session`` (an open :class:`graph_slam.session.Session`)."""
-    out = imu_findings(session) + joint_findings(session) + timing_findings(session)
+def session_findings(
+    session, *, depth: bool = True, events_cut_strides: bool = True
+) -> list[Finding]:
+    """Every static finding on ``session`` (an open :class:`graph_slam.session.Session`).
+    ``events_cut_strides=False``: the strides come from elsewhere (the causal IMU estimator),
+    so events.csv need not hold a foot strike inside the recording."""
+    out = imu_findings(session) + joint_findings(session)
+    out += timing_findings(session, events_cut_strides=events_cut_strides)
     if depth:
         out = camera_findings(session) + out
     return out
 
 
-def variant_findings(session, variants: list[str]) -> list[Finding]:
-    """A variant whose factors need a stream the session lacks is fatal (never mislabelled)."""
+def variant_findings(
+    session, variants: list[str], *, events_cut_strides: bool = True
+) -> list[Finding]:
+    """A variant whose factors need a stream the session lacks is fatal (never mislabelled).
+    ``events_cut_strides=False``: the strides come from the thigh IMU, which is then needed
+    instead of events.csv."""
     out = []
     for v in variants:
         parts = v.split("+")
@@ -335,12 +345,13 @@ def variant_findings(session, variants: list[str]) -> list[Finding]:
                 fatal=True,
             )
         )
-    if session.events is None:
+    need, what = ("events", "foot strikes") if events_cut_strides else ("imu", "IMU gait events")
+    if getattr(session, need) is None:
         out.append(
             Finding(
                 "variant_input",
                 str(Path(session.path) / "session.yaml"),
-                "every variant cuts strides at foot strikes but field 'files.events' is absent",
+                f"every variant cuts strides at {what} but field 'files.{need}' is absent",
                 fatal=True,
             )
         )

@@ -1,0 +1,173 @@
+"""Synthetic thigh-IMU recordings for the online gait estimator: walking bouts with a speed per
+stride (speed changes), separated by standing (stop-and-go, standing only), with true events.
+
+Like :func:`kinematics.gait_synth.thigh_imu_from_reference` (which it generalises): each bout
+starts from standing at mid-stance (phase 0.3), blends into the reference curves by phase 0.55,
+walks its strides, and blends back to standing between phase N + 0.3 and N + 0.5 (before the
+toe-off that would follow). Stride k of a bout lasts the adult stride time of its speed
+(:func:`kinematics.gait_curves.stride_time_s`, ± ``stride_time_jitter``); the thigh angle is the
+reference curve at the speed interpolated between stride centres. True foot strikes are the
+integer phases of each bout; true toe-offs the phases k + stance fraction (k = 0 .. N - 1).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from kinematics.gait_curves import stance_fraction, stride_time_s, thigh_angle
+from kinematics.gait_synth import (
+    ImuNoise,
+    _imu_from_pose_functions,
+    _invert,
+    _rx,
+    _ry,
+    _rz,
+    _smoothstep,
+)
+from kinematics.imu import ImuSeries
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A synthetic recording and its truth (``walking_intervals_s``: (start, end) per bout)."""
+
+    imu: ImuSeries
+    foot_strikes_s: np.ndarray
+    toe_offs_s: np.ndarray
+    walking_intervals_s: list[tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class _Bout:
+    knots_t: np.ndarray
+    knots_phase: np.ndarray
+    speeds: np.ndarray
+    phase_fn: CubicSpline
+
+    def speed_at(self, phase: np.ndarray) -> np.ndarray:
+        centres = np.arange(self.speeds.size) + 0.5
+        return np.interp(phase, centres, self.speeds)
+
+
+def _bouts(
+    speeds_per_bout: Sequence[Sequence[float]],
+    stand_s: float,
+    rng: np.random.Generator,
+    jitter: float,
+) -> tuple[list[_Bout], float]:
+    out, t0 = [], stand_s
+    for speeds in speeds_per_bout:
+        v = np.asarray(speeds, dtype=float)
+        n = v.size
+        knots_phase = np.concatenate([[0.3], np.arange(1, n + 1), [n + 0.5]])
+        stride = np.array([stride_time_s(float(s)) for s in v]) * (
+            1 + jitter * rng.standard_normal(n)
+        )
+        seg = np.diff(knots_phase) * np.concatenate([stride, [stride[-1]]])
+        knots_t = t0 + np.concatenate([[0.0], np.cumsum(seg)])
+        out.append(_Bout(knots_t, knots_phase, v, CubicSpline(knots_t, knots_phase)))
+        t0 = knots_t[-1] + stand_s
+    return out, t0
+
+
+def simulate_walks(
+    speeds_per_bout: Sequence[Sequence[float]],
+    *,
+    stand_s: float = 3.0,
+    rate_hz: float = 200.0,
+    thigh_R_sensor: np.ndarray | None = None,
+    noise: ImuNoise | None = None,
+    seed: int = 0,
+    stride_time_jitter: float = 0.02,
+) -> Scenario:
+    """Stand ``stand_s``, walk bout 1 (one speed per stride), stand, walk bout 2, ..., stand.
+
+    ``speeds_per_bout=[]`` gives standing only (``stand_s`` long)."""
+    rng = np.random.default_rng(seed)
+    bouts, total = _bouts(speeds_per_bout, stand_s, rng, stride_time_jitter)
+    sway_f = rng.uniform(0.15, 0.5, 3)
+    sway_p = rng.uniform(0, 2 * np.pi, 3)
+
+    def fields(t: np.ndarray):
+        t = np.asarray(t, dtype=float)
+        stand = math.radians(2.0) + sum(
+            math.radians(0.4) * np.sin(2 * np.pi * f * t + p)
+            for f, p in zip(sway_f, sway_p, strict=True)
+        )
+        sag, add, rot, w_all, ph_all = (
+            stand.copy(),
+            np.zeros_like(t),
+            np.zeros_like(t),
+            *(np.zeros_like(t) for _ in range(2)),
+        )
+        for b in bouts:
+            inside = (t > b.knots_t[0]) & (t < b.knots_t[-1])
+            if not inside.any():
+                continue
+            ph = b.phase_fn(t[inside])
+            end = b.knots_phase[-1]
+            w = np.minimum(
+                _smoothstep((ph - 0.3) / 0.25), 1 - _smoothstep((ph - (end - 0.2)) / 0.2)
+            )
+            v = np.round(b.speed_at(ph), 2)
+            curve = np.empty_like(ph)
+            for s in np.unique(v):
+                m = v == s
+                curve[m] = thigh_angle(ph[m] % 1.0, float(s))
+            sag[inside] = stand[inside] + w * (curve - stand[inside])
+            add[inside] = w * math.radians(3.0) * np.sin(2 * np.pi * ph + 0.5)
+            rot[inside] = w * math.radians(5.0) * np.sin(2 * np.pi * ph - 0.8)
+            w_all[inside], ph_all[inside] = w * b.speed_at(ph), ph
+        return sag, add, rot, w_all, ph_all
+
+    def world_r_thigh(t: np.ndarray):
+        sag, add, rot, _, _ = fields(t)
+        return _ry(-sag) * _rx(add) * _rz(rot)
+
+    dt = 1.0 / rate_hz
+    fine_t = np.arange(0.0, total, dt / 4)
+    _, _, _, vel, ph_fine = fields(fine_t)
+    pos = np.zeros((fine_t.size, 3))
+    pos[:, 0] = np.cumsum(vel) * (dt / 4)
+    pos[:, 2] = 0.9 + 0.02 * (vel / 1.8) * np.cos(4 * np.pi * ph_fine)  # smooth bob
+    splines = [CubicSpline(fine_t, pos[:, i]) for i in range(3)]
+
+    def world_p_imu(t: np.ndarray) -> np.ndarray:
+        hip = np.stack([s(np.clip(t, fine_t[0], fine_t[-1])) for s in splines], axis=-1)
+        return hip + world_r_thigh(t).apply(np.array([0.0, -0.07, -0.25]))
+
+    t = np.arange(0.0, total - dt, dt) + 1e-3
+    imu = _imu_from_pose_functions(
+        t,
+        world_r_thigh,
+        world_p_imu,
+        up_axis=np.array([0.0, 0.0, 1.0]),
+        thigh_R_sensor=np.eye(3) if thigh_R_sensor is None else np.asarray(thigh_R_sensor),
+        noise=noise or ImuNoise(),
+        rng=rng,
+        source=f"simulated walks {[list(b) for b in speeds_per_bout]} (synthetic IMU)",
+    )
+    strikes, toe_offs = [], []
+    for b in bouts:
+        strikes += list(b.knots_t[1:-1])
+        for k in range(b.speeds.size):
+            sf = stance_fraction(float(b.speed_at(np.array([k + 0.6]))[0]))
+            toe_offs.append(_invert(b.phase_fn, k + sf, b.knots_t))
+    return Scenario(
+        imu=imu,
+        foot_strikes_s=np.asarray(strikes),
+        toe_offs_s=np.asarray(toe_offs),
+        walking_intervals_s=[(float(b.knots_t[0]), float(b.knots_t[-1])) for b in bouts],
+    )
+
+
+def speed_change(slow_m_s: float = 0.8, fast_m_s: float = 1.6, strides: int = 10) -> list[float]:
+    """Speeds per stride: a third slow, a change over 3 strides, the rest fast."""
+    n_slow = strides // 3
+    ramp = list(np.linspace(slow_m_s, fast_m_s, 5)[1:-1])
+    return [slow_m_s] * n_slow + ramp + [fast_m_s] * (strides - n_slow - len(ramp))
