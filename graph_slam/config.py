@@ -57,11 +57,23 @@ def load_config(cls: type[C], path: str | Path | None) -> C:
         text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise ConfigError(f"{path}: cannot read config file ({err.strerror})") from None
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as err:
-        raise ConfigError(f"{path}: not valid YAML ({err})") from None
+        raise ConfigError(f"{path}: {yaml_error_text(err)}") from None
     return config_from_dict(cls, data, source=str(path))
+
+
+def yaml_error_text(err: Exception) -> str:
+    """PyYAML's multi-line error as one line: ``not valid YAML at line L, column C: problem``."""
+    mark = getattr(err, "problem_mark", None)
+    problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+    context = getattr(err, "context", None)
+    where = "" if mark is None else f" at line {mark.line + 1}, column {mark.column + 1}"
+    text = f"not valid YAML{where}: {problem}" + (f" ({context})" if context else "")
+    return " ".join(text.split())
 
 
 def write_config(config: ConfigModel, path: str | Path) -> Path:

@@ -137,3 +137,7 @@ def library_errors() -> tuple[type[Exception], ...]:
     from kinematics import KinematicsError
 
     return (GraphSlamError, KinematicsError)
+
+
+class OutputError(GraphSlamError):
+    """An output folder cannot be written or replaced (a file, a user's folder, no permission)."""

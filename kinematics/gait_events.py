@@ -119,51 +119,57 @@ def read_imu_csv(path: str | Path) -> ImuSeries:
         fh = path.open(newline="", encoding="utf-8")
     except OSError as err:
         raise GaitInputError(f"{path}: cannot read IMU CSV ({err.strerror})") from None
-    with fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise GaitInputError(
-                f"{path}: empty file (need header {','.join(IMU_COLUMNS)})"
-            ) from None
-        # the schema the header is closest to names what is missing
-        columns = max(
-            (IMU_COLUMNS, LEGACY_IMU_COLUMNS), key=lambda cols: len(set(cols) & set(header))
+    try:
+        with fh:
+            return _read_imu_rows(path, csv.reader(fh))
+    except UnicodeDecodeError as err:
+        raise GaitInputError(
+            f"{path}: not a UTF-8 text CSV (byte {err.start} cannot be decoded); expected "
+            f"header {','.join(IMU_COLUMNS)}"
+        ) from None
+
+
+def _read_imu_rows(path: Path, reader) -> ImuSeries:
+    """The header and rows of :func:`read_imu_csv` (``reader``: a csv.reader)."""
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise GaitInputError(f"{path}: empty file (need header {','.join(IMU_COLUMNS)})") from None
+    # the schema the header is closest to names what is missing
+    columns = max((IMU_COLUMNS, LEGACY_IMU_COLUMNS), key=lambda cols: len(set(cols) & set(header)))
+    missing = [c for c in columns if c not in header]
+    extra = [c for c in header if c not in columns]
+    if missing or extra or len(header) != len(columns):
+        raise GaitInputError(
+            f"{path}: line 1: header must be exactly {','.join(IMU_COLUMNS)} (or the "
+            f"legacy {','.join(LEGACY_IMU_COLUMNS)}), any order; missing {missing}, "
+            f"unexpected {extra}"
         )
-        missing = [c for c in columns if c not in header]
-        extra = [c for c in header if c not in columns]
-        if missing or extra or len(header) != len(columns):
+    index = [header.index(c) for c in columns]
+    rows: list[list[float]] = []
+    for line_no, row in enumerate(reader, start=2):
+        if not row or all(not x.strip() for x in row):
+            continue
+        if len(row) != len(header):
             raise GaitInputError(
-                f"{path}: line 1: header must be exactly {','.join(IMU_COLUMNS)} (or the "
-                f"legacy {','.join(LEGACY_IMU_COLUMNS)}), any order; missing {missing}, "
-                f"unexpected {extra}"
+                f"{path}: line {line_no}: has {len(row)} fields, the header has {len(header)}"
             )
-        index = [header.index(c) for c in columns]
-        rows: list[list[float]] = []
-        for line_no, row in enumerate(reader, start=2):
-            if not row or all(not x.strip() for x in row):
-                continue
-            if len(row) != len(header):
+        values = []
+        for col, j in zip(columns, index, strict=True):
+            text = row[j].strip()
+            try:
+                value = float(text)
+            except ValueError:
                 raise GaitInputError(
-                    f"{path}: line {line_no}: has {len(row)} fields, the header has {len(header)}"
+                    f"{path}: line {line_no}, column {col}: {text!r} is not a number"
+                ) from None
+            if not math.isfinite(value):
+                raise GaitInputError(
+                    f"{path}: line {line_no}, column {col}: {text!r} is not finite "
+                    "(NaN/inf samples are not allowed; drop or mark them upstream)"
                 )
-            values = []
-            for col, j in zip(columns, index, strict=True):
-                text = row[j].strip()
-                try:
-                    value = float(text)
-                except ValueError:
-                    raise GaitInputError(
-                        f"{path}: line {line_no}, column {col}: {text!r} is not a number"
-                    ) from None
-                if not math.isfinite(value):
-                    raise GaitInputError(
-                        f"{path}: line {line_no}, column {col}: {text!r} is not finite "
-                        "(NaN/inf samples are not allowed; drop or mark them upstream)"
-                    )
-                values.append(value)
-            rows.append(values)
+            values.append(value)
+        rows.append(values)
     data = np.asarray(rows, dtype=float).reshape(-1, len(columns))
     imu = ImuSeries(
         t_s=data[:, 0], gyro_rad_s=data[:, 1:4], accel_m_s2=data[:, 4:7], source=str(path)

@@ -71,6 +71,8 @@ def test_compare_writes_every_promised_file(report_dir) -> None:
     assert strides[0]["trajectory"]["n_evaluated"] == strides[0]["frames"]["recorded"]
     report = (out / "report.md").read_text()
     assert "Table 4.2" in report and "Table 4.1" in report and "| Walking speed |" in report
+    assert "## Warnings" in report and isinstance(doc["warnings"], list)  # docs/reliability.md
+    assert (out / ".graph-slam-output").is_file()  # written whole, then renamed (atomic)
     (session_dir,) = (out / "trajectories").iterdir()
     tums = {p.name for p in session_dir.glob("*.tum")}
     assert tums == {

@@ -79,12 +79,12 @@ def _demo_resolution(resolution: str | None, full_resolution: bool) -> str:
     return size
 
 
-def _run_compare(sessions, out: Path, cfg):
+def _run_compare(sessions, out: Path, cfg, overwrite: bool = False):
     from graph_slam.commands._common import progress_bar
     from graph_slam.report import compare
 
     with progress_bar("running variants") as update:
-        return compare(sessions, out, cfg, progress=update)
+        return compare(sessions, out, cfg, progress=update, overwrite=overwrite)
 
 
 def _print_report(report) -> None:
@@ -103,6 +103,8 @@ def _print_report(report) -> None:
         if name in report.box_counts:
             typer.echo("Strides in which each box was measured, skipped (seen in part) or missed\n")
             typer.echo(report.box_counts[name])
+    for warning in report.warnings:
+        typer.echo(f"warning: {warning}", err=True)
     typer.echo(
         f"report: {report.out / 'report.md'} ({len(report.files)} files, {report.wall_s:.0f} s)"
     )
@@ -125,6 +127,18 @@ def _demo_strides(text: str | None, scale: float) -> list[int]:
     return [int(p) for p in parts]
 
 
+def _check_demo_out(out: Path, overwrite: bool) -> None:
+    """The demo folder (marked as graph-slam's) and its parts, checked before any work."""
+    from graph_slam.session.atomic import check_output, mark_folder
+
+    check_output(out, overwrite=overwrite)
+    for speed, _, _ in DEMO_SPEEDS:
+        check_output(out / "sessions" / speed, overwrite=overwrite, session=True)
+    check_output(out / "report", overwrite=overwrite)
+    mark_folder(out)
+    mark_folder(out / "sessions")
+
+
 def has_display(env: dict[str, str] | None = None) -> bool:
     env = os.environ if env is None else env
     return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
@@ -143,10 +157,13 @@ def register(app: typer.Typer) -> None:
             Path | None,
             typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
         ] = None,
+        overwrite: Annotated[
+            bool, typer.Option("--overwrite", help="Replace a report folder compare wrote.")
+        ] = False,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
         cfg = _load_compare_config(config, variants)
-        _print_report(_run_compare([session], out, cfg))
+        _print_report(_run_compare([session], out, cfg, overwrite))
 
     @app.command()
     def demo(
@@ -196,6 +213,9 @@ def register(app: typer.Typer) -> None:
             Path | None,
             typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
         ] = None,
+        overwrite: Annotated[
+            bool, typer.Option("--overwrite", help="Replace a demo folder graph-slam wrote.")
+        ] = False,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
@@ -212,7 +232,7 @@ def register(app: typer.Typer) -> None:
         size = _demo_resolution(resolution, full_resolution)
         cfg = _with_preset(_load_compare_config(config, variants), preset)
         cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
-        out.mkdir(parents=True, exist_ok=True)
+        _check_demo_out(out, overwrite)
         specs = []
         for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):
             sim_cfg = SimConfig(
@@ -225,14 +245,16 @@ def register(app: typer.Typer) -> None:
                 quicklook=False,
             )
             with progress_bar(f"simulating {label.lower()} ({n_strides} strides)") as update:
-                path = simulate(sim_cfg, out / "sessions" / speed, overwrite=True, progress=update)
+                path = simulate(
+                    sim_cfg, out / "sessions" / speed, overwrite=overwrite, progress=update
+                )
             specs.append(SessionSpec(path.path, label))
         t_sim = time.perf_counter() - t0
         typer.echo(
             f"simulated {len(specs)} sessions in {t_sim:.0f} s ({size}; variants "
             f"{', '.join(cfg.variants)}; graph preset {preset})"
         )
-        report = _run_compare(specs, out / "report", cfg)
+        report = _run_compare(specs, out / "report", cfg, overwrite)
         _print_report(report)
         typer.echo(f"demo done in {time.perf_counter() - t0:.0f} s")
 

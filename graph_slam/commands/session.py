@@ -80,13 +80,24 @@ def register(app: typer.Typer) -> None:
         quick: Annotated[
             bool, typer.Option(help="Decode only the first, middle and last frame.")
         ] = False,
+        variants: Annotated[
+            str | None,
+            typer.Option(help="Also check the streams these variants need (as compare does)."),
+        ] = None,
     ) -> None:
-        """Check a session completely (manifest, streams, every frame); exit 2 on any problem."""
+        """Check a session completely (manifest, streams, every frame, what compare would
+        refuse); exit 2 on any problem; caveats are printed as warnings."""
         from graph_slam.commands._common import progress_bar
         from graph_slam.session import validate_session
+        from graph_slam.variants import parse_variants
 
+        names = None if variants is None else [str(v) for v in parse_variants(variants)]
         with progress_bar("decoding frames") as update:
-            report = validate_session(session, every_frame=not quick, progress=update)
+            report = validate_session(
+                session, every_frame=not quick, progress=update, variants=names
+            )
+        for warning in report.warnings:
+            typer.echo(f"warning: {warning}", err=True)
         if report.ok:
             counts = ", ".join(f"{k} {v}" for k, v in report.counts.items())
             typer.echo(f"valid: {session} ({counts}; {report.frames_checked} frames decoded)")

@@ -141,7 +141,12 @@ def run_planar(
         out_dir = Path(out_dir)
         if out_dir.exists() and not out_dir.is_dir():
             raise PlanarError(f"{out_dir}: the output path exists and is not a folder")
-        out_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise PlanarError(
+                f"{out_dir}: cannot create the output folder ({err.strerror})"
+            ) from None
         files.append(write_config(config, out_dir / "config.yaml"))
     grid = build_terrain(config.terrain)
     runs = []

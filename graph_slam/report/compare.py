@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field, model_validator
 
-from graph_slam.config import ConfigModel, write_config
+from graph_slam.config import ConfigModel
 from graph_slam.errors import EvaluationError
 from graph_slam.evaluation.boxes import collect_measurements, obstacle_accuracy
 from graph_slam.evaluation.report import (
@@ -41,8 +41,11 @@ from graph_slam.evaluation.report import (
 from graph_slam.evaluation.tables import table_4_1, table_4_2, table_box_counts
 from graph_slam.evaluation.timing import timing_stats
 from graph_slam.pipelines import PipelineConfig
+from graph_slam.report.checks import preflight, run_warnings, write_compare_config
 from graph_slam.report.keys import Kind, MapSource, RunKey, run_keys
 from graph_slam.report.scoring import SessionRun, score_maps, score_session, stride_maps
+from graph_slam.session.atomic import atomic_folder, check_output
+from graph_slam.session.plausibility import Finding
 from graph_slam.variants import VARIANTS, Variant
 
 log = logging.getLogger(__name__)
@@ -126,6 +129,8 @@ class CompareReport:
     sessions: list[str] = field(default_factory=list)
     unscored: list[str] = field(default_factory=list)
     """Sessions run without scoring (no ground truth)."""
+    warnings: list[Finding] = field(default_factory=list)
+    """Caveats on the numbers (graph_slam.session.plausibility): gaps, units, dropped strides."""
 
 
 @dataclass
@@ -181,45 +186,70 @@ def compare(
     out: str | Path,
     config: CompareConfig | None = None,
     progress: ProgressCallback | None = None,
+    *,
+    overwrite: bool = False,
 ) -> CompareReport:
-    """Run every variant on every session and write the report folder ``out``."""
+    """Run every variant on every session and write the report folder ``out``.
+
+    Before any work: every session opens, the output folder can be written (and replaced only
+    with ``overwrite`` when compare wrote it), and the plausibility checks
+    (:mod:`graph_slam.session.plausibility`) find nothing that makes the result meaningless.
+    The folder is written under a temporary sibling and renamed on success.
+    """
     from graph_slam.report import views
 
     t_start = time.perf_counter()
     cfg = config or CompareConfig()
     specs, opened = _open_sessions(sessions)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    files: list[Path] = [write_config(cfg, out / "config.yaml")]
+    out = check_output(out, overwrite=overwrite)
+    warnings = preflight(opened, [str(v) for v in cfg.variants], cfg.pipeline.event_source)
+    with atomic_folder(out, overwrite=overwrite) as tmp:
+        report = _write_report(tmp, specs, opened, cfg, progress, warnings)
+        report.wall_s = time.perf_counter() - t_start
+        report.files.append(views.write_report_md(tmp / "report.md", report, cfg))
+        _relocate(report, tmp, out)
+    return report
+
+
+def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnings):
+    """Steps 1-4 and the metrics, into the temporary folder ``tmp``."""
+    from graph_slam.report import views
+
+    files: list[Path] = [write_compare_config(cfg, tmp / "config.yaml")]
     tick = _progress(progress, sum(len(cfg.variants) * s.n_frames for s in opened))
     study = _Study.empty(cfg)
-    logger = views.make_logger(out / "recording.rrd" if cfg.rrd else None)
+    logger = views.make_logger(tmp / "recording.rrd" if cfg.rrd else None)
     t_offset = 0.0
     unscored = []
     for spec, session in zip(specs, opened, strict=True):
         run = _run_variants(session, _speed_of(spec, session), cfg, tick, study.n_strides)
         if not run.references:
             unscored.append(session.name)
+        warnings += run_warnings(session, run, cfg.pipeline.event_source)
         run.maps = [stride_maps(run, ref, study.sources, cfg.pipeline) for ref in run.references]
         _score(run, study, cfg)
-        files += views.write_trajectories(out / "trajectories" / session.name, run)
-        files += views.write_maps_and_views(out, run, cfg, logger, t_offset)
+        files += views.write_trajectories(tmp / "trajectories" / session.name, run)
+        files += views.write_maps_and_views(tmp, run, cfg, logger, t_offset)
         study.n_strides += len(run.references)
         t_offset += float(session.frame_times_s[-1]) + 1.0 if session.n_frames else 0.0
     logger.close()
-    files += [out / "recording.rrd"] if cfg.rrd else []
-    report = _tables(out, cfg, study, [s.name for s in opened], unscored)
-    files.append(
-        write_metrics_json(
-            metrics_document(", ".join(report.sessions), report.variants, report.maps),
-            out / "metrics.json",
-        )
-    )
-    files += views.write_plots(out, study)
+    files += [tmp / "recording.rrd"] if cfg.rrd else []
+    report = _tables(tmp, cfg, study, [s.name for s in opened], unscored)
+    report.warnings = warnings
+    document = metrics_document(", ".join(report.sessions), report.variants, report.maps)
+    document["warnings"] = [w.to_dict() for w in warnings]
+    files.append(write_metrics_json(document, tmp / "metrics.json"))
+    files += views.write_plots(tmp, study)
     report.files = files
-    report.wall_s = time.perf_counter() - t_start
-    files.append(views.write_report_md(out / "report.md", report, cfg))
     return report
+
+
+def _relocate(report: CompareReport, tmp: Path, out: Path) -> None:
+    """The report as it will read once ``tmp`` is renamed to ``out``."""
+    md = tmp / "report.md"
+    md.write_text(md.read_text(encoding="utf-8").replace(tmp.as_posix(), out.as_posix()))
+    report.out = out
+    report.files = [out / f.relative_to(tmp) for f in report.files]
 
 
 def _open_sessions(sessions):

@@ -36,6 +36,16 @@ def summary_table(report) -> str:
     return _phase_table(report.variants)
 
 
+def _warnings_section(report) -> list[str]:
+    """Caveats that apply to the numbers below (also ``warnings`` in metrics.json)."""
+    warnings = report.warnings
+    lines = ["## Warnings", ""]
+    if not warnings:
+        return [*lines, "None: no gap, unit, range or dropped-stride caveat applies.", ""]
+    lines += [f"- **{w.code}** — `{w.file}`: {w.message}" for w in warnings]
+    return [*lines, ""]
+
+
 def _strides_cut_by(cfg) -> str:
     """The events that cut the strides, in words (``pipeline.event_source``)."""
     source = cfg.pipeline.event_source
@@ -73,6 +83,7 @@ def report_markdown(report, cfg) -> str:
             if report.unscored
             else []
         ),
+        *_warnings_section(report),
         "## Table 4.2 — online poses",
         "",
         report.table_4_2_online,

@@ -32,6 +32,7 @@ from types import TracebackType
 import numpy as np
 import yaml
 
+from graph_slam.config import yaml_error_text
 from graph_slam.errors import (
     DepthScaleError,
     GraphSlamError,
@@ -95,6 +96,11 @@ class FrameIndex:
 
 def _read_frame_index(session_dir: Path, rel: str) -> FrameIndex:
     path = resolve_inside(session_dir, rel, what=f"{MANIFEST_NAME} field 'files.frames'")
+    with io.text_errors(path):
+        return _read_frame_rows(session_dir, rel, path)
+
+
+def _read_frame_rows(session_dir: Path, rel: str, path: Path) -> FrameIndex:
     io.read_header(path, FRAME_COLUMNS)
     times: list[float] = []
     depth: list[str] = []
@@ -139,6 +145,11 @@ def _read_frame_index(session_dir: Path, rel: str) -> FrameIndex:
 
 
 def _read_events(path: Path) -> GaitEvents:
+    with io.text_errors(path):
+        return _read_event_rows(path)
+
+
+def _read_event_rows(path: Path) -> GaitEvents:
     io.read_header(path, EVENT_COLUMNS)
     times: list[float] = []
     kinds: list[str] = []
@@ -173,8 +184,10 @@ def _scene_from_yaml(path: Path) -> SceneTruth:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise SessionError(f"{path}: scene file is missing") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise SessionError(f"{path}: cannot read ({err})") from None
     except yaml.YAMLError as err:
-        raise SessionError(f"{path}: not valid YAML ({err})") from None
+        raise SessionError(f"{path}: {yaml_error_text(err)}") from None
     if not isinstance(data, dict) or not isinstance(data.get("objects", []), list):
         raise SessionError(f"{path}: must be a mapping with a list 'objects'")
     objects = []
@@ -397,9 +410,7 @@ class SessionWriter:
         self._name = name
         if self.path.exists():
             if not overwrite:
-                raise SessionError(
-                    f"{self.path}: already exists (pass overwrite=True to replace it)"
-                )
+                raise SessionError(f"{self.path}: already exists (pass --overwrite to replace it)")
             if not (self.path / MANIFEST_NAME).is_file() and any(self.path.iterdir()):
                 raise SessionError(
                     f"{self.path}: exists, is not empty and is not a session; refusing to overwrite"
@@ -585,6 +596,8 @@ class ValidationReport:
     frames_checked: int = 0
     counts: dict[str, int] = field(default_factory=dict)
     problems: list[GraphSlamError] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    """Caveats (graph_slam.session.plausibility) that do not make the session invalid."""
 
     @property
     def ok(self) -> bool:
@@ -614,11 +627,14 @@ def validate_session(
     *,
     every_frame: bool = True,
     progress: object | None = None,
+    variants: list[str] | None = None,
 ) -> ValidationReport:
     """Check a session completely: manifest, streams, every frame's PNGs and the depth scale.
 
     Returns a report listing every problem (a problem in the manifest or frame index stops the
     check, since nothing else can be read). ``progress`` may be a callable ``(done, total)``.
+    Then what ``compare`` would refuse (:mod:`graph_slam.session.plausibility`), including the
+    streams that ``variants`` need, are problems; caveats are ``warnings``.
     """
     report = ValidationReport(Path(path))
     try:
@@ -664,4 +680,21 @@ def validate_session(
             report.problems.append(err)
         if callable(progress):
             progress(done, len(indices))
+    if not report.problems:
+        _check_plausibility(session, report, variants or [])
     return report
+
+
+def _check_plausibility(session: Session, report: ValidationReport, variants: list[str]) -> None:
+    """What compare would refuse (fatal findings) become problems; the rest, warnings."""
+    from graph_slam.session.plausibility import safe_findings, variant_findings
+
+    for finding in variant_findings(session, variants) if variants else []:
+        report.problems.append(SessionError(str(finding)))
+    for finding in safe_findings(session):
+        if isinstance(finding, GraphSlamError):
+            report.problems.append(finding)
+        elif finding.fatal:
+            report.problems.append(SessionError(str(finding)))
+        else:
+            report.warnings.append(str(finding))

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import io
 import math
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
@@ -85,9 +87,24 @@ def write_png(path: Path, array: np.ndarray, *, compress_level: int = 1) -> None
 # --------------------------------------------------------------------------- CSV
 
 
+MAX_ABS_TIME_S = 1e10
+"""Largest plausible timestamp magnitude (s): about 317 years, past any Unix time in seconds."""
+
+
 def _line_of(row: int) -> int:
     """File line number (1-based) of data row ``row`` (0-based) in a file with one header line."""
     return row + 2
+
+
+@contextmanager
+def text_errors(path: Path) -> Iterator[None]:
+    """A text file that is not UTF-8 (or a binary file) becomes a :class:`StreamError`."""
+    try:
+        yield
+    except UnicodeDecodeError as err:
+        raise StreamError(
+            f"{path}: not UTF-8 text (byte {err.start} cannot be decoded); streams are CSV text"
+        ) from None
 
 
 def read_header(path: Path, columns: Sequence[str]) -> None:
@@ -111,8 +128,15 @@ def read_numeric_csv(path: Path, columns: Sequence[str]) -> np.ndarray:
     and column), NaN or inf (:class:`NonFiniteError`, with the count and the first row).
     """
     read_header(path, columns)
+    with text_errors(path):
+        return _read_numeric_rows(path, columns)
+
+
+def _read_numeric_rows(path: Path, columns: Sequence[str]) -> np.ndarray:
     try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=np.float64)
+        with warnings.catch_warnings():  # a header-only file: counted by the caller, not warned
+            warnings.filterwarnings("ignore", "loadtxt: input contained no data")
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=np.float64)
     except ValueError:
         _raise_first_bad_row(path, columns)
         raise  # pragma: no cover - _raise_first_bad_row always raises
@@ -155,7 +179,16 @@ def _raise_first_bad_row(path: Path, columns: Sequence[str]) -> None:
 
 
 def check_times(path: Path, t_s: np.ndarray, column: str = "t_s") -> None:
-    """Timestamps must be strictly increasing: count the offenders, name the first row."""
+    """Timestamps must be seconds below :data:`MAX_ABS_TIME_S` in magnitude and strictly
+    increasing: count the offenders, name the first row."""
+    big = np.flatnonzero(np.abs(t_s) > MAX_ABS_TIME_S)
+    if big.size:
+        first = int(big[0])
+        raise TimestampError(
+            f"{path}: column {column!r}: {big.size} value(s) beyond ±{MAX_ABS_TIME_S:g} s, first "
+            f"at data row {first} (line {_line_of(first)}): {float(t_s[first])!r}; times must "
+            "be seconds (nanoseconds? divide by 1e9)"
+        )
     if t_s.size < 2:
         return
     step = np.diff(t_s)

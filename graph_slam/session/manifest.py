@@ -13,6 +13,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from graph_slam.config import yaml_error_text
 from graph_slam.errors import ManifestError, PathEscapeError, SchemaVersionError
 
 MANIFEST_NAME = "session.yaml"
@@ -128,7 +129,7 @@ def load_manifest(session_dir: Path) -> Manifest:
     try:
         data: Any = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as err:
-        raise ManifestError(f"{path}: not valid YAML ({err})") from None
+        raise ManifestError(f"{path}: {yaml_error_text(err)}") from None
     except (OSError, UnicodeDecodeError) as err:
         raise ManifestError(f"{path}: cannot read ({err})") from None
     if not isinstance(data, dict):

@@ -14,7 +14,7 @@ from typing import Literal, TypeVar
 import yaml
 from pydantic import Field, model_validator
 
-from graph_slam.config import ConfigModel, config_from_dict
+from graph_slam.config import ConfigModel, config_from_dict, yaml_error_text
 from graph_slam.errors import ConfigError, SimulationError
 
 #: Named walking speeds of the thesis's experiments (m/s).
@@ -195,8 +195,10 @@ def load_model_config(cls: type[P], folder: str, what: str, name_or_path: str) -
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as err:
         raise SimulationError(f"{path}: cannot read {what} ({err.strerror})") from None
+    except UnicodeDecodeError as err:
+        raise SimulationError(f"{path}: {what} is not UTF-8 text (byte {err.start})") from None
     except yaml.YAMLError as err:
-        raise SimulationError(f"{path}: not valid YAML ({err})") from None
+        raise SimulationError(f"{path}: {yaml_error_text(err)}") from None
     try:
         return config_from_dict(cls, data, source=str(path)), path
     except ConfigError as err:

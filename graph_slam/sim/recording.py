@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from graph_slam.session.atomic import atomic_folder, check_output
 from graph_slam.session.format import SessionWriter
 from graph_slam.session.manifest import Provenance
 from graph_slam.session.records import Calibration, PoseTrajectory, RgbdFrame
@@ -166,6 +167,7 @@ def simulate(
     :func:`graph_slam.sim.quicklook.write_quicklook` (``graph-slam simulate`` draws it when
     ``cfg.quicklook``).
     """
+    check_output(out, overwrite=overwrite, session=True)  # before any work
     clock = time.perf_counter()
     timings: dict[str, float] = {}
     sim = prepare(cfg)
@@ -185,93 +187,93 @@ def simulate(
         f"events.csv holds the load-cell events; the true events are in {EVENTS_TRUTH_NAME}; "
         f"the resolved config is {CONFIG_NAME}."
     )
-    writer = SessionWriter(
-        out,
-        name=f"sim-{sim.scene.name}-{cfg.speed_m_s:g}mps-seed{cfg.seed}",
-        intrinsics=intrinsics,
-        depth_unit_m=camera.depth_unit_m,
-        camera_profile=camera.name,
-        camera_rate_hz=camera.rate_hz,
-        imu_profile=sim.imu.name,
-        imu_rate_hz=imu_rate,
-        joints_rate_hz=sim.prosthesis.encoder_rate_hz,
-        calibration=sim.calibration,
-        provenance=Provenance(
-            generator="graph_slam.sim",
-            source=f"scene:{sim.scene.name}",
-            seed=cfg.seed,
-            created_utc=_created_utc(),
-            notes=notes,
-        ),
-        overwrite=overwrite,
-    )
-    clock = time.perf_counter()
-    rng_depth = np.random.default_rng([cfg.seed, _DEPTH])
-    with writer, ThreadPoolExecutor(max_workers=1) as png_worker:
-        # PNG encoding (zlib releases the GIL) overlaps the rendering of the next frame; one
-        # worker keeps the frames in order.
-        pending: deque[Future] = deque()
-        for i, t in enumerate(t_frames):
-            depth, color = renderer.render(world_T_camera[i], rng_depth, gyro_camera[i])
-            frame = RgbdFrame(float(t), depth, color, index=i)
-            pending.append(png_worker.submit(writer.add_frame, frame))
-            while len(pending) > 2:
-                pending.popleft().result()
-            if progress is not None:
-                progress(i + 1, t_frames.size)
-        while pending:
-            pending.popleft().result()
-        timings["render+write frames"] = time.perf_counter() - clock
+    with atomic_folder(out, overwrite=overwrite, session=True, create=False) as tmp:
+        writer = SessionWriter(
+            tmp,
+            name=f"sim-{sim.scene.name}-{cfg.speed_m_s:g}mps-seed{cfg.seed}",
+            intrinsics=intrinsics,
+            depth_unit_m=camera.depth_unit_m,
+            camera_profile=camera.name,
+            camera_rate_hz=camera.rate_hz,
+            imu_profile=sim.imu.name,
+            imu_rate_hz=imu_rate,
+            joints_rate_hz=sim.prosthesis.encoder_rate_hz,
+            calibration=sim.calibration,
+            provenance=Provenance(
+                generator="graph_slam.sim",
+                source=f"scene:{sim.scene.name}",
+                seed=cfg.seed,
+                created_utc=_created_utc(),
+                notes=notes,
+            ),
+        )
         clock = time.perf_counter()
-        imu, _ = simulate_imu(
-            motion,
-            sim.thigh_T_imu,
-            sim.imu,
-            np.random.default_rng([cfg.seed, _IMU]),
-            rate_hz=imu_rate,
-            noise_scale=cfg.noise_scale,
-            accel_range_g=cfg.accel_range_g,
-            time_offset_s=cfg.imu_time_offset_s,
-        )
-        joints, _ = simulate_encoders(
-            motion,
-            sim.prosthesis,
-            np.random.default_rng([cfg.seed, _ENCODERS]),
-            noise_scale=cfg.noise_scale,
-        )
-        writer.write_imu(imu)
-        writer.write_joints(joints)
-        # The true events go to their own file; events.csv (written last, so the manifest
-        # points at it) holds what a real prosthesis has: the load cell's events.
-        writer.write_events(true_events(motion), filename=EVENTS_TRUTH_NAME)
-        writer.write_events(
-            load_cell_events(
+        rng_depth = np.random.default_rng([cfg.seed, _DEPTH])
+        with writer, ThreadPoolExecutor(max_workers=1) as png_worker:
+            # PNG encoding (zlib releases the GIL) overlaps the rendering of the next frame; one
+            # worker keeps the frames in order.
+            pending: deque[Future] = deque()
+            for i, t in enumerate(t_frames):
+                depth, color = renderer.render(world_T_camera[i], rng_depth, gyro_camera[i])
+                frame = RgbdFrame(float(t), depth, color, index=i)
+                pending.append(png_worker.submit(writer.add_frame, frame))
+                while len(pending) > 2:
+                    pending.popleft().result()
+                if progress is not None:
+                    progress(i + 1, t_frames.size)
+            while pending:
+                pending.popleft().result()
+            timings["render+write frames"] = time.perf_counter() - clock
+            clock = time.perf_counter()
+            imu, _ = simulate_imu(
+                motion,
+                sim.thigh_T_imu,
+                sim.imu,
+                np.random.default_rng([cfg.seed, _IMU]),
+                rate_hz=imu_rate,
+                noise_scale=cfg.noise_scale,
+                accel_range_g=cfg.accel_range_g,
+                time_offset_s=cfg.imu_time_offset_s,
+            )
+            joints, _ = simulate_encoders(
                 motion,
                 sim.prosthesis,
-                np.random.default_rng([cfg.seed, _LOAD_CELL]),
+                np.random.default_rng([cfg.seed, _ENCODERS]),
                 noise_scale=cfg.noise_scale,
             )
+            writer.write_imu(imu)
+            writer.write_joints(joints)
+            # The true events go to their own file; events.csv (written last, so the manifest
+            # points at it) holds what a real prosthesis has: the load cell's events.
+            writer.write_events(true_events(motion), filename=EVENTS_TRUTH_NAME)
+            writer.write_events(
+                load_cell_events(
+                    motion,
+                    sim.prosthesis,
+                    np.random.default_rng([cfg.seed, _LOAD_CELL]),
+                    noise_scale=cfg.noise_scale,
+                )
+            )
+            writer.write_ground_truth(PoseTrajectory(t_frames, world_T_camera))
+            t_hf = np.arange(math.floor(motion.duration_s * MOCAP_RATE_HZ) + 1) / MOCAP_RATE_HZ
+            writer.write_ground_truth(
+                PoseTrajectory(t_hf, motion.world_T(t_hf, sim.thigh_T_camera)), high_rate=True
+            )
+            writer.write_scene(sim.scene.truth())
+        path = Path(out)
+        strikes = motion.foot_strikes_s
+        per_stride = np.histogram(t_frames, bins=strikes)[0]
+        result = SimResult(
+            path=path,
+            frames=int(t_frames.size),
+            nominal_frames=sim.nominal_frames,
+            duration_s=motion.duration_s,
+            frames_per_stride=per_stride,
+            stride_times_s=np.diff(strikes),
+            mean_speed_m_s=motion.mean_speed_m_s,
+            simulation=sim,
         )
-        writer.write_ground_truth(PoseTrajectory(t_frames, world_T_camera))
-        t_hf = np.arange(math.floor(motion.duration_s * MOCAP_RATE_HZ) + 1) / MOCAP_RATE_HZ
-        writer.write_ground_truth(
-            PoseTrajectory(t_hf, motion.world_T(t_hf, sim.thigh_T_camera)), high_rate=True
-        )
-        writer.write_scene(sim.scene.truth())
-    path = Path(out)
-    strikes = motion.foot_strikes_s
-    per_stride = np.histogram(t_frames, bins=strikes)[0]
-    result = SimResult(
-        path=path,
-        frames=int(t_frames.size),
-        nominal_frames=sim.nominal_frames,
-        duration_s=motion.duration_s,
-        frames_per_stride=per_stride,
-        stride_times_s=np.diff(strikes),
-        mean_speed_m_s=motion.mean_speed_m_s,
-        simulation=sim,
-    )
-    write_resolved_config(sim, path / CONFIG_NAME, result)
+        write_resolved_config(sim, tmp / CONFIG_NAME, result)
     timings["streams"] = time.perf_counter() - clock
     result.timings_s = timings
     return result

@@ -10,8 +10,6 @@
 
 from __future__ import annotations
 
-import os
-import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -25,6 +23,7 @@ from graph_slam.session.adapters.base import ConversionReport, Recording
 from graph_slam.session.adapters.config import ConvertConfig
 from graph_slam.session.adapters.prosthesis_log import read_prosthesis_log
 from graph_slam.session.adapters.registry import select_adapter
+from graph_slam.session.atomic import atomic_folder, check_output
 from graph_slam.session.format import SessionWriter
 from graph_slam.session.manifest import MANIFEST_NAME, Provenance
 from graph_slam.session.records import Calibration
@@ -198,15 +197,12 @@ def convert(
     src, dst = Path(src), Path(dst)
     config = config or ConvertConfig()
     check_paths(src, dst, overwrite)
+    check_output(dst, overwrite=overwrite, session=True)
     adapter = select_adapter(src, config.format)
     recording = adapter.open(src, config)
     recording = merge_prosthesis_log(recording, config)
     recording = apply_calibration(recording, config)
-    tmp = dst.parent / f".{dst.name}.converting-{os.getpid()}"
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    try:
+    with atomic_folder(dst, overwrite=overwrite, session=True, create=False) as tmp:
         write_recording(
             recording,
             tmp,
@@ -220,10 +216,4 @@ def convert(
             yaml.safe_dump(recording.report.to_dict(), sort_keys=False, allow_unicode=True),
             encoding="utf-8",
         )
-        if dst.exists():
-            shutil.rmtree(dst)
-        tmp.rename(dst)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return ConversionResult(dst, recording.report, recording.resolved, recording.n_frames)

@@ -310,6 +310,15 @@ def _rosbag_errors() -> tuple[type[BaseException], ...]:
         sqlite3.DatabaseError,
         struct.error,
         EOFError,
+        # rosbags on random or damaged bytes (found by tests/test_faults_fuzz.py): a header
+        # that is not UTF-8, a record length past the end, a field it does not know
+        UnicodeDecodeError,
+        ValueError,
+        IndexError,
+        KeyError,
+        OverflowError,
+        OSError,  # a seek to a negative offset (a damaged index position)
+        AssertionError,  # rosbags' own consistency checks on a damaged chunk
     )
 
 
@@ -340,6 +349,9 @@ def _hint(message: str, path: Path) -> str:
 
 def _bag_error(path: Path, err: BaseException) -> BagError:
     message = " ".join(str(a) for a in err.args) or type(err).__name__
+    if isinstance(err, UnicodeDecodeError):
+        message = f"byte {err.start} is not text where the bag's header should be"
+    message = message if len(message) <= 200 else message[:200] + "..."
     return BagError(f"{path}: cannot read the bag ({message}); {_hint(message, path)}")
 
 
