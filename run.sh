@@ -63,7 +63,7 @@ case "$target" in
   install) install ;;
   demo)
     install
-    "$VENV/bin/graph-slam" demo --out "${OUT_DIR:-runs/demo}"
+    "$VENV/bin/graph-slam" demo --out "${OUT_DIR:-runs/demo}" --overwrite
     ;;
   test)
     install
