@@ -42,16 +42,29 @@ class RegistrationStatus(StrEnum):
 # --------------------------------------------------------------------------- quality report
 @dataclass(frozen=True, eq=False)
 class DegeneracyReport:
-    """Eigen-analysis of the ICP Hessian JᵀWJ at the solution, made unit-free.
+    """What constrains the registration: the ICP Hessian JᵀWJ at the solution, made unit-free,
+    and per eigen-direction the share of it that *significant* constraints carry.
 
     The Hessian is taken for a motion of the source about ``center_m`` (the centroid of the
     matched source points, target frame) in the coordinates ``(L·ω, t)``, ``L = length_m`` the
     rms distance of those points from the centre, and divided by the summed weights of the
     geometric residuals. A pure translation ``t`` (unit) then has stiffness ``mean (n·t)²`` —
     the share of the correspondences whose normals hold it — and a rotation about the centre
-    the same share at the cloud's scale. Directions whose eigenvalue is below ``threshold`` are
-    under-constrained: a flat floor gives three (two translations along it, the rotation
-    about its normal).
+    the same share at the cloud's scale.
+
+    An eigenvalue alone can be fooled: the noise of the normals of a plane gives its three free
+    directions a stiffness of ``mean sin²θ`` (0.001–0.02 measured at quarter resolution).
+    ``significant`` (per eigen-direction) therefore counts a point-to-plane row only where it
+    holds the direction by at least ``min_alignment`` (``|a·v| ≥ min_alignment``, ``a`` the
+    unit-free row: ``n`` for a translation, ``(q − c) × n / L`` for a rotation: a normal
+    within ~60° of the direction at 0.5), and a photometric row only where the texture's
+    gradient along the direction is at least ``min_gradient`` (intensity per metre). A
+    direction is *constrained* when that significant stiffness is at least ``threshold`` and
+    the significant rows carry at least ``min_share`` of the correspondences' weight (far
+    points of a floor, 3 m away at 2.7 cm depth noise, have near-random normals and long
+    levers: about 1 % of the rows, which alone gave a floor's yaw a stiffness of 0.01). A
+    flat floor gives three free directions (two translations along it, the rotation about
+    its normal), a textured floor none.
     """
 
     eigenvalues: np.ndarray  # (6,) ascending
@@ -59,11 +72,24 @@ class DegeneracyReport:
     center_m: np.ndarray
     length_m: float
     threshold: float
+    significant: np.ndarray | None = None  # (6,) significant stiffness per eigen-direction
+    share: np.ndarray | None = None  # (6,) weight share of the significant rows
+    min_share: float = 0.0
 
     @property
     def weak(self) -> np.ndarray:
         """Mask of the under-constrained eigen-directions."""
-        return self.eigenvalues < self.threshold
+        weak = self.eigenvalues < self.threshold
+        if self.significant is not None:
+            weak |= self.significant < self.threshold
+        if self.share is not None:
+            weak |= self.share < self.min_share
+        return weak
+
+    @property
+    def dof(self) -> int:
+        """The number of constrained directions (6: every direction; 0: none)."""
+        return int(6 - self.weak.sum())
 
     @property
     def is_degenerate(self) -> bool:
@@ -78,6 +104,21 @@ class DegeneracyReport:
     def hessian(self) -> np.ndarray:
         """The normalised 6×6 Hessian (rotation first)."""
         return (self.eigenvectors * self.eigenvalues) @ self.eigenvectors.T
+
+    def to_origin(self) -> np.ndarray:
+        """``U``: a left twist about the target origin ``(ω, t)`` = ``U · (L·ω, t about c)``."""
+        return _unit_coordinates(self.center_m, self.length_m)
+
+    def projector(self, target_T_source: np.ndarray) -> np.ndarray:
+        """``M``, 6×6: a right twist (source frame, GTSAM's ``BetweenFactor`` tangent) → its
+        component along the constrained directions (oblique projection along the weak ones).
+        ``Mᵀ I M`` keeps an information ``I`` on the constrained subspace and gives the weak
+        directions exactly zero."""
+        strong = self.eigenvectors[:, ~self.weak]
+        unit = self.to_origin()
+        left = unit @ (strong @ strong.T) @ np.linalg.inv(unit)
+        ad = adjoint_rot_first(target_T_source)
+        return np.linalg.inv(ad) @ left @ ad
 
     def stiffness(
         self, *, translation: np.ndarray | None = None, rotation_axis: np.ndarray | None = None
@@ -103,6 +144,14 @@ class DegeneracyReport:
                 axis, kind = rot / np.linalg.norm(rot), "rotation about"
             lines.append(f"{kind} ({axis[0]:+.2f}, {axis[1]:+.2f}, {axis[2]:+.2f}): {value:.2g}")
         return lines
+
+
+def _unit_coordinates(center_m: np.ndarray, length_m: float) -> np.ndarray:
+    """``U`` with origin twist ``(ω, t) = U · (L·ω, t about the centre)``."""
+    unit = np.eye(6)
+    unit[3:, :3] = skew(center_m)
+    unit[:, :3] /= length_m
+    return unit
 
 
 @dataclass(frozen=True, eq=False)
@@ -201,6 +250,7 @@ class _Rows:
     q: np.ndarray
     geo_scale: np.ndarray
     n_geo: int
+    pho_scale: float = 0.0
 
 
 def _rows(
@@ -234,7 +284,7 @@ def _rows(
         d_m = -(d - np.einsum("ij,ij->i", d, n)[:, None] * n)  # -(I - n nᵀ) d
         j_pho = pho_scale * np.hstack([np.cross(q, d_m), d_m])
         r, jac = np.concatenate([r, r_pho]), np.vstack([jac, j_pho])
-    return _Rows(r, jac, kernel_weights(r, kernel, k), q, geo_scale, len(q))
+    return _Rows(r, jac, kernel_weights(r, kernel, k), q, geo_scale, len(q), float(pho_scale))
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,39 +295,88 @@ class _Analysis:
     step_rad: float
 
 
-def _analyse(rows: _Rows, threshold: float) -> _Analysis:
-    """Eigen-analysis of the unit-free Hessian and the Gauss-Newton step restricted to its
-    well-constrained directions (see :class:`DegeneracyReport`)."""
+def _analyse(rows: _Rows, config) -> _Analysis:
+    """Eigen-analysis of the unit-free Hessian, the significant stiffness of each direction
+    (see :class:`DegeneracyReport`; ``config``: any config with ``degeneracy_threshold``,
+    ``degeneracy_min_alignment`` and ``degeneracy_min_gradient``) and the Gauss-Newton step
+    restricted to the constrained directions."""
     center = rows.q.mean(axis=0)
     length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
-    to_unit = np.eye(6)  # origin twist = to_unit · (L·ω, t about the centre)
-    to_unit[3:, :3] = skew(center)
-    to_unit[:, :3] /= length
+    to_unit = _unit_coordinates(center, length)
     norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
-    weighted = rows.jac * rows.w[:, None]
-    hess_n = to_unit.T @ (weighted.T @ rows.jac) @ to_unit / norm
-    grad_n = to_unit.T @ (weighted.T @ rows.r) / norm
+    jac_n = rows.jac @ to_unit
+    weighted = jac_n * rows.w[:, None]
+    hess_n = weighted.T @ jac_n / norm
+    grad_n = weighted.T @ rows.r / norm
     values, vectors = np.linalg.eigh(hess_n)
-    strong = values >= threshold
+    significant, share = _significant(rows, jac_n @ vectors, norm, config)
+    report = DegeneracyReport(
+        values, vectors, center, length, config.degeneracy_threshold, significant, share,
+        config.degeneracy_min_share,
+    )  # fmt: skip
+    strong = ~report.weak
     step_n = -vectors[:, strong] @ ((vectors[:, strong].T @ grad_n) / values[strong])
     return _Analysis(
-        degeneracy=DegeneracyReport(values, vectors, center, length, threshold),
+        degeneracy=report,
         step_origin=to_unit @ step_n,
         step_m=float(np.linalg.norm(step_n[3:])),
         step_rad=float(np.linalg.norm(step_n[:3]) / length),
     )
 
 
+def _significant(
+    rows: _Rows, along: np.ndarray, norm: float, config
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per eigen-direction ``v`` (``along``: each row's Jacobian in ``(L·ω, t)`` times the
+    eigenvectors), the normalised stiffness of the rows that hold it significantly:
+    point-to-plane rows with ``|a·v| ≥ degeneracy_min_alignment`` (``a``: the row over its
+    scale ``geo_scale``, unit normal for a translation), photometric rows whose intensity
+    gradient along ``v`` (the row over ``pho_scale``) is at least ``degeneracy_min_gradient``
+    per metre; and the share of the geometric rows' weight those rows carry (a photometric
+    row counts as much as a geometric one)."""
+    n_geo = rows.n_geo
+    contrib = rows.w[:, None] * along**2
+    geo = np.abs(along[:n_geo]) >= config.degeneracy_min_alignment * rows.geo_scale[:, None]
+    total = np.sum(contrib[:n_geo] * geo, axis=0)
+    count = rows.w[:n_geo] @ geo
+    if len(rows.r) > n_geo and rows.pho_scale > 0:
+        pho = np.abs(along[n_geo:]) >= config.degeneracy_min_gradient * rows.pho_scale
+        total = total + np.sum(contrib[n_geo:] * pho, axis=0)
+        count = count + rows.w[n_geo:] @ pho
+    return total / norm, count / max(float(rows.w[:n_geo].sum()), 1e-300)
+
+
 def _information(
-    rows: _Rows, target_T_source: np.ndarray, min_sigma_m: float
+    rows: _Rows,
+    target_T_source: np.ndarray,
+    min_sigma_m: float,
+    degeneracy: DegeneracyReport | None = None,
+    scale: float = 1.0,
 ) -> tuple[np.ndarray, float]:
-    """JᵀWJ / σ² in GTSAM's tangent space (right perturbation, source frame) and σ, the
-    weighted rms residual, floored at ``min_sigma_m`` (in the geometric residual's scale)."""
+    """``scale · JᵀWJ / σ²`` in GTSAM's tangent space (right perturbation, source frame) and σ,
+    the weighted rms residual, floored at ``min_sigma_m`` (in the geometric residual's scale).
+    With a ``degeneracy`` report, only its constrained directions keep information (``Mᵀ I M``,
+    :meth:`DegeneracyReport.projector`): the weak ones get exactly zero."""
     sigma2 = float(np.sum(rows.w * rows.r**2) / max(float(rows.w.sum()), 1e-300))
     sigma = max(np.sqrt(sigma2), min_sigma_m * float(np.median(rows.geo_scale)))
     info_left = (rows.jac * rows.w[:, None]).T @ rows.jac / sigma**2
     ad = adjoint_rot_first(target_T_source)
-    return ad.T @ info_left @ ad, float(sigma)
+    info = scale * (ad.T @ info_left @ ad)
+    if degeneracy is not None:
+        info = project_information(info, degeneracy, target_T_source)
+    return info, float(sigma)
+
+
+def project_information(
+    information: np.ndarray, degeneracy: DegeneracyReport, target_T_source: np.ndarray
+) -> np.ndarray:
+    """The information (right tangent, rotation first) kept on the report's constrained
+    directions only (``Mᵀ I M``, symmetrised); unchanged when every direction is held."""
+    if not degeneracy.is_degenerate:
+        return information
+    m = degeneracy.projector(target_T_source)
+    info = m.T @ information @ m
+    return 0.5 * (info + info.T)
 
 
 def _open3d_rows(source, target, corr, target_T_source, config: RegistrationConfig) -> _Rows:
@@ -335,7 +434,7 @@ def _refine(
         corr = np.column_stack([found, nearest[found]])
         if len(corr) < config.min_correspondences:
             break
-        step = _analyse(rows_at(corr, target_T_source), config.degeneracy_threshold).step_origin
+        step = _analyse(rows_at(corr, target_T_source), config).step_origin
         target_T_source = _exp_left(step) @ target_T_source
         if np.linalg.norm(step) < refine.min_step:
             break
@@ -498,8 +597,11 @@ def register(
         moved = source_level.points_m[corr[:, 0]] @ target_T_source[:3, :3].T
         gap = moved + target_T_source[:3, 3] - target.finest.points_m[corr[:, 1]]
         inlier_rmse_m = float(np.sqrt(np.mean(np.sum(gap**2, axis=1))))
-    analysis = _analyse(rows, config.degeneracy_threshold)
-    information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
+    analysis = _analyse(rows, config)
+    information, sigma = _information(
+        rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
+        config.information_scale,
+    )  # fmt: skip
     timing["information"] = time.perf_counter() - t0
     return conclude(
         target_T_source, analysis, information, sigma, fitness, len(corr), inlier_rmse_m,
