@@ -226,3 +226,24 @@ def realtime_bench(
         typer.echo(line)
     if out is not None:
         typer.echo(f"wrote {rt.write_json(results, out)}")
+
+
+@bench_app.command("scenarios")
+def scenarios_bench(
+    only: Annotated[
+        str | None, typer.Option(help="Comma-separated scenario names (default: all).")
+    ] = None,
+    strides: Annotated[int, typer.Option(help="Strides simulated per scenario.")] = 2,
+    seed: Annotated[int, typer.Option(help="Simulator seed.")] = 3,
+) -> None:
+    """Issue 20: a fixed list of scenes and conditions (flat floor and box course with and
+    without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered
+    / partial / bridged, smoothed and online per-stride RMSE, the baseline beside them."""
+    from graph_slam.bench import scenarios as sc
+
+    names = None if only is None else tuple(n.strip() for n in only.split(",") if n.strip())
+    known = {s.name for s in sc.SCENARIOS}
+    if names and (unknown := [n for n in names if n not in known]):
+        raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(sorted(known))}")
+    typer.echo(sc.HEADER)
+    sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()))
