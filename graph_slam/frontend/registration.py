@@ -309,12 +309,12 @@ def _analyse(rows: _Rows, config) -> _Analysis:
     hess_n = weighted.T @ jac_n / norm
     grad_n = weighted.T @ rows.r / norm
     values, vectors = np.linalg.eigh(hess_n)
-    significant, share = _significant(rows, jac_n @ vectors, norm, config)
+    significant, share = _significant(rows, jac_n @ vectors, vectors, center, length, norm, config)
     report = DegeneracyReport(
         values, vectors, center, length, config.degeneracy_threshold, significant, share,
         config.degeneracy_min_share,
     )  # fmt: skip
-    strong = ~report.weak
+    strong = values >= config.degeneracy_threshold  # the step: as before the significance test
     step_n = -vectors[:, strong] @ ((vectors[:, strong].T @ grad_n) / values[strong])
     return _Analysis(
         degeneracy=report,
@@ -325,22 +325,29 @@ def _analyse(rows: _Rows, config) -> _Analysis:
 
 
 def _significant(
-    rows: _Rows, along: np.ndarray, norm: float, config
+    rows: _Rows, along: np.ndarray, vectors, center, length: float, norm: float, config
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per eigen-direction ``v`` (``along``: each row's Jacobian in ``(L·ω, t)`` times the
     eigenvectors), the normalised stiffness of the rows that hold it significantly:
-    point-to-plane rows with ``|a·v| ≥ degeneracy_min_alignment`` (``a``: the row over its
-    scale ``geo_scale``, unit normal for a translation), photometric rows whose intensity
-    gradient along ``v`` (the row over ``pho_scale``) is at least ``degeneracy_min_gradient``
-    per metre; and the share of the geometric rows' weight those rows carry (a photometric
+    point-to-plane rows whose normal is aligned with the point's displacement ``δ`` under
+    ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric rows whose intensity
+    gradient along ``δ`` is at least ``degeneracy_min_gradient`` per metre of it; and the share of the geometric rows' weight those rows carry (a photometric
     row counts as much as a geometric one)."""
     n_geo = rows.n_geo
     contrib = rows.w[:, None] * along**2
-    geo = np.abs(along[:n_geo]) >= config.degeneracy_min_alignment * rows.geo_scale[:, None]
+    # |δ|: how far each point moves under the unit-free motion v (rotation about c over L)
+    lever = (rows.q - center) / length
+    moved = np.linalg.norm(
+        np.cross(vectors[:3].T[None, :, :], lever[:, None, :]) + vectors[3:].T[None, :, :],
+        axis=2,
+    )
+    geo = np.abs(along[:n_geo]) >= (
+        config.degeneracy_min_alignment * rows.geo_scale[:, None] * moved
+    )
     total = np.sum(contrib[:n_geo] * geo, axis=0)
     count = rows.w[:n_geo] @ geo
     if len(rows.r) > n_geo and rows.pho_scale > 0:
-        pho = np.abs(along[n_geo:]) >= config.degeneracy_min_gradient * rows.pho_scale
+        pho = np.abs(along[n_geo:]) >= config.degeneracy_min_gradient * rows.pho_scale * moved
         total = total + np.sum(contrib[n_geo:] * pho, axis=0)
         count = count + rows.w[n_geo:] @ pho
     return total / norm, count / max(float(rows.w[:n_geo].sum()), 1e-300)
