@@ -129,7 +129,7 @@ class RegistrationConfig(ConfigModel):
         "far, noisy points of a plain floor: about 1 %)",
     )
     degeneracy_min_gradient: float = Field(
-        0.5,
+        0.25,
         gt=0,
         description="a photometric row holds a direction only when the texture's intensity "
         "gradient along it is at least this (intensity in [0, 1] per metre)",
@@ -246,7 +246,7 @@ class PreparedFrameConfig(ConfigModel):
         "far, noisy points of a plain floor: about 1 %)",
     )
     degeneracy_min_gradient: float = Field(
-        0.5,
+        0.25,
         gt=0,
         description="a photometric row holds a direction only when the texture's intensity "
         "gradient along it is at least this (intensity in [0, 1] per metre)",
