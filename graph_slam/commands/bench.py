@@ -247,3 +247,32 @@ def scenarios_bench(
         raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(sorted(known))}")
     typer.echo(sc.HEADER)
     sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()))
+
+
+@bench_app.command("calibration")
+def calibration_bench(
+    sessions: Annotated[
+        list[Path] | None, typer.Argument(help="Simulated sessions (ground truth needed).")
+    ] = None,
+    pairs: Annotated[int, typer.Option(help="Consecutive pairs per session (from frame 0).")] = 59,
+    tum: Annotated[
+        Path | None,
+        typer.Option(help="TUM sample folder (default: ../shared/data/tum_fr1_xyz_10 if present)."),
+    ] = None,
+) -> None:
+    """Issue 20: χ²/dof of the registrations' information against the truth (accurate and
+    realtime presets; docs/frontend.md, "Calibrated information")."""
+    from graph_slam.bench.calibration import chi2_of_pairs
+    from graph_slam.bench.registration import default_tum_folder, read_tum_sample, session_dataset
+    from graph_slam.frontend.config import realtime_registration
+    from graph_slam.pipelines.config import PipelineConfig
+
+    datasets = [session_dataset(p, stop=pairs + 1) for p in sessions or ()]
+    folder = tum or default_tum_folder()
+    if (folder / "ground_truth.json").is_file():
+        datasets.append(read_tum_sample(folder))
+    presets = {"accurate": PipelineConfig().graph.registration, "realtime": realtime_registration()}
+    for data in datasets:
+        typer.echo(data.name)
+        for name, config in presets.items():
+            typer.echo(chi2_of_pairs(data, config, name=name).line())

@@ -139,7 +139,7 @@ class RegistrationConfig(ConfigModel):
         gt=0,
         description="multiplies JᵀWJ/σ² (correspondences are not independent): calibrated on "
         "the simulator's box course, textured and not, so that the χ² of the relative pose "
-        "against the truth is near its degrees of freedom (χ²/dof median 0.56 and 1.8; "
+        "against the truth is near its degrees of freedom (χ²/dof median 0.57 and 1.85; "
         "docs/frontend.md)",
     )
     fail_on_degenerate: bool = Field(
@@ -365,7 +365,7 @@ class ProjectiveConfig(PreparedFrameConfig):
         0.22,
         gt=0,
         description="multiplies JᵀWJ/σ² (calibrated on the simulator's box course, textured "
-        "and not: χ²/dof median 0.57 and 1.74; docs/frontend.md)",
+        "and not: χ²/dof median 0.56 and 1.47; docs/frontend.md)",
     )
     photometric: bool = Field(
         True,
