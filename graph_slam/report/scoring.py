@@ -102,7 +102,8 @@ def frame_categories(results: PipelineResults) -> list[str]:
     """registered / partial / bridged / other per frame (see docs/evaluation.md, "report
     folder").
 
-    Baseline: ``registered`` status → registered. Graph: an ICP factor the gate accepted on all
+    Baseline: ``registered`` status → registered, ``partial: k DoF`` (a registration the thesis
+    took whose degeneracy test held fewer than six directions) → partial. Graph: an ICP factor the gate accepted on all
     six directions (flag ``icp:ok``) → registered; on only some (``icp:partial (k DoF)``, the
     front end's degeneracy test) → partial; any other frame with a pose after the stride's
     first → bridged (IMU/kinematics carried it). Stride-start (reset) frames and frames without
@@ -113,7 +114,10 @@ def frame_categories(results: PipelineResults) -> list[str]:
         if not f.has_pose or f.status == "reset":
             out.append("other")
         elif Variant(results.variant).is_baseline:
-            out.append("registered" if f.status == "registered" else "other")
+            partial = f.status.startswith("partial")
+            out.append(
+                "registered" if f.status == "registered" else "partial" if partial else "other"
+            )
         elif "icp:ok" in f.flags:
             out.append("registered")
         elif any(flag.startswith("icp:partial") for flag in f.flags):
