@@ -54,13 +54,12 @@ class DegeneracyReport:
 
     An eigenvalue alone can be fooled: the noise of the normals of a plane gives its three free
     directions a stiffness of ``mean sin²θ`` (0.001–0.02 measured at quarter resolution).
-    ``significant`` (per eigen-direction) therefore counts a point-to-plane row only where it
-    holds the direction by at least ``min_alignment`` (``|a·v| ≥ min_alignment``, ``a`` the
-    unit-free row: ``n`` for a translation, ``(q − c) × n / L`` for a rotation: a normal
-    within ~60° of the direction at 0.5), and a photometric row only where the texture's
-    gradient along the direction is at least ``min_gradient`` (intensity per metre). A
-    direction is *constrained* when that significant stiffness is at least ``threshold`` and
-    the significant rows carry at least ``min_share`` of the correspondences' weight (far
+    ``significant`` (per eigen-direction ``v``) therefore counts a point-to-plane row only
+    where its normal is aligned with the point's displacement ``δ = ω × (q − c)/L + t`` under
+    ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``: within 60° at 0.5; the lever does not
+    count), and a photometric row only where the texture's gradient along ``δ`` is at least
+    ``degeneracy_min_gradient`` per metre of it. A direction is *constrained* when that significant stiffness is at least ``threshold`` and
+    the significant rows carry at least ``degeneracy_min_share`` of the correspondences' weight (far
     points of a floor, 3 m away at 2.7 cm depth noise, have near-random normals and long
     levers: about 1 % of the rows, which alone gave a floor's yaw a stiffness of 0.01). A
     flat floor gives three free directions (two translations along it, the rotation about
@@ -298,8 +297,9 @@ class _Analysis:
 def _analyse(rows: _Rows, config) -> _Analysis:
     """Eigen-analysis of the unit-free Hessian, the significant stiffness of each direction
     (see :class:`DegeneracyReport`; ``config``: any config with ``degeneracy_threshold``,
-    ``degeneracy_min_alignment`` and ``degeneracy_min_gradient``) and the Gauss-Newton step
-    restricted to the constrained directions."""
+    ``degeneracy_min_alignment``, ``degeneracy_min_share`` and ``degeneracy_min_gradient``)
+    and the Gauss-Newton step restricted to the directions whose eigenvalue reaches the
+    threshold (the optimiser's behaviour before the significance test)."""
     center = rows.q.mean(axis=0)
     length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
     to_unit = _unit_coordinates(center, length)
