@@ -156,7 +156,7 @@ def test_degenerate_floor_direction_gets_zero_information():
     keeps the other three directions with their information and zeroes the rest."""
     info = np.diag([1e4, 1e4, 1e-3, 1e-2, 1e-2, 1e6])
     d = gate_icp(_icp(info), GateConfig())
-    assert d.accepted and d.rank == 3 and d.reason.startswith("ok_projected")
+    assert d.accepted and d.rank == 3 and d.reason == "partial (3 DoF)"
     for axis in (2, 3, 4):
         e = np.zeros(6)
         e[axis] = 1.0
@@ -172,6 +172,20 @@ def test_degenerate_floor_direction_gets_zero_information():
     np.testing.assert_allclose(d.information @ q[:, :2], 0.0, atol=1e-6)
     fully = gate_icp(_icp(np.zeros((6, 6))), GateConfig())
     assert not fully.accepted and fully.reason.startswith("degenerate")
+
+
+def test_gate_takes_the_front_ends_count_of_constrained_directions():
+    """With ``dof`` (the front end's degeneracy test) the gate does not re-decide from the
+    information's eigenvalues (mixed units): k ≥ min_rank is a partial factor with the
+    information as given, fewer is rejected (the frame is bridged), 6 is registered."""
+    info = np.diag([1e4, 1e4, 0.0, 0.0, 0.0, 1e6])
+    d = gate_icp(_icp(info, dof=3), GateConfig())
+    assert d.accepted and d.reason == "partial (3 DoF)" and d.rank == 3
+    np.testing.assert_allclose(d.information, info)
+    low = gate_icp(_icp(np.diag([1e4, 0, 0, 0, 0, 1e6]), dof=2), GateConfig())
+    assert not low.accepted and low.reason == "degenerate (rank 2 < 3)"
+    full = gate_icp(_icp(np.diag([1e4, 1e4, 1e4, 1e-3, 1e6, 1e6]), dof=6), GateConfig())
+    assert full.accepted and full.reason == "ok"  # 1e-3 < ratio·λmax: the count decides
 
 
 def test_imu_checks_count_every_rejection():

@@ -230,7 +230,7 @@ def test_information_is_the_hessian_in_gtsam_tangent_space(color: bool) -> None:
     truth = np.linalg.solve(A, ROLLED)
     guess = off(truth)
     target, source, _, _ = pair(A, ROLLED, guess=guess, color=color)
-    config = CFG.model_copy(update={"information_min_sigma_m": 1e-6})
+    config = CFG.model_copy(update={"information_min_sigma_m": 1e-6, "information_scale": 1.0})
     result = register_depth(source, target, config, guess)
     cost, sigma2, count = _cost(source, target, result.target_T_source, config)
     assert count == result.correspondences

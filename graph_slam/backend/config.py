@@ -63,7 +63,13 @@ class GateConfig(ConfigModel):
     min_eigenvalue: float = Field(
         1.0, ge=0, description="a direction with λ below this (info units) carries none"
     )
-    min_rank: int = Field(1, ge=1, le=6, description="fewer kept directions: rejected")
+    min_rank: int = Field(
+        3,
+        ge=1,
+        le=6,
+        description="fewer constrained directions: rejected (the frame is bridged by the IMU "
+        "and kinematics); a flat floor holds 3 (height, roll, pitch)",
+    )
     max_step_m: float = Field(0.3, gt=0, description="larger frame-to-frame motion: rejected")
     max_step_rad: float = Field(0.5, gt=0)
     information_scale: float = Field(

@@ -6,11 +6,13 @@ Rules, checked in this order (the first that fails is the recorded reason):
 2. ``nonfinite`` — NaN/inf in the transform or the information;
 3. ``low_fitness`` / ``high_rmse`` / ``few_correspondences`` — against :class:`GateConfig`;
 4. ``implausible_step`` — a frame-to-frame motion larger than ``max_step_m``/``max_step_rad``;
-5. degeneracy: eigen-directions of the registration's Hessian with
-   ``λ < max(min_eigenvalue, degenerate_eigenvalue_ratio·λmax)`` get **zero** information: the
-   information is projected onto the well-constrained subspace (``P I P``). If fewer than
-   ``min_rank`` directions are left: ``degenerate``. Otherwise accepted (``ok`` or
-   ``ok_projected``) with the number of dropped directions recorded.
+5. degeneracy: when the front end counted the constrained directions (``IcpMeasurement.dof``,
+   its well-scaled test, docs/frontend.md), its information is already zero along the others
+   and that count is the rank. Otherwise (a record without it) eigen-directions of the
+   information with ``λ < max(min_eigenvalue, degenerate_eigenvalue_ratio·λmax)`` get **zero**
+   information (``P I P``). If fewer than ``min_rank`` directions are left: ``degenerate``
+   (the frame is bridged). Otherwise accepted: ``ok`` (6 DoF: registered) or
+   ``partial (k DoF)`` (a factor on the k constrained directions only).
 
 Fitness alone is never trusted (a flat floor slid sideways registers with fitness 1.0).
 
@@ -76,6 +78,8 @@ def gate_icp(meas: IcpMeasurement, cfg: GateConfig) -> GateDecision:
         return GateDecision(False, f"implausible_step ({step_m:.3f} m, {step_rad:.3f} rad)")
 
     info = 0.5 * (info + info.T)
+    if meas.dof is not None:
+        return _decide_counted(info, int(meas.dof), cfg)
     if meas.eigenvalues is not None and meas.eigenvectors is not None:
         lam = np.asarray(meas.eigenvalues, float).reshape(6)
         vec = np.asarray(meas.eigenvectors, float).reshape(6, 6)
@@ -94,8 +98,25 @@ def gate_icp(meas: IcpMeasurement, cfg: GateConfig) -> GateDecision:
         proj = basis @ basis.T
         info = proj @ info @ proj
     info = cfg.information_scale * 0.5 * (info + info.T)
-    reason = "ok" if rank == 6 else f"ok_projected ({6 - rank} degenerate direction(s) dropped)"
-    return GateDecision(True, reason, rank, dropped, info, sqrt_of_information(info))
+    return GateDecision(
+        True, _accepted_reason(rank), rank, dropped, info, sqrt_of_information(info)
+    )
+
+
+def _accepted_reason(rank: int) -> str:
+    return "ok" if rank == 6 else f"partial ({rank} DoF)"
+
+
+def _decide_counted(info: np.ndarray, rank: int, cfg: GateConfig) -> GateDecision:
+    """The front end counted ``rank`` constrained directions and zeroed the others."""
+    _, vec = np.linalg.eigh(info)
+    dropped = vec[:, : 6 - rank]  # the (near-)zero eigen-directions
+    if rank < cfg.min_rank:
+        return GateDecision(False, f"degenerate (rank {rank} < {cfg.min_rank})", rank, dropped)
+    info = cfg.information_scale * info
+    return GateDecision(
+        True, _accepted_reason(rank), rank, dropped, info, sqrt_of_information(info)
+    )
 
 
 class RegistrationGate:

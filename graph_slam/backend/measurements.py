@@ -30,8 +30,12 @@ class IcpMeasurement:
     linearises on the left must convert with the adjoint before building this record.
     ``eigenvalues``/``eigenvectors`` (columns) describe the registration's Hessian in the same
     coordinates (degeneracy report); when absent they are computed from ``information``.
-    ``ok=False`` (with ``reason``) marks a registration that failed: it is never turned into
-    a zero-motion factor.
+    ``dof``: the number of directions the front end found constrained (its degeneracy test,
+    :class:`graph_slam.frontend.registration.DegeneracyReport`); when given, ``information``
+    is already zero along the others and the gate trusts that count instead of an
+    eigen-decomposition of ``information`` (whose rotation and translation units do not
+    compare). ``ok=False`` (with ``reason``) marks a registration that failed: it is never
+    turned into a zero-motion factor.
     """
 
     source_index: int
@@ -45,6 +49,7 @@ class IcpMeasurement:
     eigenvectors: np.ndarray | None = None
     ok: bool = True
     reason: str = ""
+    dof: int | None = None
 
     def __post_init__(self) -> None:
         if not self.ok:

@@ -235,3 +235,53 @@ def realtime_bench(
         typer.echo(line)
     if out is not None:
         typer.echo(f"wrote {rt.write_json(results, out)}")
+
+
+@bench_app.command("scenarios")
+def scenarios_bench(
+    only: Annotated[
+        str | None, typer.Option(help="Comma-separated scenario names (default: all).")
+    ] = None,
+    strides: Annotated[int, typer.Option(help="Strides simulated per scenario.")] = 2,
+    seed: Annotated[int, typer.Option(help="Simulator seed.")] = 3,
+) -> None:
+    """Issue 20: a fixed list of scenes and conditions (flat floor and box course with and
+    without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered
+    / partial / bridged, smoothed and online per-stride RMSE, the baseline beside them."""
+    from graph_slam.bench import scenarios as sc
+
+    names = None if only is None else tuple(n.strip() for n in only.split(",") if n.strip())
+    known = {s.name for s in sc.SCENARIOS}
+    if names and (unknown := [n for n in names if n not in known]):
+        raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(sorted(known))}")
+    typer.echo(sc.HEADER)
+    sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()))
+
+
+@bench_app.command("calibration")
+def calibration_bench(
+    sessions: Annotated[
+        list[Path] | None, typer.Argument(help="Simulated sessions (ground truth needed).")
+    ] = None,
+    pairs: Annotated[int, typer.Option(help="Consecutive pairs per session (from frame 0).")] = 59,
+    tum: Annotated[
+        Path | None,
+        typer.Option(help="TUM sample folder (default: ../shared/data/tum_fr1_xyz_10 if present)."),
+    ] = None,
+) -> None:
+    """Issue 20: χ²/dof of the registrations' information against the truth (accurate and
+    realtime presets; docs/frontend.md, "Calibrated information")."""
+    from graph_slam.bench.calibration import chi2_of_pairs
+    from graph_slam.bench.registration import default_tum_folder, read_tum_sample, session_dataset
+    from graph_slam.frontend.config import realtime_registration
+    from graph_slam.pipelines.config import PipelineConfig
+
+    datasets = [session_dataset(p, stop=pairs + 1) for p in sessions or ()]
+    folder = tum or default_tum_folder()
+    if (folder / "ground_truth.json").is_file():
+        datasets.append(read_tum_sample(folder))
+    presets = {"accurate": PipelineConfig().graph.registration, "realtime": realtime_registration()}
+    for data in datasets:
+        typer.echo(data.name)
+        for name, config in presets.items():
+            typer.echo(chi2_of_pairs(data, config, name=name).line())

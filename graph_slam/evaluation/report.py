@@ -10,13 +10,14 @@ Schema (``schema_version`` 2; every length in metres, every time in seconds; NaN
         "<variant>": {
           "strides": [
             {"index": int, "speed": str, "number": int,
-             "frames": {"recorded": int, "registered": int, "bridged": int, "other": int},
+             "frames": {"recorded": int, "registered": int, "bridged": int, "other": int,
+                        "partial": int},
              "trajectory": null | {"n_frames", "n_evaluated", "rmse_unaligned_m", "rmse_aligned_m",
                                    "rmse_by_phase_m": {"stance"|"swing": {"unaligned", "aligned", "n"}},
                                    "rpe_rmse_m"}}
           ],
           "summary": {"strides": int, "frames_recorded": int, "frames_registered": int,
-                      "frames_bridged": int,
+                      "frames_bridged": int, "frames_partial": int,
                       "rmse_unaligned_m": {"mean", "median", "max"},
                       "rmse_aligned_m": {"mean", "median", "max"}},
           "timing": null | {"n", "median_s", "p95_s", "mean_s", "max_s"},
@@ -113,6 +114,7 @@ class VariantEvaluation:
             "frames_recorded": sum(s.frames.recorded for s in self.strides),
             "frames_registered": sum(s.frames.registered for s in self.strides),
             "frames_bridged": sum(s.frames.bridged for s in self.strides),
+            "frames_partial": sum(s.frames.partial for s in self.strides),
             "rmse_unaligned_m": stats("rmse_unaligned_m"),
             "rmse_aligned_m": stats("rmse_aligned_m"),
         }

@@ -112,6 +112,36 @@ class RegistrationConfig(ConfigModel):
         gt=0,
         description="normalised Hessian eigenvalue below which a direction is under-constrained",
     )
+    degeneracy_min_alignment: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="a point-to-plane row holds a direction only when its unit-free Jacobian "
+        "along it is at least this (a normal within ~60° of a translation): the noise of a "
+        "plane's normals cannot make its free directions look constrained",
+    )
+    degeneracy_min_share: float = Field(
+        0.03,
+        ge=0,
+        lt=1,
+        description="a direction is constrained only when the rows that hold it significantly "
+        "carry at least this share of the correspondences' weight (a box face: 5-8 %; the "
+        "far, noisy points of a plain floor: about 1 %)",
+    )
+    degeneracy_min_gradient: float = Field(
+        0.25,
+        gt=0,
+        description="a photometric row holds a direction only when the texture's intensity "
+        "gradient along it is at least this (intensity in [0, 1] per metre)",
+    )
+    information_scale: float = Field(
+        0.14,
+        gt=0,
+        description="multiplies JᵀWJ/σ² (correspondences are not independent): calibrated on "
+        "the simulator's box course, textured and not, so that the χ² of the relative pose "
+        "against the truth is near its degrees of freedom (χ²/dof median 0.57 and 1.85; "
+        "docs/frontend.md)",
+    )
     fail_on_degenerate: bool = Field(
         False, description="raise RegistrationError(DEGENERATE) instead of returning the result"
     )
@@ -198,6 +228,34 @@ class PreparedFrameConfig(ConfigModel):
         0.01,
         gt=0,
         description="normalised Hessian eigenvalue below which a direction is under-constrained",
+    )
+    degeneracy_min_alignment: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="a point-to-plane row holds a direction only when its unit-free Jacobian "
+        "along it is at least this (a normal within ~60° of a translation): the noise of a "
+        "plane's normals cannot make its free directions look constrained",
+    )
+    degeneracy_min_share: float = Field(
+        0.03,
+        ge=0,
+        lt=1,
+        description="a direction is constrained only when the rows that hold it significantly "
+        "carry at least this share of the correspondences' weight (a box face: 5-8 %; the "
+        "far, noisy points of a plain floor: about 1 %)",
+    )
+    degeneracy_min_gradient: float = Field(
+        0.25,
+        gt=0,
+        description="a photometric row holds a direction only when the texture's intensity "
+        "gradient along it is at least this (intensity in [0, 1] per metre)",
+    )
+    information_scale: float = Field(
+        1.0,
+        gt=0,
+        description="multiplies the information (1.0: GICP's is not calibrated; the projective "
+        "preset's is, below)",
     )
     fail_on_degenerate: bool = Field(False)
     information_min_sigma_m: float = Field(
@@ -303,6 +361,12 @@ class ProjectiveConfig(PreparedFrameConfig):
         30, gt=0, le=1000, description="a cap: from the IMU guess 2–4 iterations are typical"
     )
     min_step: float = Field(1e-4, gt=0, description="stop when |Δξ| (rad, m) is below this")
+    information_scale: float = Field(
+        0.22,
+        gt=0,
+        description="multiplies JᵀWJ/σ² (calibrated on the simulator's box course, textured "
+        "and not: χ²/dof median 0.56 and 1.47; docs/frontend.md)",
+    )
     photometric: bool = Field(
         True,
         description="with colours on both frames, colored ICP's objective (point-to-plane + "

@@ -289,8 +289,8 @@ def _rows(
     jac[:count, 3:] = n
     jac[:count] *= geo
     r = geo * dist
+    pho = np.sqrt(1.0 - config.lambda_geometric)
     if color:
-        pho = np.sqrt(1.0 - config.lambda_geometric)
         d = target.gradients[corr[:, 1]]
         q_proj = q - dist[:, None] * n
         i_t = target.intensity[corr[:, 1]] + np.einsum("ij,ij->i", d, q_proj - p)
@@ -302,7 +302,7 @@ def _rows(
         r = np.concatenate([r, r_pho])
     k = config.kernel_scale * config.voxel_m
     w = kernel_weights(r, "tukey", k)
-    return _Rows(r, jac, w, q, np.full(len(q), geo), len(q))
+    return _Rows(r, jac, w, q, np.full(len(q), geo), len(q), pho if color else 0.0)
 
 
 def _cross_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
@@ -357,7 +357,7 @@ def register_depth(
         corr = associate(source, target, target_T_source, config)
         _gate(config, corr, len(source))
         rows = _rows(source, target, corr, target_T_source, config)
-        analysis = _analyse(rows, config.degeneracy_threshold)
+        analysis = _analyse(rows, config)
         # converged: this pose is the solution, its rows the final ones (the step, below
         # min_step, is reported and not taken); else at most max_iterations steps
         if np.linalg.norm(analysis.step_origin) < config.min_step:
@@ -368,7 +368,10 @@ def register_depth(
         if not np.isfinite(target_T_source).all():
             raise _fail(RegistrationFailure.NUMERICAL, "non-finite transform")
     t1 = time.perf_counter()
-    information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
+    information, sigma = _information(
+        rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
+        config.information_scale,
+    )  # fmt: skip
     gap = rows.q - target.points_m[corr[:, 1]]
     return conclude(
         target_T_source, analysis, information, sigma, len(corr) / len(source), len(corr),

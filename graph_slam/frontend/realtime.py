@@ -35,6 +35,7 @@ from graph_slam.frontend.registration import (
     _rows,
     conclude,
     gate_correspondences,
+    project_information,
     registration_failure,
 )
 from graph_slam.session.records import check_pose
@@ -185,13 +186,16 @@ def _photometric(
         found = np.flatnonzero(sq_dist[:, 0] <= config.photometric_max_correspondence_m**2)
         corr = np.column_stack([found, nearest[found, 0].astype(np.intp)])
         gate_correspondences(config, len(corr) / len(src), len(corr))
-        step = _analyse(rows_at(corr, target_T_source), config.degeneracy_threshold).step_origin
+        step = _analyse(rows_at(corr, target_T_source), config).step_origin
         target_T_source = _exp_left(step) @ target_T_source
         if np.linalg.norm(step) < config.refine_min_step:
             break
     rows = rows_at(corr, target_T_source)
-    analysis = _analyse(rows, config.degeneracy_threshold)
-    information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
+    analysis = _analyse(rows, config)
+    information, sigma = _information(
+        rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
+        config.information_scale,
+    )  # fmt: skip
     gap = rows.q - tgt.points_m[corr[:, 1]]
     return conclude(
         target_T_source, analysis, information, sigma, len(corr) / len(src), len(corr),
@@ -276,7 +280,9 @@ def register_prepared(
     kappa_min = config.information_min_sigma_m**2 / (2.0 * PLANE_EPSILON)
     kappa = max(2.0 * float(result.error) / (3.0 * count), kappa_min)
     degeneracy = _degeneracy(hessian, target_T_source, source.points_m, config.degeneracy_threshold)
-    information = 0.5 * (hessian + hessian.T) / kappa
+    information = project_information(
+        config.information_scale * 0.5 * (hessian + hessian.T) / kappa, degeneracy, target_T_source
+    )
     # point-to-point inlier RMSE (the back end's gate reads it): one nearest-neighbour query
     moved = source.points_m @ target_T_source[:3, :3].T + target_T_source[:3, 3]
     _, sq_dist = target.tree.batch_knn_search(moved, 1, config.num_threads)

@@ -28,8 +28,14 @@ import numpy as np
 from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailure
 from graph_slam.frontend.cloud import Cloud, Pyramid, build_pyramid, voxel_pyramid
 from graph_slam.frontend.config import RegistrationConfig
+from graph_slam.frontend.degeneracy import (
+    DegeneracyReport,
+    _significant,
+    _unit_coordinates,
+    project_information,
+)
 from graph_slam.session.records import check_pose
-from kinematics.conversions import adjoint_rot_first, skew
+from kinematics.conversions import adjoint_rot_first
 
 
 class RegistrationStatus(StrEnum):
@@ -40,71 +46,6 @@ class RegistrationStatus(StrEnum):
 
 
 # --------------------------------------------------------------------------- quality report
-@dataclass(frozen=True, eq=False)
-class DegeneracyReport:
-    """Eigen-analysis of the ICP Hessian JᵀWJ at the solution, made unit-free.
-
-    The Hessian is taken for a motion of the source about ``center_m`` (the centroid of the
-    matched source points, target frame) in the coordinates ``(L·ω, t)``, ``L = length_m`` the
-    rms distance of those points from the centre, and divided by the summed weights of the
-    geometric residuals. A pure translation ``t`` (unit) then has stiffness ``mean (n·t)²`` —
-    the share of the correspondences whose normals hold it — and a rotation about the centre
-    the same share at the cloud's scale. Directions whose eigenvalue is below ``threshold`` are
-    under-constrained: a flat floor gives three (two translations along it, the rotation
-    about its normal).
-    """
-
-    eigenvalues: np.ndarray  # (6,) ascending
-    eigenvectors: np.ndarray  # 6×6, column i for eigenvalues[i]; coordinates (L·ω, t)
-    center_m: np.ndarray
-    length_m: float
-    threshold: float
-
-    @property
-    def weak(self) -> np.ndarray:
-        """Mask of the under-constrained eigen-directions."""
-        return self.eigenvalues < self.threshold
-
-    @property
-    def is_degenerate(self) -> bool:
-        return bool(self.weak.any())
-
-    @property
-    def weak_directions(self) -> np.ndarray:
-        """k×6 unit vectors (rows) spanning the under-constrained subspace, ``(L·ω, t)``."""
-        return self.eigenvectors[:, self.weak].T
-
-    @property
-    def hessian(self) -> np.ndarray:
-        """The normalised 6×6 Hessian (rotation first)."""
-        return (self.eigenvectors * self.eigenvalues) @ self.eigenvectors.T
-
-    def stiffness(
-        self, *, translation: np.ndarray | None = None, rotation_axis: np.ndarray | None = None
-    ) -> float:
-        """Normalised curvature of the objective along a unit translation or rotation (about
-        the centre), in the report's unit-free scale (compare with ``threshold``)."""
-        direction = np.zeros(6)
-        if translation is not None:
-            direction[3:] = translation
-        if rotation_axis is not None:
-            direction[:3] = rotation_axis
-        direction /= np.linalg.norm(direction)
-        return float(direction @ self.hessian @ direction)
-
-    def describe(self) -> list[str]:
-        """One line per weak direction: a translation axis or a rotation axis (target frame)."""
-        lines = []
-        for value, vec in zip(self.eigenvalues[self.weak], self.weak_directions, strict=True):
-            rot, trans = vec[:3], vec[3:]
-            if np.linalg.norm(trans) >= np.linalg.norm(rot):
-                axis, kind = trans / np.linalg.norm(trans), "translation along"
-            else:
-                axis, kind = rot / np.linalg.norm(rot), "rotation about"
-            lines.append(f"{kind} ({axis[0]:+.2f}, {axis[1]:+.2f}, {axis[2]:+.2f}): {value:.2g}")
-        return lines
-
-
 @dataclass(frozen=True, eq=False)
 class RegistrationResult:
     """A registration that converged with enough overlap.
@@ -201,6 +142,7 @@ class _Rows:
     q: np.ndarray
     geo_scale: np.ndarray
     n_geo: int
+    pho_scale: float = 0.0
 
 
 def _rows(
@@ -234,7 +176,7 @@ def _rows(
         d_m = -(d - np.einsum("ij,ij->i", d, n)[:, None] * n)  # -(I - n nᵀ) d
         j_pho = pho_scale * np.hstack([np.cross(q, d_m), d_m])
         r, jac = np.concatenate([r, r_pho]), np.vstack([jac, j_pho])
-    return _Rows(r, jac, kernel_weights(r, kernel, k), q, geo_scale, len(q))
+    return _Rows(r, jac, kernel_weights(r, kernel, k), q, geo_scale, len(q), float(pho_scale))
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,23 +187,30 @@ class _Analysis:
     step_rad: float
 
 
-def _analyse(rows: _Rows, threshold: float) -> _Analysis:
-    """Eigen-analysis of the unit-free Hessian and the Gauss-Newton step restricted to its
-    well-constrained directions (see :class:`DegeneracyReport`)."""
+def _analyse(rows: _Rows, config) -> _Analysis:
+    """Eigen-analysis of the unit-free Hessian, the significant stiffness of each direction
+    (see :class:`DegeneracyReport`; ``config``: any config with ``degeneracy_threshold``,
+    ``degeneracy_min_alignment``, ``degeneracy_min_share`` and ``degeneracy_min_gradient``)
+    and the Gauss-Newton step restricted to the directions whose eigenvalue reaches the
+    threshold (the optimiser's behaviour before the significance test)."""
     center = rows.q.mean(axis=0)
     length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
-    to_unit = np.eye(6)  # origin twist = to_unit · (L·ω, t about the centre)
-    to_unit[3:, :3] = skew(center)
-    to_unit[:, :3] /= length
+    to_unit = _unit_coordinates(center, length)
     norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
-    weighted = rows.jac * rows.w[:, None]
-    hess_n = to_unit.T @ (weighted.T @ rows.jac) @ to_unit / norm
-    grad_n = to_unit.T @ (weighted.T @ rows.r) / norm
+    jac_n = rows.jac @ to_unit
+    weighted = jac_n * rows.w[:, None]
+    hess_n = weighted.T @ jac_n / norm
+    grad_n = weighted.T @ rows.r / norm
     values, vectors = np.linalg.eigh(hess_n)
-    strong = values >= threshold
+    significant, share = _significant(rows, jac_n @ vectors, vectors, center, length, norm, config)
+    report = DegeneracyReport(
+        values, vectors, center, length, config.degeneracy_threshold, significant, share,
+        config.degeneracy_min_share,
+    )  # fmt: skip
+    strong = values >= config.degeneracy_threshold  # the step: as before the significance test
     step_n = -vectors[:, strong] @ ((vectors[:, strong].T @ grad_n) / values[strong])
     return _Analysis(
-        degeneracy=DegeneracyReport(values, vectors, center, length, threshold),
+        degeneracy=report,
         step_origin=to_unit @ step_n,
         step_m=float(np.linalg.norm(step_n[3:])),
         step_rad=float(np.linalg.norm(step_n[:3]) / length),
@@ -269,15 +218,24 @@ def _analyse(rows: _Rows, threshold: float) -> _Analysis:
 
 
 def _information(
-    rows: _Rows, target_T_source: np.ndarray, min_sigma_m: float
+    rows: _Rows,
+    target_T_source: np.ndarray,
+    min_sigma_m: float,
+    degeneracy: DegeneracyReport | None = None,
+    scale: float = 1.0,
 ) -> tuple[np.ndarray, float]:
-    """JᵀWJ / σ² in GTSAM's tangent space (right perturbation, source frame) and σ, the
-    weighted rms residual, floored at ``min_sigma_m`` (in the geometric residual's scale)."""
+    """``scale · JᵀWJ / σ²`` in GTSAM's tangent space (right perturbation, source frame) and σ,
+    the weighted rms residual, floored at ``min_sigma_m`` (in the geometric residual's scale).
+    With a ``degeneracy`` report, only its constrained directions keep information (``Mᵀ I M``,
+    :meth:`DegeneracyReport.projector`): the weak ones get exactly zero."""
     sigma2 = float(np.sum(rows.w * rows.r**2) / max(float(rows.w.sum()), 1e-300))
     sigma = max(np.sqrt(sigma2), min_sigma_m * float(np.median(rows.geo_scale)))
     info_left = (rows.jac * rows.w[:, None]).T @ rows.jac / sigma**2
     ad = adjoint_rot_first(target_T_source)
-    return ad.T @ info_left @ ad, float(sigma)
+    info = scale * (ad.T @ info_left @ ad)
+    if degeneracy is not None:
+        info = project_information(info, degeneracy, target_T_source)
+    return info, float(sigma)
 
 
 def _open3d_rows(source, target, corr, target_T_source, config: RegistrationConfig) -> _Rows:
@@ -335,7 +293,7 @@ def _refine(
         corr = np.column_stack([found, nearest[found]])
         if len(corr) < config.min_correspondences:
             break
-        step = _analyse(rows_at(corr, target_T_source), config.degeneracy_threshold).step_origin
+        step = _analyse(rows_at(corr, target_T_source), config).step_origin
         target_T_source = _exp_left(step) @ target_T_source
         if np.linalg.norm(step) < refine.min_step:
             break
@@ -498,8 +456,11 @@ def register(
         moved = source_level.points_m[corr[:, 0]] @ target_T_source[:3, :3].T
         gap = moved + target_T_source[:3, 3] - target.finest.points_m[corr[:, 1]]
         inlier_rmse_m = float(np.sqrt(np.mean(np.sum(gap**2, axis=1))))
-    analysis = _analyse(rows, config.degeneracy_threshold)
-    information, sigma = _information(rows, target_T_source, config.information_min_sigma_m)
+    analysis = _analyse(rows, config)
+    information, sigma = _information(
+        rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
+        config.information_scale,
+    )  # fmt: skip
     timing["information"] = time.perf_counter() - t0
     return conclude(
         target_T_source, analysis, information, sigma, fitness, len(corr), inlier_rmse_m,

@@ -37,9 +37,8 @@ def icp_measurement(result: RegistrationResult, source_index: int, target_index:
 
     The front end (``RegistrationResult``) reports its information in GTSAM's tangent space
     of ``BetweenFactor<Pose3>`` (right perturbation, source frame), as ``IcpMeasurement``
-    wants. The degeneracy report's eigenvectors are in scaled coordinates about the cloud's
-    centre, so they are not passed: the back end's gate takes the eigen-decomposition of the
-    information itself.
+    wants, already zero along the directions the front end's degeneracy test found free;
+    ``dof`` carries that test's count of constrained directions to the gate.
     """
     return IcpMeasurement(
         source_index=source_index,
@@ -49,6 +48,7 @@ def icp_measurement(result: RegistrationResult, source_index: int, target_index:
         fitness=result.fitness,
         inlier_rmse_m=result.inlier_rmse_m,
         correspondences=result.correspondences,
+        dof=result.degeneracy.dof,
     )
 
 

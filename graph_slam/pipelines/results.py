@@ -28,7 +28,8 @@ class FrameOutput:
     stride_T_camera: np.ndarray | None
     world_T_camera: np.ndarray | None
     status: str
-    """``reset`` (stride's first frame), ``registered``, ``estimated`` (graph), or
+    """``reset`` (stride's first frame), ``registered``, ``partial: <k> DoF`` (baseline: a
+    registration taken although it held only k directions), ``estimated`` (graph), or
     ``not_registered: <reason>``."""
     foot_loaded: bool
     frontend_s: float

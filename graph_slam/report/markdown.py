@@ -70,9 +70,10 @@ def report_markdown(report, cfg) -> str:
         "`metrics.json`; layout: docs/evaluation.md.",
         "",
         "RMSE: camera position in the true stride frame after SE(3) alignment (evo), per stride. "
-        "Registered: frames whose pose came from an accepted registration; bridged: frames "
-        "carried by IMU/kinematics factors over a missing or rejected registration; the "
-        "stride's first (reset) frame is in neither.",
+        "Registered: frames whose pose came from a registration that held all six directions; "
+        "partial (metrics.json): a registration that held only some (a plain floor: 3), the "
+        "rest bridged; bridged: frames carried by IMU/kinematics factors over a missing, "
+        "rejected or degenerate registration; the stride's first (reset) frame is in none.",
         "",
         *(
             [

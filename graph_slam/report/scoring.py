@@ -99,21 +99,29 @@ class SessionRun:
 
 
 def frame_categories(results: PipelineResults) -> list[str]:
-    """registered / bridged / other per frame (see docs/evaluation.md, "report folder").
+    """registered / partial / bridged / other per frame (see docs/evaluation.md, "report
+    folder").
 
-    Baseline: ``registered`` status → registered. Graph: an ICP factor the gate accepted
-    (flag ``icp:ok…``) → registered; any other frame with a pose after the stride's first →
-    bridged (IMU/kinematics carried it). Stride-start (reset) frames and frames without pose →
-    other.
+    Baseline: ``registered`` status → registered, ``partial: k DoF`` (a registration the thesis
+    took whose degeneracy test held fewer than six directions) → partial. Graph: an ICP factor the gate accepted on all
+    six directions (flag ``icp:ok``) → registered; on only some (``icp:partial (k DoF)``, the
+    front end's degeneracy test) → partial; any other frame with a pose after the stride's
+    first → bridged (IMU/kinematics carried it). Stride-start (reset) frames and frames without
+    pose → other.
     """
     out = []
     for f in results.frames:
         if not f.has_pose or f.status == "reset":
             out.append("other")
         elif Variant(results.variant).is_baseline:
-            out.append("registered" if f.status == "registered" else "other")
-        elif any(flag.startswith("icp:ok") for flag in f.flags):
+            partial = f.status.startswith("partial")
+            out.append(
+                "registered" if f.status == "registered" else "partial" if partial else "other"
+            )
+        elif "icp:ok" in f.flags:
             out.append("registered")
+        elif any(flag.startswith("icp:partial") for flag in f.flags):
+            out.append("partial")
         else:
             out.append("bridged")
     return out
@@ -122,7 +130,8 @@ def frame_categories(results: PipelineResults) -> list[str]:
 def _counts(categories: Sequence[str]) -> FrameCounts:
     reg = sum(c == "registered" for c in categories)
     bri = sum(c == "bridged" for c in categories)
-    return FrameCounts(len(categories), reg, bri, len(categories) - reg - bri)
+    par = sum(c == "partial" for c in categories)
+    return FrameCounts(len(categories), reg, bri, len(categories) - reg - bri - par, par)
 
 
 def _trajectory(ref: StrideReference, poses: np.ndarray):

@@ -1,0 +1,204 @@
+"""``graph-slam bench scenarios``: a fixed list of scenes and conditions as a regression suite.
+
+Each scenario is simulated (short: a few strides, quarter resolution for the D455, native
+for the Pico Flexx), then run with the full graph (``icp+imu+kin``) and the thesis baseline
+(``icp``). Per scenario: coverage (frames with a smoothed pose), frames registered (6 DoF),
+partial (k DoF) and bridged, frames counted registered whose smoothed pose is more than 2 cm
+off (must be 0), smoothed and online per-stride RMSE (median, worst) and the baseline's
+registered frames and its RMSE after SE(3) alignment (as the reports give it: its poses are
+not in the true stride frame) beside them. Figures: docs/benchmarks.md ("Scenarios").
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+WRONG_POSE_M = 0.02
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One condition: a scene (a name under models/scenes, or a texture-free copy of one)
+    and the simulator's options."""
+
+    name: str
+    scene: str
+    textureless: bool = False
+    camera: str = "d455"
+    speed: str = "normal"
+    sim: dict = field(default_factory=dict)
+
+
+SCENARIOS: tuple[Scenario, ...] = (
+    Scenario("flat-textureless", "flat-floor", textureless=True),
+    Scenario("boxes-textureless", "thesis-boxes-textureless"),
+    Scenario("boxes-pico-flexx", "thesis-boxes", camera="pico_flexx"),
+    Scenario("flat-textured", "flat-floor"),
+    Scenario("boxes-textured", "thesis-boxes"),
+    Scenario("boxes-fast", "thesis-boxes", speed="fast"),
+    Scenario("boxes-noise-x2", "thesis-boxes", sim={"noise_scale": 2.0}),
+    Scenario("stairs-up", "stairs-up"),
+)
+
+
+@dataclass
+class ScenarioScore:
+    name: str
+    frames: int
+    with_pose: int
+    registered: int
+    partial: int
+    bridged: int
+    wrong_registered: int
+    smoothed_mm: np.ndarray
+    online_mm: np.ndarray
+    baseline_registered: int
+    baseline_mm: np.ndarray
+
+    def line(self) -> str:
+        def stat(values: np.ndarray) -> str:
+            return "-" if values.size == 0 else f"{np.median(values):.1f}/{values.max():.1f}"
+
+        return (
+            f"{self.name:20s} {self.with_pose:4d}/{self.frames:<4d} {self.registered:4d} "
+            f"{self.partial:4d} {self.bridged:4d} {self.wrong_registered:4d}   "
+            f"{stat(self.smoothed_mm):>11s} {stat(self.online_mm):>11s}   "
+            f"{self.baseline_registered:4d} {stat(self.baseline_mm):>13s}"
+        )
+
+
+HEADER = (
+    f"{'scenario':20s} {'posed':>9s} {'reg':>4s} {'part':>4s} {'brid':>4s} {'wrong':>4s}   "
+    f"{'smoothed mm':>11s} {'online mm':>11s}   {'base':>4s} {'baseline mm':>13s}\n"
+    f"{'':20s} {'':9s} {'(6)':>4s} {'(k)':>4s} {'(0)':>4s} {'>2cm':>4s}   "
+    f"{'med/worst':>11s} {'med/worst':>11s}   {'reg':>4s} {'aligned m/w':>13s}"
+)
+
+
+def _scene_path(scenario: Scenario, folder: Path) -> str:
+    """The scene's name, or a texture-free copy of its YAML written into ``folder``."""
+    if not scenario.textureless:
+        return scenario.scene
+    import yaml
+
+    from graph_slam.sim.config import load_model_config
+    from graph_slam.sim.scene import SceneSpec
+
+    spec, _ = load_model_config(SceneSpec, "scenes", "scene", scenario.scene)
+    data = spec.model_dump(mode="json")
+    data.update(name=f"{spec.name}-textureless", texture="none")
+    path = folder / f"{spec.name}-textureless.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+def simulate_scenario(scenario: Scenario, folder: Path, strides: int, seed: int) -> Path:
+    from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
+
+    native = scenario.camera != "d455"
+    cfg = SimConfig(
+        scene=_scene_path(scenario, folder),
+        speed_m_s=SPEEDS_M_S[scenario.speed],
+        strides=strides,
+        seed=seed,
+        camera=scenario.camera,
+        drops="none",
+        fast=not native,
+        quicklook=False,
+        **scenario.sim,
+    )
+    out = folder / scenario.name
+    simulate(cfg, out, overwrite=True)
+    return out
+
+
+def _categories(results) -> list[str]:
+    out = []
+    for f in results.frames:
+        if "icp:ok" in f.flags:
+            out.append("registered")
+        elif any(flag.startswith("icp:partial") for flag in f.flags):
+            out.append("partial")
+        elif f.status == "reset":
+            out.append("reset")
+        else:
+            out.append("bridged")
+    return out
+
+
+def score_scenario(name: str, path: Path) -> ScenarioScore:
+    """The full graph and the baseline on one simulated session."""
+    from graph_slam.bench.accuracy import score, variant_config
+    from graph_slam.pipelines import run_session
+    from graph_slam.session import open_session
+    from graph_slam.strides.kinematics import leg_model_for
+    from graph_slam.strides.reference import stride_references
+    from graph_slam.strides.streams import session_streams
+
+    session = open_session(path)
+    leg = leg_model_for(session.calibration.thigh_T_camera)
+    graph = run_session(session, variant_config("icp+imu+kin"))
+    base = run_session(session, variant_config("icp"))
+    strides = score(session, graph, leg)
+    cats = _categories(graph)
+    events = session_streams(session, "load_cell").events
+    refs = stride_references(session, graph.t_s, graph.strides, events, leg)
+    smoothed = graph.smoothed_stride_T_camera
+    wrong = scored = 0
+    counts = {"registered": 0, "partial": 0, "bridged": 0}
+    with_pose = 0
+    for ref in refs:
+        for i, truth in zip(ref.frame_indices, ref.stride_T_camera, strict=True):
+            scored += 1
+            err = np.linalg.norm(smoothed[i, :3, 3] - truth[:3, 3])
+            with_pose += bool(np.isfinite(err))
+            if cats[i] in counts:
+                counts[cats[i]] += 1
+            if cats[i] == "registered" and not err <= WRONG_POSE_M:
+                wrong += 1
+    base_reg = sum(base.frames[i].status == "registered" for ref in refs for i in ref.frame_indices)
+    base_mm = np.array([_aligned_rmse_m(ref, base.online_stride_T_camera) for ref in refs]) * 1e3
+    return ScenarioScore(
+        name=name,
+        frames=scored,
+        with_pose=with_pose,
+        registered=counts["registered"],
+        partial=counts["partial"],
+        bridged=counts["bridged"],
+        wrong_registered=wrong,
+        smoothed_mm=np.array([s.smoothed_rmse_m for s in strides]) * 1e3,
+        online_mm=np.array([s.online_rmse_m for s in strides]) * 1e3,
+        baseline_registered=int(base_reg),
+        baseline_mm=base_mm[np.isfinite(base_mm)],
+    )
+
+
+def _aligned_rmse_m(ref, poses: np.ndarray) -> float:
+    """The stride's RMSE after SE(3) alignment (the reports' figure for the baseline, whose
+    poses are not in the true stride frame), on the frames it posed."""
+    from graph_slam.evaluation.trajectory import stride_trajectory_metrics
+
+    metrics = stride_trajectory_metrics(
+        ref.t_s, poses[ref.frame_indices], ref.stride_T_camera, ref.in_stance
+    )
+    return float(metrics.rmse_aligned_m)
+
+
+def run_scenarios(
+    names: tuple[str, ...] | None = None, strides: int = 2, seed: int = 3, on_score=None
+) -> list[ScenarioScore]:
+    """Simulate and score every scenario (or those named); ``on_score`` as each finishes."""
+    chosen = [s for s in SCENARIOS if names is None or s.name in names]
+    scores = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for scenario in chosen:
+            path = simulate_scenario(scenario, Path(tmp), strides, seed)
+            sc = score_scenario(scenario.name, path)
+            scores.append(sc)
+            if on_score is not None:
+                on_score(sc)
+    return scores

@@ -1,0 +1,46 @@
+"""The registration's information against the truth: χ²/dof of consecutive pairs of a fixed
+simulated box course (seed 3, quarter resolution) stays within 0.5–2 (calibrated in
+``information_scale``; docs/frontend.md, "Calibrated information"). Fails when the information
+model or the registration drifts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from graph_slam.bench.calibration import chi2_of_pairs, relative_error
+from graph_slam.bench.registration import session_dataset
+from graph_slam.frontend.config import realtime_registration
+from graph_slam.pipelines.config import PipelineConfig
+from graph_slam.sim import SimConfig, simulate
+
+
+@pytest.fixture(scope="module")
+def box_course(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("calibration") / "boxes"
+    cfg = SimConfig(strides=1, seed=3, fast=True, drops="none", quicklook=False)
+    simulate(cfg, out)
+    return out
+
+
+def test_relative_error_is_gtsam_logmap() -> None:
+    gtsam = pytest.importorskip("gtsam")
+    xi = np.array([0.02, -0.01, 0.03, 0.01, 0.02, -0.005])
+    pose = gtsam.Pose3.Expmap(np.array([0.1, 0.2, -0.1, 0.3, 0.1, 0.2])).matrix()
+    truth = pose @ gtsam.Pose3.Expmap(xi).matrix()
+    np.testing.assert_allclose(relative_error(pose, truth), xi, atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("name", "config", "pairs"),
+    [("realtime", realtime_registration(), 40), ("accurate", None, 30)],
+)
+def test_chi2_per_dof_of_the_box_course_is_near_one(box_course, name, config, pairs) -> None:
+    config = config or PipelineConfig().graph.registration
+    data = session_dataset(box_course, stop=pairs + 1)
+    report = chi2_of_pairs(data, config)
+    assert report.failed <= 2
+    assert report.ratio.size >= pairs - 2
+    assert 0.3 <= report.median_ratio <= 3.0, report.line()  # calibrated: 0.5-2
