@@ -7,10 +7,12 @@ the read-only :class:`~graph_slam.terrain.online.TerrainView` it puts in
 ``FrameOutput.terrain``; when a stride closes, :meth:`LiveTerrain.close` gives the stride's
 online map at its last frame, and :meth:`LiveTerrain.refuse` its map from the smoothed poses.
 
-Carry (``online.carry``): at a stride's first frame the previous stride's map (as it stood at
-its last frame) is moved into the new stride frame through ``new_T_old = inv(world_T_new) @
+Carry (``online.carry``): at a stride's first frame the previous stride's map is moved into the new stride frame through ``new_T_old = inv(world_T_new) @
 world_T_old`` of the estimator, the stride frames' world poses read off the frames' estimates
-(``world_T_camera @ inv(stride_T_camera)``). That pose's covariance: the new camera's anchor
+(``world_T_camera @ inv(stride_T_camera)``). The map carried is the one re-fused from the
+smoothed poses when the stride was smoothed at its close (the estimator starts the new stride
+from the smoothed end state, so the link follows those poses), else (deferred smoothing: the
+new stride starts from the iSAM2 estimate) the online map at its last frame. That pose's covariance: the new camera's anchor
 covariance Σ_a and the previous stride's last camera covariance Σ_0 (camera local), both
 moved to the old stride frame: ``Ad(old_T_camera) (Σ_a + Σ_0) Ad(old_T_camera)ᵀ``
 (:func:`graph_slam.terrain.online.adjoint`; docs/terrain.md). Without covariances the
@@ -54,6 +56,7 @@ class LiveTerrain:
         self._frames: list[int] = []  # frame indices of the open map's kept clouds
         self._last: tuple[np.ndarray, np.ndarray | None] | None = None  # world_T_stride, Σ
         self._closed: dict[int, tuple[OnlineElevationMap, list[int]]] = {}
+        self._refused: tuple[int, TerrainView] | None = None  # the latest re-fused stride
         self.carried_from: dict[int, int] = {}
         """stride index -> the stride its map's prior was carried from."""
 
@@ -81,7 +84,10 @@ class LiveTerrain:
             old_T_camera = np.linalg.inv(world_T_old) @ world_T_stride[0] @ world_T_stride[1]
             ad = adjoint(old_T_camera)
             cov_rel = ad @ (self._covariance(covariance) + self._covariance(cov_old)) @ ad.T
-            prior = carry_map(self.cfg, old.view(), new_T_old, cov_rel)
+            source = old.view()
+            if self._refused is not None and self._refused[0] == old.stride_index:
+                source = self._refused[1]  # the new stride frame follows the smoothed poses
+            prior = carry_map(self.cfg, source, new_T_old, cov_rel)
             self.carried_from[stride_index] = old.stride_index
         self.map = OnlineElevationMap(self.cfg, stride_index, prior)
         self._frames = []
@@ -142,6 +148,7 @@ class LiveTerrain:
         covs = [self._covariance(None if covariances is None else covariances[r]) for r in rows]
         view = emap.refuse(poses, covs)
         emap.clouds = []
+        self._refused = (stride_index, view)
         return view
 
     def discard(self, stride_index: int) -> None:

@@ -108,12 +108,15 @@ def fallback_covariance(sigma: tuple[float, float]) -> np.ndarray:
 def z_variance(points_local: np.ndarray, rotation: np.ndarray, cov: np.ndarray) -> np.ndarray:
     """Variance of the z coordinate of ``T p`` for points ``p`` (N×3, the frame of the pose's
     right perturbation) under a 6×6 covariance (rotation first): ``J Σ Jᵀ`` with the z row
-    ``J = [p × R[2], R[2]]``."""
+    ``J = [p × R[2], R[2]]``. With ``p × r = A p`` (``A = -[r]×``) it is the quadratic
+    ``pᵀ Q p + g·p + c``: 3×3 work per point."""
     r = rotation[2]
-    jac = np.empty((len(points_local), 6))
-    jac[:, :3] = np.cross(points_local, r)
-    jac[:, 3:] = r
-    return np.einsum("ni,ij,nj->n", jac, cov, jac)
+    a = -np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    q = a.T @ cov[:3, :3] @ a
+    g = 2.0 * a.T @ cov[:3, 3:] @ r
+    c = float(r @ cov[3:, 3:] @ r)
+    p = np.asarray(points_local, dtype=np.float64)
+    return np.einsum("ni,ni->n", p @ q, p) + p @ g + c
 
 
 @dataclass(frozen=True, eq=False)
