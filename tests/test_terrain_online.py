@@ -72,7 +72,7 @@ def test_incremental_update_equals_batch_fusion():
     for c, p, s, t in zip(clouds, poses, covs, times, strict=True):
         view = m.update(c, p, s, t)
     batch = fuse_frames(CFG, clouds, np.array(poses), covs, times)
-    for name in ("w", "wz", "a", "b", "count", "last_t_s"):
+    for name in ("w", "wz", "a", "b", "count", "last_t_s", "wz2", "d"):
         np.testing.assert_allclose(getattr(m.sums, name), getattr(batch, name), rtol=1e-12)
     assert view.known.sum() > 50
     # the re-fusion with the same poses is the batch fusion too

@@ -91,7 +91,7 @@ class TerrainRow:
         return {
             "session": self.session,
             "row": self.row,
-            "sightings": int(len(s)),
+            "sightings": len(s),
             "sightings_within_5mm_10mm": float(ok.mean()) if len(s) else float("nan"),
             "height_error_mm_median": _med(np.abs(s[:, 0]) * 1e3),
             "edge_error_mm_median": _med(np.abs(s[:, 1]) * 1e3),
@@ -102,11 +102,25 @@ class TerrainRow:
             "normalised_error_std": float(np.std(self.normalised))
             if self.normalised
             else float("nan"),
+            "normalised_error_robust_std": float(1.4826 * np.median(np.abs(self.normalised)))
+            if self.normalised
+            else float("nan"),
             "update_ms_median": _med(ms),
             "update_ms_p95": float(np.percentile(ms, 95)) if ms.size else float("nan"),
             "deadline": summarise_deadlines(self.deadlines),
             "first_obstacle_known_s_median": _med(first[np.isfinite(first)]),
         }
+
+
+def pooled(rows: Sequence[TerrainRow]) -> list[TerrainRow]:
+    """Per row name, every session's figures together (session ``all``)."""
+    out: dict[str, TerrainRow] = {}
+    for r in rows:
+        p = out.setdefault(r.row, TerrainRow("all", r.row))
+        for name in ("sightings", "carried_errors_m", "normalised", "update_ms", "deadlines",
+                     "first_known_s"):  # fmt: skip
+            getattr(p, name).extend(getattr(r, name))
+    return list(out.values())
 
 
 def _med(a: np.ndarray) -> float:
@@ -240,7 +254,7 @@ def _at_toe_off(out: TerrainRow, view, ref, boxes) -> None:
 
 HEADER = (
     f"{'row':<26} {'sight':>5} {'≤5/10mm':>8} {'|dh|mm':>7} {'|dx|mm':>7} {'carried':>7} "
-    f"{'RMSEmm':>7} {'err/σ':>6} {'upd p50':>7} {'upd p95':>7} {'known<toe':>9} {'lead s':>6} "
+    f"{'RMSEmm':>7} {'err/σ':>6} {'robust':>6} {'upd p50':>7} {'upd p95':>7} {'known<toe':>9} {'lead s':>6} "
     f"{'1st s':>6}"
 )
 
@@ -251,7 +265,8 @@ def row_line(f: dict[str, Any]) -> str:
         f"{f['row']:<26} {f['sightings']:>5d} {f['sightings_within_5mm_10mm']:>8.0%} "
         f"{f['height_error_mm_median']:>7.1f} {f['edge_error_mm_median']:>7.1f} "
         f"{f['carried_cells']:>7d} {f['carried_rmse_mm']:>7.1f} "
-        f"{f['normalised_error_std']:>6.2f} {f['update_ms_median']:>7.2f} "
+        f"{f['normalised_error_std']:>6.2f} {f['normalised_error_robust_std']:>6.2f} "
+        f"{f['update_ms_median']:>7.2f} "
         f"{f['update_ms_p95']:>7.2f} {d['n_before_toe_off']:>4d}/{d['n']:<4d} "
         f"{d['lead_s_median']:>6.2f} {f['first_obstacle_known_s_median']:>6.2f}"
     )

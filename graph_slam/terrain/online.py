@@ -17,10 +17,12 @@ online ``stride_T_camera``; its height ``z`` gets two variances:
   ``J = [p_c × R[2], R[2]]`` (from ``δp = R(-[p_c]× δθ + δt)``), ``σ_p² = J Σ Jᵀ``.
 
 Each point weighs ``w = 1 / (σ_d² + σ_p²)``; a cell keeps ``W = Σ w``, ``Σ w z``,
-``A = Σ w² σ_d²`` and ``B = Σ w σ_p``. Its height is ``Σ w z / W``; its variance
-``A / W² + (B / W)²``: the depth noise averages out, the pose errors are taken as fully
-correlated (one pose error shifts every point of a frame, and successive online poses drift
-together), so they do not. Sums are additive: the map after frames 1..n is the batch fusion
+``Σ w z²``, ``A = Σ w² σ_d²``, ``B = Σ w σ_p`` and ``D = Σ w σ_d²``. Its height is
+``h = Σ w z / W``; its variance ``A / W² + (B / W)² + e``: the depth noise averages out, the
+pose errors are taken as fully correlated (one pose error shifts every point of a frame, and
+successive online poses drift together), so they do not; ``e = max(0, Σ w z² / W - h² -
+D / W)`` is the cell's spread beyond the depth noise (a cell across a box edge, flying pixels
+at a depth jump: its height is then no one surface's). Sums are additive: the map after frames 1..n is the batch fusion
 (:func:`fuse_frames`) of the same frames and poses, to rounding.
 
 **Re-fusion**: the map keeps the stride's subsampled clouds; :meth:`OnlineElevationMap.refuse`
@@ -33,6 +35,7 @@ points whose variance is grown by that pose's covariance (docs/terrain.md).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -171,11 +174,13 @@ class CellSums:
     b: np.ndarray
     count: np.ndarray
     last_t_s: np.ndarray
+    wz2: np.ndarray
+    d: np.ndarray
 
     @staticmethod
     def empty(n: int) -> CellSums:
         z = np.zeros(n)
-        return CellSums(z, z, z, z, np.zeros(n, np.int64), np.full(n, np.nan))
+        return CellSums(z, z, z, z, np.zeros(n, np.int64), np.full(n, np.nan), z, z)
 
     def plus(self, terms: PointTerms, t_s: float | np.ndarray) -> CellSums:
         """New sums with the points added (self unchanged: views keep their arrays)."""
@@ -195,6 +200,8 @@ class CellSums:
             self.b + np.bincount(terms.flat, w * np.sqrt(terms.var_pose_m2), n),
             self.count + touched,
             last,
+            self.wz2 + np.bincount(terms.flat, w * terms.z_m**2, n),
+            self.d + np.bincount(terms.flat, w * terms.var_depth_m2, n),
         )
 
 
@@ -223,10 +230,13 @@ class TerrainView:
 
     @cached_property
     def variance_m2(self) -> np.ndarray:
-        """Height variance: depth noise (averaged) + camera pose (correlated)."""
+        """Height variance: depth noise (averaged) + camera pose (correlated) + the spread
+        beyond the depth noise."""
         s = self.sums
         with np.errstate(invalid="ignore", divide="ignore"):
-            v = np.where(s.w > 0, s.a / s.w**2 + (s.b / s.w) ** 2, np.nan)
+            h = s.wz / s.w
+            excess = np.maximum(0.0, s.wz2 / s.w - h**2 - s.d / s.w)
+            v = np.where(s.w > 0, s.a / s.w**2 + (s.b / s.w) ** 2 + excess, np.nan)
         return _frozen(v.reshape(self.shape))
 
     @property
@@ -411,7 +421,7 @@ def carry_map(
     s = old.sums
     p_old = np.column_stack([xx.ravel(), yy.ravel(), old.height_m.ravel()])[known]
     w = s.w[known]
-    var_ind = s.a[known] / w**2
+    var_ind = old.variance_m2.ravel()[known] - (s.b[known] / w) ** 2  # depth noise + spread
     std_corr = s.b[known] / w
     rotation, t = new_T_old[:3, :3], new_T_old[:3, 3]
     p_new = p_old @ rotation.T + t
@@ -422,6 +432,4 @@ def carry_map(
     last = s.last_t_s[known][keep]
     carried = CellSums.empty(int(np.prod(cfg.shape))).plus(terms, last)
     # carried cells count no point of the new stride
-    return CellSums(
-        carried.w, carried.wz, carried.a, carried.b, carried.count * 0, carried.last_t_s
-    )
+    return dataclasses.replace(carried, count=carried.count * 0)
