@@ -262,6 +262,10 @@ def terrain_bench(
         for name in names:
             results.append(bt.run_terrain_row(session, name, covariances=covariances))
             typer.echo(bt.row_line(results[-1].figures()))
+        med, p95 = bt.update_cost_ms(session)
+        typer.echo(
+            f"grid update alone (least of 5 per frame): median {med:.2f} ms, p95 {p95:.2f} ms"
+        )
     pooled = bt.pooled(results)
     typer.echo("== all sessions")
     typer.echo(bt.HEADER)
