@@ -207,15 +207,17 @@ def test_live_terrain_carries_ahead_only_when_configured():
     world_T_stride1[0, 3] = 0.5  # the new stride frame 0.5 m ahead
     for carry, expect_known in ((True, True), (False, False)):
         live = LiveTerrain(OnlineTerrainConfig(carry=carry, pixel_step=1), intr, 0.1, 3.0)
-        first = live.frame(0, _frame(0.0, depth), 0, pose, pose, None)
-        assert first.known.sum() > 100
+        # the session's first stride (no foot strike) is never carried out of
+        live.frame(0, _frame(0.0, np.zeros_like(depth)), 0, pose, pose, None)
+        first = live.frame(1, _frame(0.05, depth), 1, pose, pose, None)
+        assert first.known.sum() > 100 and not live.carried_from
         new = live.frame(
-            1, _frame(0.1, np.zeros_like(depth)), 1, pose, world_T_stride1 @ pose, None
+            2, _frame(0.1, np.zeros_like(depth)), 2, pose, world_T_stride1 @ pose, None
         )
-        assert new.stride_index == 1
+        assert new.stride_index == 2
         assert bool(new.known.any()) is expect_known
         if carry:
-            assert live.carried_from == {1: 0}
+            assert live.carried_from == {2: 1}
             # what was at old x lies at x - 0.5 now, on the floor (height 0)
             assert np.nanmax(np.abs(new.height_m)) < 1e-6  # float32 depth
             assert np.nanmin(new.sigma_m) > np.nanmin(first.sigma_m)
