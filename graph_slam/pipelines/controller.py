@@ -7,7 +7,7 @@ itself) and, after each frame, reads the frame's output into a :class:`Controlle
   fraction of the predicted stance elapsed; ``none`` before the first foot strike;
 - **obstacle ahead**: the nearest box of ``FrameOutput.terrain`` whose leading edge lies ahead
   of the toe (:meth:`graph_slam.terrain.online.TerrainView.obstacles_ahead`): its distance
-  from the toe and its height, with σ (stride frame, metres);
+  from the toe and its height, with σ (stride frame, metres), and whether it is seen whole;
 - **time left to toe-off**: the stance duration predicted from the strides seen so far (the
   mean of the last ``history`` stances, each from its foot strike to the first frame seen
   unloaded) minus the time since this stride's foot strike; NaN before one stance was seen
@@ -40,14 +40,17 @@ class ControllerReadout:
     obstacle_height_sigma_m: float = float("nan")
     toe_off_in_s: float = float("nan")
     has_pose: bool = False
+    obstacle_whole: bool = False
+    """The box is seen whole (else its dimensions are those of the part seen)."""
 
     def line(self) -> str:
         """A fixed-width line: time, stride, phase, obstacle ahead, time left to toe-off."""
         if math.isfinite(self.obstacle_distance_m):
+            part = "" if self.obstacle_whole else " (part seen)"
             obstacle = (
                 f"box {self.obstacle_distance_m * 100:5.1f}±{self.obstacle_distance_sigma_m * 100:.1f}"
                 f" cm ahead, {self.obstacle_height_m * 100:4.1f}±"
-                f"{self.obstacle_height_sigma_m * 100:.1f} cm high"
+                f"{self.obstacle_height_sigma_m * 100:.1f} cm high{part}"
             )
         else:
             obstacle = "no box ahead"
@@ -112,6 +115,7 @@ class ControllerTap:
                 obstacle_distance_sigma_m=o.leading_edge_sigma_m,
                 obstacle_height_m=o.height_m,
                 obstacle_height_sigma_m=o.height_sigma_m,
+                obstacle_whole=o.complete,
             )
         return ControllerReadout(
             out.frame_index, out.t_s, out.stride_index, phase, toe_off_in_s=toe,
