@@ -8,13 +8,12 @@ import pytest
 from scipy.linalg import expm
 
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+from graph_slam.terrain.carry import adjoint, carry_map
 from graph_slam.terrain.live import LiveTerrain
 from graph_slam.terrain.online import (
     CellSums,
     OnlineElevationMap,
     OnlineTerrainConfig,
-    adjoint,
-    carry_map,
     fuse_frames,
     z_variance,
 )

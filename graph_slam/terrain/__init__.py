@@ -5,6 +5,7 @@ functions serve the online poses, the smoothed poses and any pipeline. The per-f
 the controller (``online``, ``live``, ``grid_obstacles``): docs/terrain.md.
 """
 
+from graph_slam.terrain.carry import carry_map
 from graph_slam.terrain.elevation import ElevationConfig, ElevationGrid, elevation_grid
 from graph_slam.terrain.fusion import FusedMap, fuse_clouds, voxel_keys
 from graph_slam.terrain.obstacles import (
@@ -22,7 +23,6 @@ from graph_slam.terrain.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     TerrainView,
-    carry_map,
     fuse_frames,
 )
 from graph_slam.terrain.stride_map import MappingConfig, StrideMap, build_stride_map

@@ -26,12 +26,11 @@ from __future__ import annotations
 import numpy as np
 
 from graph_slam.terrain.builder import map_cloud
+from graph_slam.terrain.carry import adjoint, carry_map
 from graph_slam.terrain.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     TerrainView,
-    adjoint,
-    carry_map,
     fallback_covariance,
 )
 
