@@ -87,6 +87,7 @@ class TerrainRow:
         ok = (np.abs(s[:, 0]) <= 0.005) & (np.abs(s[:, 1]) <= 0.010)
         carried = np.array(self.carried_errors_m)
         ms = np.array(self.update_ms)
+        ms = ms[np.isfinite(ms)]  # frames without a grid (before the first stride) left out
         first = np.array(self.first_known_s)
         return {
             "session": self.session,
