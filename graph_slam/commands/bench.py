@@ -285,3 +285,52 @@ def calibration_bench(
         typer.echo(data.name)
         for name, config in presets.items():
             typer.echo(chi2_of_pairs(data, config, name=name).line())
+
+
+@bench_app.command("terrain")
+def terrain_bench(
+    sessions: Annotated[
+        list[Path], typer.Argument(help="Simulated sessions with a scene (graph-slam simulate).")
+    ],
+    rows: Annotated[
+        str,
+        typer.Option(
+            help="Comma-separated rows: VARIANT, VARIANT:PRESET, and a /nocarry suffix (the "
+            "grid starts empty at every stride, the thesis behaviour)."
+        ),
+    ] = "icp,icp+imu+kin,icp+imu+kin/nocarry,icp+imu+kin:realtime",
+    covariances: Annotated[
+        bool,
+        typer.Option(help="Graph rows: per-frame marginal covariances in the grid's variance."),
+    ] = True,
+    out: Annotated[Path | None, typer.Option("--out", help="Write the figures as JSON.")] = None,
+) -> None:
+    """Issue 16: the per-frame elevation grid against the scene's truth (docs/terrain.md):
+    box sightings at toe-off, the carried map, σ-consistency, update time, deadlines."""
+    import json
+
+    from graph_slam.bench import terrain as bt
+
+    names = tuple(r.strip() for r in rows.split(",") if r.strip())
+    for name in names:  # an unknown variant, preset or suffix fails before any work
+        bt.row_config(name, None, covariances)
+    results = []
+    for session in sessions:
+        typer.echo(f"== {session}")
+        typer.echo(bt.HEADER)
+        for name in names:
+            results.append(bt.run_terrain_row(session, name, covariances=covariances))
+            typer.echo(bt.row_line(results[-1].figures()))
+        med, p95 = bt.update_cost_ms(session)
+        typer.echo(
+            f"grid update alone (least of 5 per frame): median {med:.2f} ms, p95 {p95:.2f} ms"
+        )
+    pooled = bt.pooled(results)
+    typer.echo("== all sessions")
+    typer.echo(bt.HEADER)
+    for r in pooled:
+        typer.echo(bt.row_line(r.figures()))
+    if out is not None:
+        figures = [r.figures() for r in results + pooled]
+        out.write_text(json.dumps(figures, indent=1, default=float))
+        typer.echo(f"wrote {out}")

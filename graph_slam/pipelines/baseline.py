@@ -16,6 +16,7 @@ reason. A failed registration is never reported as a pose.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -70,10 +71,13 @@ class ThesisBaseline:
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.leg_model = leg_model
         self.has_color = has_color
-        from graph_slam.pipelines.protocol import make_gravity, make_terrain
+        from graph_slam.pipelines.protocol import make_gravity, make_live_terrain, make_terrain
 
         self.gravity = make_gravity(config)
         self.terrain = make_terrain(config, intrinsics)
+        # the baseline's stride frames are not linked (its world frame restarts at every
+        # reset): no carry across the strike; no covariance (depth noise + fallback pose σ)
+        self.live_terrain = make_live_terrain(config, intrinsics, link_strides=False)
         self.joints = JointBuffer(leg_model)
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._map: LocalMap | None = None
@@ -150,11 +154,16 @@ class ThesisBaseline:
             self._stride.poses.append(np.full((4, 4), np.nan) if pose is None else pose)
         self.gravity.drop_before(frame.t_s - self.gravity.keep_s)
         t1 = time.perf_counter()
+        stride_index = len(self.results.strides) if self._stride is not None else -1
+        view = None
         if self._stride is not None:
             self.terrain.add_frame(index, frame)
+            t_online = time.perf_counter()
+            view = self.live_terrain.frame(index, frame, stride_index, pose, pose, None)
+            t_online = time.perf_counter() - t_online
         out = FrameOutput(
             frame_index=index,
-            stride_index=len(self.results.strides) if self._stride is not None else -1,
+            stride_index=stride_index,
             t_s=float(frame.t_s),
             stride_T_camera=pose,
             world_T_camera=None if pose is None else self._world_T_stride @ pose,
@@ -168,9 +177,11 @@ class ThesisBaseline:
                 "cloud": t_cloud - t0,
                 "registration": t1 - t_cloud,  # reset or map pyramid + ICP + fusion
                 "terrain": time.perf_counter() - t1,
+                **({} if view is None else {"terrain_online": t_online}),
             },
+            terrain=view,
         )
-        self.results.frames.append(out)
+        self.results.frames.append(dataclasses.replace(out, terrain=None))
         return out
 
     def _register(self, cloud) -> tuple[np.ndarray | None, str, float]:
@@ -206,6 +217,7 @@ class ThesisBaseline:
             return
         index = len(self.results.strides)
         poses = np.array(s.poses).reshape(-1, 4, 4)
+        grid = self.live_terrain.close(index)
         self.results.strides.append(
             StrideOutput(
                 index=index,
@@ -217,8 +229,11 @@ class ThesisBaseline:
                 flags=("registration_stopped",) if s.stop_reason else (),
                 stop_reason=s.stop_reason,
                 terrain=self.terrain.close_stride(index, s.frames, poses, None),
+                online_grid=grid,
+                smoothed_grid=grid,  # the baseline's smoothed poses are its online ones
             )
         )
+        self.live_terrain.discard(index)
         self._stride = None
         self._map = None
 

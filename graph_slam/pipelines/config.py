@@ -220,21 +220,22 @@ class PipelineConfig(ConfigModel):
 #: benchmarks). ``realtime``: the real-time registration preset with the IMU's initial guess,
 #: the batch smoothing deferred off the foot strike (``backend.defer_smoothing``; at most two
 #: strides wait, so memory stays flat over a long run: ``backend.max_deferred_strides``) and
-#: no stride maps: fusing a stride's map at its close takes 0.3–1.2 s at 424×240, which the real-time
-#: path cannot afford; the terrain for the controller is to be an incremental map updated at
-#: every frame (issue 16). ``terrain.enabled: true`` over the preset measures that cost.
+#: no stride maps: fusing a stride's map at its close takes 0.3–1.2 s at 424×240, which the
+#: real-time path cannot afford; the terrain for the controller is the incremental grid
+#: updated at every frame (``terrain.online``, docs/terrain.md), on in every preset.
+#: ``terrain.enabled: true`` over the preset measures the stride maps' cost.
 PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
     "accurate": {"graph": {"registration": "accurate"}},
     "thesis": {"graph": {"registration": "thesis"}},
     "realtime": {
         "graph": {"registration": "realtime", "imu_guess": True},
         "backend": {"defer_smoothing": True, "max_deferred_strides": 2},
-        "terrain": {"enabled": False},
+        "terrain": {"enabled": False, "online": {"enabled": True}},
     },
     "realtime-gicp": {
         "graph": {"registration": "realtime-gicp", "imu_guess": True},
         "backend": {"defer_smoothing": True, "max_deferred_strides": 2},
-        "terrain": {"enabled": False},
+        "terrain": {"enabled": False, "online": {"enabled": True}},
     },
 }
 

@@ -5,6 +5,7 @@ load cell's foot-loaded state."""
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 
@@ -23,6 +24,7 @@ from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import (
     frame_cloud,
     make_gravity,
+    make_live_terrain,
     make_terrain,
     sensor_registration,
 )
@@ -100,6 +102,7 @@ class GraphPipeline:
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.gravity = make_gravity(config)
         self.terrain = make_terrain(config, intrinsics)
+        self.live_terrain = make_live_terrain(config, intrinsics)
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, target, pose, t
         self._prev2: tuple[np.ndarray, float] | None = None
@@ -278,6 +281,12 @@ class GraphPipeline:
         t3 = time.perf_counter()
         self.gravity.drop_before(frame.t_s - self.gravity.keep_s)
         self.terrain.add_frame(index, frame)
+        t4 = time.perf_counter()
+        view = self.live_terrain.frame(
+            index, frame, est.stride_index, est.stride_T_camera, est.world_T_camera,
+            est.covariance,
+        )  # fmt: skip
+        stages["terrain_online"] = time.perf_counter() - t4
         stages["terrain"] = time.perf_counter() - t3
         if t3 - t2 > 1e-4:  # the terrain maps of a stride that closed
             stages["stride_close"] = stages.get("stride_close", 0.0) + t3 - t2
@@ -298,8 +307,9 @@ class GraphPipeline:
             terrain_s=stages["terrain"],
             stages_s=stages,
             estimate=est,
+            terrain=view,
         )
-        self.results.frames.append(out)
+        self.results.frames.append(dataclasses.replace(out, terrain=None))
         return out
 
     def _remember(self, index: int, pyramid, est, t_s: float) -> None:
@@ -323,6 +333,12 @@ class GraphPipeline:
                 s.smoothed_stride_T_camera,
                 smoothed_later="smoothing_deferred" in s.flags,
             )
+            deferred = "smoothing_deferred" in s.flags
+            smoothed_grid = None
+            if not deferred:
+                smoothed_grid = self.live_terrain.refuse(
+                    s.index, s.frame_indices, s.smoothed_stride_T_camera, s.smoothed_covariances
+                )
             self.results.strides.append(
                 StrideOutput(
                     index=s.index,
@@ -334,6 +350,8 @@ class GraphPipeline:
                     flags=s.flags,
                     terrain=terrain,
                     summary=s,
+                    online_grid=self.live_terrain.close(s.index),
+                    smoothed_grid=smoothed_grid,
                 )
             )
 
@@ -346,6 +364,9 @@ class GraphPipeline:
             out.flags = s.flags
             if out.terrain is not None:
                 out.terrain = self.terrain.fuse_smoothed(out.terrain, s.smoothed_stride_T_camera)
+            out.smoothed_grid = self.live_terrain.refuse(
+                s.index, s.frame_indices, s.smoothed_stride_T_camera, s.smoothed_covariances
+            )
 
     def finish(self) -> PipelineResults:
         if self._pending_strike is not None:  # a strike after the last frame

@@ -77,3 +77,16 @@ def make_terrain(config, intrinsics: CameraIntrinsics):
     return TerrainBuilder(
         config.terrain, intrinsics, config.cloud.min_depth_m, config.cloud.max_depth_m
     )
+
+
+def make_live_terrain(config, intrinsics: CameraIntrinsics, link_strides: bool = True):
+    """The per-frame terrain component of a pipeline (:mod:`graph_slam.terrain.live`)."""
+    from graph_slam.terrain.live import LiveTerrain
+
+    return LiveTerrain(
+        config.terrain.online,
+        intrinsics,
+        config.cloud.min_depth_m,
+        config.cloud.max_depth_m,
+        link_strides=link_strides,
+    )

@@ -12,6 +12,7 @@ from graph_slam.variants import Variant
 if TYPE_CHECKING:
     from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
     from graph_slam.terrain.builder import StrideTerrain
+    from graph_slam.terrain.online import TerrainView
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,6 +47,15 @@ class FrameOutput:
     frame). ``frontend_s`` and ``backend_s`` are the older two-way split of the same time."""
     estimate: FrameEstimate | None = None
     """The back end's own record of the frame (graph variants)."""
+    terrain: TerrainView | None = None
+    """The stride's elevation grid after this frame (stride frame; docs/terrain.md): on the
+    output ``add_frame`` returns only (``PipelineResults.frames`` keep None: memory)."""
+
+    @property
+    def covariance(self) -> np.ndarray | None:
+        """6×6 marginal covariance of ``stride_T_camera`` (camera local, rotation first); None
+        for the baseline (no estimator covariance) and with ``backend.covariances`` off."""
+        return None if self.estimate is None else self.estimate.covariance
 
     @property
     def has_pose(self) -> bool:
@@ -71,6 +81,10 @@ class StrideOutput:
     """The stride's terrain maps from its online and smoothed poses (``terrain.enabled``)."""
     summary: StrideSummary | None = None
     """The back end's own record of the stride (graph variants)."""
+    online_grid: TerrainView | None = None
+    """The per-frame elevation grid as it stood at the stride's last frame."""
+    smoothed_grid: TerrainView | None = None
+    """The same grid re-fused from the smoothed poses (the baseline: its online grid)."""
 
 
 @dataclass(eq=False)

@@ -1,9 +1,11 @@
 """Terrain maps of a stride: fused clouds, an elevation grid, the floor and the boxes on it.
 
 Inputs are plain arrays (camera-frame clouds and ``stride_T_camera`` poses), so the same
-functions serve the online poses, the smoothed poses and any pipeline.
+functions serve the online poses, the smoothed poses and any pipeline. The per-frame grid for
+the controller (``online``, ``live``, ``grid_obstacles``): docs/terrain.md.
 """
 
+from graph_slam.terrain.carry import carry_map
 from graph_slam.terrain.elevation import ElevationConfig, ElevationGrid, elevation_grid
 from graph_slam.terrain.fusion import FusedMap, fuse_clouds, voxel_keys
 from graph_slam.terrain.obstacles import (
@@ -16,11 +18,19 @@ from graph_slam.terrain.obstacles import (
     extract_obstacles,
     fit_floor,
 )
+from graph_slam.terrain.online import (
+    DepthNoiseModel,
+    OnlineElevationMap,
+    OnlineTerrainConfig,
+    TerrainView,
+    fuse_frames,
+)
 from graph_slam.terrain.stride_map import MappingConfig, StrideMap, build_stride_map
 
 __all__ = [
     "SKIP_REASONS",
     "Coverage",
+    "DepthNoiseModel",
     "ElevationConfig",
     "ElevationGrid",
     "FloorPlane",
@@ -29,11 +39,16 @@ __all__ = [
     "Obstacle",
     "ObstacleConfig",
     "ObstacleMap",
+    "OnlineElevationMap",
+    "OnlineTerrainConfig",
     "StrideMap",
+    "TerrainView",
     "build_stride_map",
+    "carry_map",
     "elevation_grid",
     "extract_obstacles",
     "fit_floor",
     "fuse_clouds",
+    "fuse_frames",
     "voxel_keys",
 ]

@@ -19,6 +19,7 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
+from graph_slam.terrain.online import OnlineTerrainConfig
 from graph_slam.terrain.stride_map import MappingConfig, StrideMap, build_stride_map
 
 log = logging.getLogger(__name__)
@@ -46,6 +47,11 @@ class TerrainConfig(ConfigModel):
         "at 3 m) and far readings blur box edges; the thesis measured boxes within ~1 m",
     )
     map: MappingConfig = MappingConfig()
+    online: OnlineTerrainConfig = Field(
+        default_factory=OnlineTerrainConfig,
+        description="the per-frame elevation grid for the controller (FrameOutput.terrain; "
+        "docs/terrain.md), independent of ``enabled``",
+    )
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,163 @@
+"""The pipelines' online terrain component: one :class:`OnlineElevationMap` per stride, updated
+at every frame with the frame's online pose, carried across the foot strike, re-fused from the
+smoothed poses when they come.
+
+A pipeline calls :meth:`LiveTerrain.frame` once per frame (after its pose estimate) and gets
+the read-only :class:`~graph_slam.terrain.online.TerrainView` it puts in
+``FrameOutput.terrain``; when a stride closes, :meth:`LiveTerrain.close` gives the stride's
+online map at its last frame, and :meth:`LiveTerrain.refuse` its map from the smoothed poses.
+
+Carry (``online.carry``): at a stride's first frame the previous stride's map is moved into the new stride frame through ``new_T_old = inv(world_T_new) @
+world_T_old`` of the estimator, the stride frames' world poses read off the frames' estimates
+(``world_T_camera @ inv(stride_T_camera)``). The map carried is the one re-fused from the
+smoothed poses when the stride was smoothed at its close (the estimator starts the new stride
+from the smoothed end state, so the link follows those poses), else (deferred smoothing: the
+new stride starts from the iSAM2 estimate) the online map at its last frame. That pose's covariance: the new camera's anchor
+covariance Σ_a and the previous stride's last camera covariance Σ_0 (camera local), both
+moved to the old stride frame: ``Ad(old_T_camera) (Σ_a + Σ_0) Ad(old_T_camera)ᵀ``
+(:func:`graph_slam.terrain.online.adjoint`; docs/terrain.md). Without covariances the
+configured fallback σ stands for each. Nothing is carried out of the session's first stride:
+it began without a foot strike (no anchor, weak priors), and its online map, fused from poses
+the estimator corrected later, was measured 0.3–0.5 m off in the carried cells.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graph_slam.terrain.builder import map_cloud
+from graph_slam.terrain.carry import adjoint, carry_map
+from graph_slam.terrain.online import (
+    OnlineElevationMap,
+    OnlineTerrainConfig,
+    TerrainView,
+    fallback_covariance,
+)
+
+
+class LiveTerrain:
+    """Per-frame elevation grids for a pipeline (see the module docstring)."""
+
+    def __init__(
+        self,
+        config: OnlineTerrainConfig,
+        intrinsics,
+        min_depth_m: float,
+        max_depth_m: float,
+        link_strides: bool = True,
+    ) -> None:
+        """``link_strides`` False: the pipeline's stride frames have no estimated relative
+        pose (the baseline's world frame restarts at every stride): nothing is carried."""
+        self.cfg = config
+        self.link_strides = link_strides
+        self.intrinsics = intrinsics
+        self.min_depth_m = max(float(min_depth_m), config.min_depth_m)
+        self.max_depth_m = min(float(max_depth_m), config.max_depth_m)
+        self.map: OnlineElevationMap | None = None
+        self._frames: list[int] = []  # frame indices of the open map's kept clouds
+        self._last: tuple[np.ndarray, np.ndarray | None] | None = None  # world_T_stride, Σ
+        self._closed: dict[int, tuple[OnlineElevationMap, list[int]]] = {}
+        self._refused: tuple[int, TerrainView] | None = None  # the latest re-fused stride
+        self._first_stride: int | None = None  # the session's first (no foot strike)
+        self.carried_from: dict[int, int] = {}
+        """stride index -> the stride its map's prior was carried from."""
+
+    def _covariance(self, covariance):
+        if covariance is not None and np.isfinite(covariance).all():
+            return np.asarray(covariance, float)
+        return fallback_covariance(self.cfg.fallback_pose_sigma)
+
+    def _start(self, stride_index: int, world_T_stride, covariance) -> None:
+        """A new stride's map, with the previous one's cells ahead carried in when possible."""
+        prior = None
+        old = self.map
+        if self._first_stride is None:
+            self._first_stride = stride_index
+        if old is not None and self.cfg.keep_clouds:
+            self._closed[old.stride_index] = (old, self._frames)
+        if (
+            self.cfg.carry
+            and self.link_strides
+            and old is not None
+            and self._last is not None
+            and world_T_stride is not None
+            and old.stride_index == stride_index - 1
+            and old.stride_index != self._first_stride
+        ):
+            world_T_old, cov_old = self._last
+            new_T_old = np.linalg.inv(world_T_stride[0]) @ world_T_old
+            old_T_camera = np.linalg.inv(world_T_old) @ world_T_stride[0] @ world_T_stride[1]
+            ad = adjoint(old_T_camera)
+            cov_rel = ad @ (self._covariance(covariance) + self._covariance(cov_old)) @ ad.T
+            source = old.view()
+            if self._refused is not None and self._refused[0] == old.stride_index:
+                source = self._refused[1]  # the new stride frame follows the smoothed poses
+            prior = carry_map(self.cfg, source, new_T_old, cov_rel)
+            self.carried_from[stride_index] = old.stride_index
+        self.map = OnlineElevationMap(self.cfg, stride_index, prior)
+        self._frames = []
+
+    def frame(
+        self,
+        frame_index: int,
+        frame,
+        stride_index: int,
+        stride_T_camera: np.ndarray | None,
+        world_T_camera: np.ndarray | None,
+        covariance: np.ndarray | None,
+    ) -> TerrainView | None:
+        """Fuse the frame into its stride's map; the map's view (None before the first stride
+        or while the stride has no map). A frame without a pose leaves the map as it is."""
+        if not self.cfg.enabled or stride_index < 0:
+            return None
+        strides = None
+        if stride_T_camera is not None and world_T_camera is not None:
+            world_T_stride = world_T_camera @ np.linalg.inv(stride_T_camera)
+            strides = (world_T_stride, stride_T_camera)
+        if self.map is None or self.map.stride_index != stride_index:
+            self._start(stride_index, strides, covariance)
+        if stride_T_camera is None:
+            return self.map.view()
+        points, _ = map_cloud(
+            frame, self.intrinsics, self.cfg.pixel_step, self.min_depth_m, self.max_depth_m
+        )
+        view = self.map.update(
+            points, stride_T_camera, self._covariance(covariance), float(frame.t_s)
+        )
+        self._frames.append(int(frame_index))
+        self._last = (strides[0], covariance)
+        return view
+
+    def close(self, stride_index: int) -> TerrainView | None:
+        """The stride's online map as it stood at its last frame (None: never started)."""
+        if self.map is not None and self.map.stride_index == stride_index:
+            return self.map.view()
+        closed = self._closed.get(stride_index)
+        return None if closed is None else closed[0].view()
+
+    def refuse(
+        self, stride_index: int, frame_indices, stride_T_camera: np.ndarray, covariances
+    ) -> TerrainView | None:
+        """The stride's map from other poses (``stride_T_camera``: one per frame of
+        ``frame_indices``; covariances likewise or None), its kept clouds then forgotten."""
+        if self.map is not None and self.map.stride_index == stride_index:
+            entry = (self.map, self._frames)
+        else:
+            entry = self._closed.pop(stride_index, None)
+        if entry is None or not self.cfg.keep_clouds:
+            return None
+        emap, kept = entry
+        where = {int(f): i for i, f in enumerate(frame_indices)}
+        rows = [where[f] for f in kept]
+        poses = np.asarray(stride_T_camera, float)[rows]
+        covs = [self._covariance(None if covariances is None else covariances[r]) for r in rows]
+        view = emap.refuse(poses, covs)
+        emap.clouds = []
+        self._refused = (stride_index, view)
+        return view
+
+    def discard(self, stride_index: int) -> None:
+        """Forget the stride's kept clouds (no re-fusion will come)."""
+        self._closed.pop(stride_index, None)
+        if self.map is not None and self.map.stride_index == stride_index:
+            self.map.clouds = []

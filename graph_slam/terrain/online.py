@@ -1,0 +1,393 @@
+"""The terrain for the controller: an elevation grid in the stride frame, updated every frame.
+
+Frames and units: the grid lies in the **stride frame** (x forward along the foot, y left,
+z up against gravity; origin at the heel contact point at the stride's foot strike), metres,
+seconds. Cell ``(i, j)`` covers ``x in [x0 + i*cell, x0 + (i+1)*cell)`` and
+``y in [y0 + j*cell, y0 + (j+1)*cell)`` with ``(x0, y0) = (x_range_m[0], y_range_m[0])``.
+
+**Update** (:meth:`OnlineElevationMap.update`, one frame): every ``pixel_step``-th depth pixel
+within range becomes a point ``p_c`` (camera frame), placed in the stride frame by the frame's
+online ``stride_T_camera``; its height ``z`` gets two variances:
+
+* depth noise, independent between points: the sensor's range σ(z_c) = ``sigma_at_1m_m`` ·
+  z_c^``exponent`` + ``sigma_floor_m`` along the pixel's ray ``p_c / z_c``, projected on the
+  stride z axis: ``σ_d² = (R[2] · p_c / z_c)² σ(z_c)²``;
+* pose, common to the frame: the camera's marginal covariance Σ (6×6, camera local, rotation
+  first, ``T exp(ξ)``) pushed through the point's Jacobian, z row only:
+  ``J = [p_c × R[2], R[2]]`` (from ``δp = R(-[p_c]× δθ + δt)``), ``σ_p² = J Σ Jᵀ``.
+
+Each point weighs ``w = 1 / (σ_d² + σ_p²)``; a cell keeps ``W = Σ w``, ``Σ w z``,
+``Σ w z²``, ``A = Σ w² σ_d²``, ``B = Σ w σ_p`` and ``D = Σ w σ_d²``. Its height is
+``h = Σ w z / W``; its variance ``A / W² + (B / W)² + e``: the depth noise averages out, the
+pose errors are taken as fully correlated (one pose error shifts every point of a frame, and
+successive online poses drift together), so they do not; ``e = max(0, Σ w z² / W - h² -
+D / W)`` is the cell's spread beyond the depth noise (a cell across a box edge, flying pixels
+at a depth jump: its height is then no one surface's). Sums are additive: the map after frames 1..n is the batch fusion
+(:func:`fuse_frames`) of the same frames and poses, to rounding.
+
+**Re-fusion**: the map keeps the stride's subsampled clouds; :meth:`OnlineElevationMap.refuse`
+builds the stride's map again from its smoothed poses (the batch path).
+
+**Carry** (:func:`graph_slam.terrain.carry.carry_map`): at a foot strike the previous stride's cells ahead of the new
+heel are moved into the new stride frame through ``new_T_old`` and enter the new map as prior
+points whose variance is grown by that pose's covariance (docs/terrain.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from graph_slam.config import ConfigModel
+from graph_slam.errors import MappingError
+
+
+class DepthNoiseModel(ConfigModel):
+    """Range noise of the depth camera: σ(z) = sigma_at_1m_m · z^exponent + sigma_floor_m
+    (the sensor profile's ``noise`` block; defaults: the D455 of models/sensors/d455.yaml)."""
+
+    sigma_at_1m_m: float = Field(0.0019, ge=0)
+    exponent: float = Field(2.0, ge=0, le=3)
+    sigma_floor_m: float = Field(0.0003, ge=0)
+
+    def sigma_m(self, z_m: np.ndarray) -> np.ndarray:
+        return self.sigma_at_1m_m * np.power(z_m, self.exponent) + self.sigma_floor_m
+
+
+class OnlineTerrainConfig(ConfigModel):
+    """The per-frame elevation grid of the pipelines (see the module docstring)."""
+
+    enabled: bool = Field(True, description="update the grid at every frame")
+    cell_m: float = Field(0.02, gt=0, description="cell edge (m)")
+    x_range_m: tuple[float, float] = Field(
+        (-0.2, 1.8), description="stride x covered: from behind the heel to ahead of the foot"
+    )
+    y_range_m: tuple[float, float] = (-0.6, 0.6)
+    pixel_step: int = Field(4, ge=1, le=16, description="every n-th depth pixel in u and v")
+    min_depth_m: float = Field(0.2, ge=0)
+    max_depth_m: float = Field(2.0, gt=0, description="farther depth is too noisy for the map")
+    depth_noise: DepthNoiseModel = DepthNoiseModel()
+    fallback_pose_sigma: tuple[float, float] = Field(
+        (0.005, 0.005),
+        description="(rotation rad, translation m) σ of the camera pose when the estimator gives "
+        "no covariance (the baseline; the graph with backend.covariances off)",
+    )
+    carry: bool = Field(
+        True,
+        description="at a foot strike carry the previous stride's cells ahead of the new heel "
+        "into the new stride's map (False: start from nothing, the thesis behaviour)",
+    )
+    carry_min_x_m: float = Field(0.0, description="carry cells with new-frame x at least this")
+    toe_x_m: float = Field(
+        0.2, description="toe's x in the stride frame (heel at 0): obstacle distances are from it"
+    )
+    keep_clouds: bool = Field(True, description="keep the stride's clouds for the re-fusion")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> OnlineTerrainConfig:
+        for name in ("x_range_m", "y_range_m"):
+            lo, hi = getattr(self, name)
+            if not hi > lo:
+                raise ValueError(f"{name}: the upper bound must exceed the lower, got {lo}, {hi}")
+        return self
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        nx = round((self.x_range_m[1] - self.x_range_m[0]) / self.cell_m)
+        ny = round((self.y_range_m[1] - self.y_range_m[0]) / self.cell_m)
+        return nx, ny
+
+
+def fallback_covariance(sigma: tuple[float, float]) -> np.ndarray:
+    """A diagonal 6×6 pose covariance (rotation first) from (rotation σ, translation σ)."""
+    return np.diag([sigma[0] ** 2] * 3 + [sigma[1] ** 2] * 3)
+
+
+def z_variance(points_local: np.ndarray, rotation: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Variance of the z coordinate of ``T p`` for points ``p`` (N×3, the frame of the pose's
+    right perturbation) under a 6×6 covariance (rotation first): ``J Σ Jᵀ`` with the z row
+    ``J = [p × R[2], R[2]]``. With ``p × r = A p`` (``A = -[r]×``) it is the quadratic
+    ``pᵀ Q p + g·p + c``: 3×3 work per point."""
+    r = rotation[2]
+    a = -np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    q = a.T @ cov[:3, :3] @ a
+    g = 2.0 * a.T @ cov[:3, 3:] @ r
+    c = float(r @ cov[3:, 3:] @ r)
+    p = np.asarray(points_local, dtype=np.float64)
+    return np.einsum("ni,ni->n", p @ q, p) + p @ g + c
+
+
+@dataclass(frozen=True, eq=False)
+class PointTerms:
+    """Per-point contributions to the cell sums (only the points inside the grid)."""
+
+    flat: np.ndarray
+    z_m: np.ndarray
+    var_depth_m2: np.ndarray
+    var_pose_m2: np.ndarray
+
+    @staticmethod
+    def concat(terms: Sequence[PointTerms]) -> PointTerms:
+        return PointTerms(*(np.concatenate([getattr(t, f) for t in terms]) for f in _TERM_FIELDS))
+
+
+_TERM_FIELDS = ("flat", "z_m", "var_depth_m2", "var_pose_m2")
+
+
+def cell_index(cfg: OnlineTerrainConfig, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flat cell index of each (x, y) and whether it lies on the grid."""
+    nx, ny = cfg.shape
+    i = np.floor((xy_m[:, 0] - cfg.x_range_m[0]) / cfg.cell_m).astype(np.int64)
+    j = np.floor((xy_m[:, 1] - cfg.y_range_m[0]) / cfg.cell_m).astype(np.int64)
+    inside = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+    return i * ny + j, inside
+
+
+def point_terms(
+    cfg: OnlineTerrainConfig, points_camera_m: np.ndarray, stride_T_camera: np.ndarray, cov
+) -> PointTerms:
+    """One frame's points in the stride frame with their depth and pose variances."""
+    pts = np.asarray(points_camera_m, dtype=np.float64)
+    rotation, t = stride_T_camera[:3, :3], stride_T_camera[:3, 3]
+    p = pts @ rotation.T + t
+    flat, inside = cell_index(cfg, p[:, :2])
+    pts, p, flat = pts[inside], p[inside], flat[inside]
+    z_c = pts[:, 2]
+    ray_z = (pts @ rotation[2]) / z_c
+    var_depth = (ray_z * cfg.depth_noise.sigma_m(z_c)) ** 2
+    var_pose = z_variance(pts, rotation, cov) if cov is not None else np.zeros(len(pts))
+    return PointTerms(flat, p[:, 2], var_depth, var_pose)
+
+
+@dataclass(frozen=True, eq=False)
+class CellSums:
+    """The additive per-cell sums (flat arrays of nx·ny; see the module docstring)."""
+
+    w: np.ndarray
+    wz: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    count: np.ndarray
+    last_t_s: np.ndarray
+    wz2: np.ndarray
+    d: np.ndarray
+
+    @staticmethod
+    def empty(n: int) -> CellSums:
+        z = np.zeros(n)
+        return CellSums(z, z, z, z, np.zeros(n, np.int64), np.full(n, np.nan), z, z)
+
+    def plus(self, terms: PointTerms, t_s: float | np.ndarray) -> CellSums:
+        """New sums with the points added (self unchanged: views keep their arrays)."""
+        n = len(self.w)
+        var = terms.var_depth_m2 + terms.var_pose_m2
+        w = 1.0 / var
+        touched = np.bincount(terms.flat, minlength=n)
+        last = self.last_t_s.copy()
+        if np.ndim(t_s) == 0:
+            last[touched > 0] = float(t_s)
+        else:  # batch: the latest time of any point in the cell
+            np.fmax.at(last, terms.flat, np.asarray(t_s, dtype=np.float64))
+        return CellSums(
+            self.w + np.bincount(terms.flat, w, n),
+            self.wz + np.bincount(terms.flat, w * terms.z_m, n),
+            self.a + np.bincount(terms.flat, w * w * terms.var_depth_m2, n),
+            self.b + np.bincount(terms.flat, w * np.sqrt(terms.var_pose_m2), n),
+            self.count + touched,
+            last,
+            self.wz2 + np.bincount(terms.flat, w * terms.z_m**2, n),
+            self.d + np.bincount(terms.flat, w * terms.var_depth_m2, n),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class TerrainView:
+    """A read-only snapshot of the stride's elevation grid at one frame (stride frame, metres).
+
+    Arrays are (nx, ny), axis 0 x, axis 1 y; empty cells are NaN (``count`` 0 and not carried).
+    ``count`` counts this stride's points; a cell known only from the previous stride (carried)
+    has a height and ``count`` 0."""
+
+    stride_index: int
+    t_s: float
+    origin_xy_m: np.ndarray
+    """(x, y) of the corner of cell (0, 0)."""
+    cell_m: float
+    sums: CellSums
+    shape: tuple[int, int]
+    toe_x_m: float = 0.2
+
+    @cached_property
+    def height_m(self) -> np.ndarray:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            h = np.where(self.sums.w > 0, self.sums.wz / self.sums.w, np.nan)
+        return _frozen(h.reshape(self.shape))
+
+    @cached_property
+    def variance_m2(self) -> np.ndarray:
+        """Height variance: depth noise (averaged) + camera pose (correlated) + the spread
+        beyond the depth noise."""
+        s = self.sums
+        with np.errstate(invalid="ignore", divide="ignore"):
+            h = s.wz / s.w
+            excess = np.maximum(0.0, s.wz2 / s.w - h**2 - s.d / s.w)
+            v = np.where(s.w > 0, s.a / s.w**2 + (s.b / s.w) ** 2 + excess, np.nan)
+        return _frozen(v.reshape(self.shape))
+
+    @property
+    def sigma_m(self) -> np.ndarray:
+        return np.sqrt(self.variance_m2)
+
+    @cached_property
+    def count(self) -> np.ndarray:
+        return _frozen(self.sums.count.reshape(self.shape))
+
+    @cached_property
+    def last_update_t_s(self) -> np.ndarray:
+        """Time of the latest point in each cell (NaN: none this stride)."""
+        return _frozen(self.sums.last_t_s.reshape(self.shape))
+
+    @property
+    def known(self) -> np.ndarray:
+        return self.sums.w.reshape(self.shape) > 0
+
+    def cell_centers_m(self) -> tuple[np.ndarray, np.ndarray]:
+        """x centres (nx,) and y centres (ny,)."""
+        nx, ny = self.shape
+        x = self.origin_xy_m[0] + (np.arange(nx) + 0.5) * self.cell_m
+        y = self.origin_xy_m[1] + (np.arange(ny) + 0.5) * self.cell_m
+        return x, y
+
+    def _cell(self, x_m: float, y_m: float) -> tuple[int, int] | None:
+        i = int(np.floor((x_m - self.origin_xy_m[0]) / self.cell_m))
+        j = int(np.floor((y_m - self.origin_xy_m[1]) / self.cell_m))
+        return (i, j) if 0 <= i < self.shape[0] and 0 <= j < self.shape[1] else None
+
+    def height_at(self, x_m: float, y_m: float) -> float:
+        """Height (stride z, m) of the cell holding (x, y); NaN when unknown or off the grid."""
+        ij = self._cell(x_m, y_m)
+        return float("nan") if ij is None else float(self.height_m[ij])
+
+    def sigma_at(self, x_m: float, y_m: float) -> float:
+        ij = self._cell(x_m, y_m)
+        return float("nan") if ij is None else float(self.sigma_m[ij])
+
+    @cached_property
+    def obstacle_map(self):
+        """The boxes on the grid (:func:`graph_slam.terrain.grid_obstacles.grid_obstacles`),
+        computed once on demand; None when no floor is found."""
+        from graph_slam.terrain.grid_obstacles import grid_obstacles
+
+        try:
+            return grid_obstacles(self)
+        except MappingError:
+            return None
+
+    def obstacles_ahead(self, min_x_m: float | None = None) -> tuple:
+        """Boxes whose leading edge lies ahead of ``min_x_m`` (default: the toe), nearest
+        first."""
+        m = self.obstacle_map
+        if m is None:
+            return ()
+        lo = self.toe_x_m if min_x_m is None else min_x_m
+        return tuple(o for o in m.obstacles if o.leading_edge_x_m >= lo)
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+class OnlineElevationMap:
+    """One stride's elevation grid, updated frame by frame (see the module docstring)."""
+
+    def __init__(
+        self, config: OnlineTerrainConfig, stride_index: int = 0, prior: CellSums | None = None
+    ) -> None:
+        self.cfg = config
+        self.stride_index = stride_index
+        nx, ny = config.shape
+        self.prior = prior if prior is not None else CellSums.empty(nx * ny)
+        self.sums = self.prior
+        self.t_s = float("nan")
+        self.clouds: list[tuple[float, np.ndarray]] = []
+
+    def update(self, points_camera_m, stride_T_camera, covariance, t_s: float) -> TerrainView:
+        """Fuse one frame's camera-frame points placed by its ``stride_T_camera`` (4×4) with
+        its 6×6 pose covariance (None: depth noise only)."""
+        pose = np.asarray(stride_T_camera, dtype=np.float64)
+        if pose.shape != (4, 4) or not np.isfinite(pose).all():
+            raise MappingError(f"online terrain: stride_T_camera must be a finite 4×4, got {pose}")
+        terms = point_terms(self.cfg, points_camera_m, pose, covariance)
+        self.sums = self.sums.plus(terms, t_s)
+        self.t_s = float(t_s)
+        if self.cfg.keep_clouds:
+            self.clouds.append((float(t_s), np.asarray(points_camera_m, np.float32)))
+        return self.view()
+
+    def view(self) -> TerrainView:
+        """The current grid, read-only (later updates do not change it)."""
+        return TerrainView(
+            self.stride_index,
+            self.t_s,
+            np.array([self.cfg.x_range_m[0], self.cfg.y_range_m[0]]),
+            self.cfg.cell_m,
+            self.sums,
+            self.cfg.shape,
+            self.cfg.toe_x_m,
+        )
+
+    def refuse(self, stride_T_camera: np.ndarray, covariances) -> TerrainView:
+        """The stride's map again from other (smoothed) poses, from the carried prior and the
+        kept clouds (frames whose pose is NaN are left out)."""
+        poses = np.asarray(stride_T_camera, dtype=np.float64)
+        if len(poses) != len(self.clouds):
+            raise MappingError(
+                f"online terrain: {len(poses)} poses for {len(self.clouds)} kept clouds"
+            )
+        keep = [i for i in range(len(poses)) if np.isfinite(poses[i]).all()]
+        covs = [None if covariances is None else covariances[i] for i in keep]
+        sums = fuse_frames(
+            self.cfg,
+            [self.clouds[i][1] for i in keep],
+            poses[keep],
+            covs,
+            [self.clouds[i][0] for i in keep],
+            self.prior,
+        )
+        t = self.clouds[-1][0] if self.clouds else float("nan")
+        return TerrainView(
+            self.stride_index,
+            t,
+            np.array([self.cfg.x_range_m[0], self.cfg.y_range_m[0]]),
+            self.cfg.cell_m,
+            sums,
+            self.cfg.shape,
+            self.cfg.toe_x_m,
+        )
+
+
+def fuse_frames(
+    cfg: OnlineTerrainConfig,
+    clouds_camera_m: Sequence[np.ndarray],
+    stride_T_camera: np.ndarray,
+    covariances: Sequence[np.ndarray | None],
+    t_s: Sequence[float],
+    prior: CellSums | None = None,
+) -> CellSums:
+    """The batch fusion: every frame's points in one pass (equal to the frame-by-frame
+    updates of :class:`OnlineElevationMap`, to rounding)."""
+    nx, ny = cfg.shape
+    base = prior if prior is not None else CellSums.empty(nx * ny)
+    if not len(clouds_camera_m):
+        return base
+    terms = [
+        point_terms(cfg, c, np.asarray(p, np.float64), cov)
+        for c, p, cov in zip(clouds_camera_m, stride_T_camera, covariances, strict=True)
+    ]
+    times = np.concatenate([np.full(len(t.flat), tt) for t, tt in zip(terms, t_s, strict=True)])
+    return base.plus(PointTerms.concat(terms), times)
