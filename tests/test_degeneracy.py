@@ -135,3 +135,14 @@ def test_only_the_constrained_subspace_keeps_information() -> None:
     z_right = ad_inv @ np.array([0, 0, 0, 0, 0, 1.0])
     assert z_right @ projected @ z_right > 0.5 * 3e5
     assert np.linalg.matrix_rank(projected, tol=1e-6 * info.max()) == 3
+
+
+def test_displacement_norms_match_the_cross_product() -> None:
+    from graph_slam.frontend.degeneracy import _displacement_norms
+
+    rng = np.random.default_rng(7)
+    lever, vectors = rng.normal(size=(50, 3)), rng.normal(size=(6, 6))
+    expected = np.linalg.norm(
+        np.cross(vectors[:3].T[None, :, :], lever[:, None, :]) + vectors[3:].T[None, :, :], axis=2
+    )
+    np.testing.assert_allclose(_displacement_norms(lever, vectors), expected, rtol=1e-12)

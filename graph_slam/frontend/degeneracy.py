@@ -130,6 +130,17 @@ def _unit_coordinates(center_m: np.ndarray, length_m: float) -> np.ndarray:
     return unit
 
 
+def _displacement_norms(lever: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """N×6: ``|ω × l + t|`` for each row's lever ``l`` (N×3) and each column ``(ω, t)`` of
+    ``vectors`` (6×6), written out per component (``np.cross`` over N×6×3 took 4× longer)."""
+    w, t = vectors[:3], vectors[3:]
+    lx, ly, lz = lever[:, 0:1], lever[:, 1:2], lever[:, 2:3]
+    dx = w[1] * lz - w[2] * ly + t[0]
+    dy = w[2] * lx - w[0] * lz + t[1]
+    dz = w[0] * ly - w[1] * lx + t[2]
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
 def _significant(
     rows, along: np.ndarray, vectors, center, length: float, norm: float, config
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -144,11 +155,7 @@ def _significant(
     n_geo = rows.n_geo
     contrib = rows.w[:, None] * along**2
     # |δ|: how far each point moves under the unit-free motion v (rotation about c over L)
-    lever = (rows.q - center) / length
-    moved = np.linalg.norm(
-        np.cross(vectors[:3].T[None, :, :], lever[:, None, :]) + vectors[3:].T[None, :, :],
-        axis=2,
-    )
+    moved = _displacement_norms((rows.q - center) / length, vectors)
     geo = np.abs(along[:n_geo]) >= (
         config.degeneracy_min_alignment * rows.geo_scale[:, None] * moved
     )

@@ -357,7 +357,7 @@ def register_depth(
         corr = associate(source, target, target_T_source, config)
         _gate(config, corr, len(source))
         rows = _rows(source, target, corr, target_T_source, config)
-        analysis = _analyse(rows, config)
+        analysis = _analyse(rows, config, significance=False)
         # converged: this pose is the solution, its rows the final ones (the step, below
         # min_step, is reported and not taken); else at most max_iterations steps
         if np.linalg.norm(analysis.step_origin) < config.min_step:
@@ -367,6 +367,7 @@ def register_depth(
         target_T_source = _exp_left(analysis.step_origin) @ target_T_source
         if not np.isfinite(target_T_source).all():
             raise _fail(RegistrationFailure.NUMERICAL, "non-finite transform")
+    analysis = _analyse(rows, config)  # the solution's report, with the significance test
     t1 = time.perf_counter()
     information, sigma = _information(
         rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,

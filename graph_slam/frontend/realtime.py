@@ -186,7 +186,7 @@ def _photometric(
         found = np.flatnonzero(sq_dist[:, 0] <= config.photometric_max_correspondence_m**2)
         corr = np.column_stack([found, nearest[found, 0].astype(np.intp)])
         gate_correspondences(config, len(corr) / len(src), len(corr))
-        step = _analyse(rows_at(corr, target_T_source), config).step_origin
+        step = _analyse(rows_at(corr, target_T_source), config, significance=False).step_origin
         target_T_source = _exp_left(step) @ target_T_source
         if np.linalg.norm(step) < config.refine_min_step:
             break

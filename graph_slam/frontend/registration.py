@@ -187,12 +187,14 @@ class _Analysis:
     step_rad: float
 
 
-def _analyse(rows: _Rows, config) -> _Analysis:
+def _analyse(rows: _Rows, config, significance: bool = True) -> _Analysis:
     """Eigen-analysis of the unit-free Hessian, the significant stiffness of each direction
     (see :class:`DegeneracyReport`; ``config``: any config with ``degeneracy_threshold``,
     ``degeneracy_min_alignment``, ``degeneracy_min_share`` and ``degeneracy_min_gradient``)
     and the Gauss-Newton step restricted to the directions whose eigenvalue reaches the
-    threshold (the optimiser's behaviour before the significance test)."""
+    threshold (the optimiser's behaviour before the significance test). ``significance:
+    False`` skips the significance test (the step does not use it: the optimisers' inner
+    iterations; the solution's report is made with it)."""
     center = rows.q.mean(axis=0)
     length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
     to_unit = _unit_coordinates(center, length)
@@ -202,7 +204,11 @@ def _analyse(rows: _Rows, config) -> _Analysis:
     hess_n = weighted.T @ jac_n / norm
     grad_n = weighted.T @ rows.r / norm
     values, vectors = np.linalg.eigh(hess_n)
-    significant, share = _significant(rows, jac_n @ vectors, vectors, center, length, norm, config)
+    significant = share = None
+    if significance:
+        significant, share = _significant(
+            rows, jac_n @ vectors, vectors, center, length, norm, config
+        )
     report = DegeneracyReport(
         values, vectors, center, length, config.degeneracy_threshold, significant, share,
         config.degeneracy_min_share,
@@ -293,7 +299,7 @@ def _refine(
         corr = np.column_stack([found, nearest[found]])
         if len(corr) < config.min_correspondences:
             break
-        step = _analyse(rows_at(corr, target_T_source), config).step_origin
+        step = _analyse(rows_at(corr, target_T_source), config, significance=False).step_origin
         target_T_source = _exp_left(step) @ target_T_source
         if np.linalg.norm(step) < refine.min_step:
             break
