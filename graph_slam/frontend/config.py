@@ -76,7 +76,40 @@ class RefineConfig(ConfigModel):
     min_step: float = Field(1e-5, gt=0, description="stop when |Δξ| (rad, m) falls below this")
 
 
-class RegistrationConfig(ConfigModel):
+class ConstraintAnalysisConfig(ConfigModel):
+    """The degeneracy test's settings, shared by every registration config
+    (:class:`graph_slam.frontend.degeneracy.DegeneracyReport`, docs/frontend.md)."""
+
+    degeneracy_threshold: float = Field(
+        0.01,
+        gt=0,
+        description="normalised Hessian eigenvalue below which a direction is under-constrained",
+    )
+    degeneracy_min_alignment: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="a point-to-plane row holds a direction only when its unit-free Jacobian "
+        "along it is at least this (a normal within ~60° of a translation): the noise of a "
+        "plane's normals cannot make its free directions look constrained",
+    )
+    degeneracy_min_share: float = Field(
+        0.03,
+        ge=0,
+        lt=1,
+        description="a direction is constrained only when the rows that hold it significantly "
+        "carry at least this share of the correspondences' weight (a box face: 5-8 %; the "
+        "far, noisy points of a plain floor: about 1 %)",
+    )
+    degeneracy_min_gradient: float = Field(
+        0.25,
+        gt=0,
+        description="a photometric row holds a direction only when the texture's intensity "
+        "gradient along it is at least this (intensity in [0, 1] per metre)",
+    )
+
+
+class RegistrationConfig(ConstraintAnalysisConfig):
     """ICP registration and the gates that decide success, degeneracy or failure."""
 
     method: Method = Field("colored", description="point_to_plane (depth only) or colored (RGB-D)")
@@ -106,33 +139,6 @@ class RegistrationConfig(ConfigModel):
         True,
         description="raise NOT_CONVERGED when the step at the solution exceeds the limits above; "
         "False returns Open3D's result as it is (the step is still reported: final_step_m)",
-    )
-    degeneracy_threshold: float = Field(
-        0.01,
-        gt=0,
-        description="normalised Hessian eigenvalue below which a direction is under-constrained",
-    )
-    degeneracy_min_alignment: float = Field(
-        0.5,
-        gt=0,
-        le=1,
-        description="a point-to-plane row holds a direction only when its unit-free Jacobian "
-        "along it is at least this (a normal within ~60° of a translation): the noise of a "
-        "plane's normals cannot make its free directions look constrained",
-    )
-    degeneracy_min_share: float = Field(
-        0.03,
-        ge=0,
-        lt=1,
-        description="a direction is constrained only when the rows that hold it significantly "
-        "carry at least this share of the correspondences' weight (a box face: 5-8 %; the "
-        "far, noisy points of a plain floor: about 1 %)",
-    )
-    degeneracy_min_gradient: float = Field(
-        0.25,
-        gt=0,
-        description="a photometric row holds a direction only when the texture's intensity "
-        "gradient along it is at least this (intensity in [0, 1] per metre)",
     )
     information_scale: float = Field(
         0.14,
@@ -200,7 +206,7 @@ def fast_point_to_plane(voxel_m: float = 0.02) -> RegistrationConfig:
     )
 
 
-class PreparedFrameConfig(ConfigModel):
+class PreparedFrameConfig(ConstraintAnalysisConfig):
     """What the real-time front ends share: a frame prepared once on a fixed-origin voxel grid
     from a decimated depth image, colored ICP's objective, and the accurate path's quality
     gates (as :class:`RegistrationConfig`'s)."""
@@ -224,33 +230,6 @@ class PreparedFrameConfig(ConfigModel):
     )
     max_final_step_rad: float = Field(0.004, gt=0)
     check_convergence: bool = Field(True)
-    degeneracy_threshold: float = Field(
-        0.01,
-        gt=0,
-        description="normalised Hessian eigenvalue below which a direction is under-constrained",
-    )
-    degeneracy_min_alignment: float = Field(
-        0.5,
-        gt=0,
-        le=1,
-        description="a point-to-plane row holds a direction only when its unit-free Jacobian "
-        "along it is at least this (a normal within ~60° of a translation): the noise of a "
-        "plane's normals cannot make its free directions look constrained",
-    )
-    degeneracy_min_share: float = Field(
-        0.03,
-        ge=0,
-        lt=1,
-        description="a direction is constrained only when the rows that hold it significantly "
-        "carry at least this share of the correspondences' weight (a box face: 5-8 %; the "
-        "far, noisy points of a plain floor: about 1 %)",
-    )
-    degeneracy_min_gradient: float = Field(
-        0.25,
-        gt=0,
-        description="a photometric row holds a direction only when the texture's intensity "
-        "gradient along it is at least this (intensity in [0, 1] per metre)",
-    )
     information_scale: float = Field(
         1.0,
         gt=0,
