@@ -40,6 +40,7 @@ from graph_slam.frontend.registration import RegistrationStatus, kernel_weights
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import RgbdFrame
 from graph_slam.session.synthetic import render_frame
+from tests.numerics import numerical_hessian
 
 #: The preset's 2 cm voxels; at 128×96 (≈ 1 pixel per cm at 0.6 m) normals from every pixel
 #: and a voxel kept with one pixel normal; tight convergence.
@@ -212,14 +213,7 @@ def _cost(source: DepthFrame, target: DepthFrame, solution: np.ndarray, config):
 
 
 def _numerical_hessian(cost, step: float = 1e-5) -> np.ndarray:
-    hess = np.zeros((6, 6))
-    for i in range(6):
-        for j in range(6):
-            ei, ej = np.eye(6)[i] * step, np.eye(6)[j] * step
-            hess[i, j] = (cost(ei + ej) - cost(ei - ej) - cost(ej - ei) + cost(-ei - ej)) / (
-                4 * step**2
-            )
-    return hess
+    return numerical_hessian(cost, step)
 
 
 @pytest.mark.parametrize("color", [True, False], ids=["rgbd", "depth"])

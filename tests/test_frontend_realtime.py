@@ -27,6 +27,7 @@ from graph_slam.frontend.realtime import (
 )
 from graph_slam.frontend.registration import RegistrationStatus
 from graph_slam.pipelines.config import PipelineConfig
+from tests.numerics import numerical_hessian
 
 #: 1 cm voxels on the 128×96 test frames (the preset's 2 cm are for 424×240 and up), every
 #: pixel, tight convergence.
@@ -127,14 +128,7 @@ def _gicp_cost(source: PreparedFrame, target: PreparedFrame, solution: np.ndarra
 
 
 def _numerical_hessian(cost, step: float = 1e-4) -> np.ndarray:
-    hess = np.zeros((6, 6))
-    for i in range(6):
-        for j in range(6):
-            ei, ej = np.eye(6)[i] * step, np.eye(6)[j] * step
-            hess[i, j] = (cost(ei + ej) - cost(ei - ej) - cost(ej - ei) + cost(-ei - ej)) / (
-                4 * step**2
-            )
-    return hess
+    return numerical_hessian(cost, step)
 
 
 @pytest.mark.parametrize("floor_sigma", [False, True], ids=["residual_scale", "floored"])

@@ -46,6 +46,7 @@ from graph_slam.frontend.registration import (
     gate_correspondences,
     kernel_weights,
     registration_failure,
+    start_pose,
 )
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame, check_pose
 
@@ -339,18 +340,7 @@ def register_depth(
     ``JᵀWJ / σ²`` at the solution in the house's convention (rotation first, right
     perturbation in the source frame), σ the weighted rms residual floored at
     ``information_min_sigma_m``. Raises :class:`RegistrationError` on failure."""
-    init = (
-        np.eye(4)
-        if initial_target_T_source is None
-        else np.asarray(initial_target_T_source, dtype=float)
-    )
-    check_pose("register_depth", "initial_target_T_source", init)
-    for name, frame, reason in (
-        ("source", source, RegistrationFailure.EMPTY_SOURCE),
-        ("target", target, RegistrationFailure.EMPTY_TARGET),
-    ):
-        if len(frame) < config.min_points:
-            raise _fail(reason, f"{name} has {len(frame)} points (min_points {config.min_points})")
+    init = start_pose("register_depth", source, target, config, initial_target_T_source)
     t0 = time.perf_counter()
     target_T_source = init
     for iteration in range(config.max_iterations + 1):

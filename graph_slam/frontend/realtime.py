@@ -34,9 +34,11 @@ from graph_slam.frontend.registration import (
     _information,
     _rows,
     conclude,
+    fail_if_degenerate,
     gate_correspondences,
     project_information,
     registration_failure,
+    start_pose,
 )
 from graph_slam.session.records import check_pose
 from kinematics.conversions import adjoint_rot_first, skew
@@ -219,18 +221,14 @@ def register_prepared(
     """
     import small_gicp
 
-    init = (
-        np.eye(4)
-        if initial_target_T_source is None
-        else np.asarray(initial_target_T_source, dtype=float)
-    )
-    check_pose("register_prepared", "initial_target_T_source", init)
-    for name, frame, reason in (
-        ("source", source, RegistrationFailure.EMPTY_SOURCE),
-        ("target", target, RegistrationFailure.EMPTY_TARGET),
-    ):
-        if frame.cloud is None or len(frame) < config.min_points:
-            raise _fail(reason, f"{name} has {len(frame)} points (min_points {config.min_points})")
+    if source.cloud is None or target.cloud is None:
+        raise _fail(
+            RegistrationFailure.EMPTY_SOURCE
+            if source.cloud is None
+            else RegistrationFailure.EMPTY_TARGET,
+            "a frame without its prepared cloud",
+        )
+    init = start_pose("register_prepared", source, target, config, initial_target_T_source)
     t0 = time.perf_counter()
     result = small_gicp.align(
         target.cloud,
@@ -289,13 +287,7 @@ def register_prepared(
     sq_dist = sq_dist[:, 0]
     sq_dist = sq_dist[sq_dist <= config.max_correspondence_m**2]
     inlier_rmse_m = float(np.sqrt(sq_dist.mean())) if sq_dist.size else float("nan")
-    if config.fail_on_degenerate and degeneracy.is_degenerate:
-        raise _fail(
-            RegistrationFailure.DEGENERATE,
-            "under-constrained: " + "; ".join(degeneracy.describe()),
-            fitness,
-            count,
-        )
+    fail_if_degenerate(config, degeneracy, fitness, count)
     return RegistrationResult(
         target_T_source=target_T_source,
         fitness=fitness,

@@ -482,6 +482,33 @@ def registration_failure(
     return RegistrationError(reason, message, fitness=fitness, correspondences=count)
 
 
+def start_pose(where: str, source, target, config, initial: np.ndarray | None) -> np.ndarray:
+    """The checked initial ``target_T_source`` (identity when None) of a registration of
+    prepared frames; ``EMPTY_SOURCE`` / ``EMPTY_TARGET`` below ``config.min_points``."""
+    init = np.eye(4) if initial is None else np.asarray(initial, dtype=float)
+    check_pose(where, "initial_target_T_source", init)
+    for name, frame, reason in (
+        ("source", source, RegistrationFailure.EMPTY_SOURCE),
+        ("target", target, RegistrationFailure.EMPTY_TARGET),
+    ):
+        if len(frame) < config.min_points:
+            raise registration_failure(
+                reason, f"{name} has {len(frame)} points (min_points {config.min_points})"
+            )
+    return init
+
+
+def fail_if_degenerate(config, degeneracy, fitness: float, count: int) -> None:
+    """``DEGENERATE`` when ``config.fail_on_degenerate`` and the report has a free direction."""
+    if config.fail_on_degenerate and degeneracy.is_degenerate:
+        raise registration_failure(
+            RegistrationFailure.DEGENERATE,
+            "under-constrained: " + "; ".join(degeneracy.describe()),
+            fitness,
+            count,
+        )
+
+
 def conclude(
     target_T_source: np.ndarray,
     analysis,
@@ -509,13 +536,7 @@ def conclude(
             fitness,
             count,
         )
-    if config.fail_on_degenerate and analysis.degeneracy.is_degenerate:
-        raise registration_failure(
-            RegistrationFailure.DEGENERATE,
-            "under-constrained: " + "; ".join(analysis.degeneracy.describe()),
-            fitness,
-            count,
-        )
+    fail_if_degenerate(config, analysis.degeneracy, fitness, count)
     return RegistrationResult(
         target_T_source=target_T_source,
         fitness=fitness,
