@@ -8,7 +8,7 @@ import pytest
 from scipy.linalg import expm
 
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
-from graph_slam.terrain.carry import adjoint, carry_map
+from graph_slam.terrain.carry import carry_map
 from graph_slam.terrain.live import LiveTerrain
 from graph_slam.terrain.online import (
     CellSums,
@@ -17,6 +17,7 @@ from graph_slam.terrain.online import (
     fuse_frames,
     z_variance,
 )
+from kinematics.conversions import adjoint_rot_first as adjoint
 
 
 def _camera_pose(x_m=0.0, height_m=0.8, pitch_rad=np.pi / 4):

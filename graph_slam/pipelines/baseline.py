@@ -77,7 +77,7 @@ class ThesisBaseline:
         self.terrain = make_terrain(config, intrinsics)
         # the baseline's stride frames are not linked (its world frame restarts at every
         # reset): no carry across the strike; no covariance (depth noise + fallback pose σ)
-        self.live_terrain = make_live_terrain(config, intrinsics, link_strides=False)
+        self.live_terrain = make_live_terrain(config, intrinsics, link_strides=False, refuse=False)
         self.joints = JointBuffer(leg_model)
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._map: LocalMap | None = None
@@ -233,7 +233,6 @@ class ThesisBaseline:
                 smoothed_grid=grid,  # the baseline's smoothed poses are its online ones
             )
         )
-        self.live_terrain.discard(index)
         self._stride = None
         self._map = None
 

@@ -326,14 +326,14 @@ class GraphPipeline:
     def _close_strides(self) -> None:
         """A :class:`StrideOutput` (with its terrain) for every stride the back end closed."""
         for s in self.slam.results.strides[len(self.results.strides) :]:
+            deferred = "smoothing_deferred" in s.flags
             terrain = self.terrain.close_stride(
                 s.index,
                 s.frame_indices,
                 s.online_stride_T_camera,
                 s.smoothed_stride_T_camera,
-                smoothed_later="smoothing_deferred" in s.flags,
+                smoothed_later=deferred,
             )
-            deferred = "smoothing_deferred" in s.flags
             smoothed_grid = None
             if not deferred:
                 smoothed_grid = self.live_terrain.refuse(

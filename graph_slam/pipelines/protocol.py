@@ -79,12 +79,18 @@ def make_terrain(config, intrinsics: CameraIntrinsics):
     )
 
 
-def make_live_terrain(config, intrinsics: CameraIntrinsics, link_strides: bool = True):
-    """The per-frame terrain component of a pipeline (:mod:`graph_slam.terrain.live`)."""
+def make_live_terrain(
+    config, intrinsics: CameraIntrinsics, link_strides: bool = True, refuse: bool = True
+):
+    """The per-frame terrain component of a pipeline (:mod:`graph_slam.terrain.live`);
+    ``refuse: False`` (a pipeline without smoothed poses) keeps no clouds for a re-fusion."""
     from graph_slam.terrain.live import LiveTerrain
 
+    online = config.terrain.online
+    if not refuse:
+        online = online.model_copy(update={"keep_clouds": False})
     return LiveTerrain(
-        config.terrain.online,
+        online,
         intrinsics,
         config.cloud.min_depth_m,
         config.cloud.max_depth_m,

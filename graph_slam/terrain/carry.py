@@ -18,17 +18,6 @@ from graph_slam.terrain.online import (
 )
 
 
-def adjoint(a_T_b: np.ndarray) -> np.ndarray:
-    """6×6 adjoint of a pose, rotation first: ``a_T_b exp(ξ) = exp(Ad ξ) a_T_b``."""
-    rotation, t = a_T_b[:3, :3], a_T_b[:3, 3]
-    skew = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
-    ad = np.zeros((6, 6))
-    ad[:3, :3] = rotation
-    ad[3:, 3:] = rotation
-    ad[3:, :3] = skew @ rotation
-    return ad
-
-
 def carry_map(
     cfg: OnlineTerrainConfig, old: TerrainView, new_T_old: np.ndarray, cov_new_T_old: np.ndarray
 ) -> CellSums:

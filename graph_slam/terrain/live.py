@@ -15,7 +15,7 @@ from the smoothed end state, so the link follows those poses), else (deferred sm
 new stride starts from the iSAM2 estimate) the online map at its last frame. That pose's covariance: the new camera's anchor
 covariance Σ_a and the previous stride's last camera covariance Σ_0 (camera local), both
 moved to the old stride frame: ``Ad(old_T_camera) (Σ_a + Σ_0) Ad(old_T_camera)ᵀ``
-(:func:`graph_slam.terrain.online.adjoint`; docs/terrain.md). Without covariances the
+(:func:`kinematics.conversions.adjoint_rot_first`; docs/terrain.md). Without covariances the
 configured fallback σ stands for each. Nothing is carried out of the session's first stride:
 it began without a foot strike (no anchor, weak priors), and its online map, fused from poses
 the estimator corrected later, was measured 0.3–0.5 m off in the carried cells.
@@ -26,13 +26,14 @@ from __future__ import annotations
 import numpy as np
 
 from graph_slam.terrain.builder import map_cloud
-from graph_slam.terrain.carry import adjoint, carry_map
+from graph_slam.terrain.carry import carry_map
 from graph_slam.terrain.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     TerrainView,
     fallback_covariance,
 )
+from kinematics.conversions import adjoint_rot_first
 
 
 class LiveTerrain:
@@ -53,6 +54,7 @@ class LiveTerrain:
         self.intrinsics = intrinsics
         self.min_depth_m = max(float(min_depth_m), config.min_depth_m)
         self.max_depth_m = min(float(max_depth_m), config.max_depth_m)
+        self._fallback = fallback_covariance(config.fallback_pose_sigma)
         self.map: OnlineElevationMap | None = None
         self._frames: list[int] = []  # frame indices of the open map's kept clouds
         self._last: tuple[np.ndarray, np.ndarray | None] | None = None  # world_T_stride, Σ
@@ -65,7 +67,7 @@ class LiveTerrain:
     def _covariance(self, covariance):
         if covariance is not None and np.isfinite(covariance).all():
             return np.asarray(covariance, float)
-        return fallback_covariance(self.cfg.fallback_pose_sigma)
+        return self._fallback
 
     def _start(self, stride_index: int, world_T_stride, covariance) -> None:
         """A new stride's map, with the previous one's cells ahead carried in when possible."""
@@ -87,7 +89,7 @@ class LiveTerrain:
             world_T_old, cov_old = self._last
             new_T_old = np.linalg.inv(world_T_stride[0]) @ world_T_old
             old_T_camera = np.linalg.inv(world_T_old) @ world_T_stride[0] @ world_T_stride[1]
-            ad = adjoint(old_T_camera)
+            ad = adjoint_rot_first(old_T_camera)
             cov_rel = ad @ (self._covariance(covariance) + self._covariance(cov_old)) @ ad.T
             source = old.view()
             if self._refused is not None and self._refused[0] == old.stride_index:
@@ -155,9 +157,3 @@ class LiveTerrain:
         emap.clouds = []
         self._refused = (stride_index, view)
         return view
-
-    def discard(self, stride_index: int) -> None:
-        """Forget the stride's kept clouds (no re-fusion will come)."""
-        self._closed.pop(stride_index, None)
-        if self.map is not None and self.map.stride_index == stride_index:
-            self.map.clouds = []
