@@ -220,6 +220,11 @@ def test_live_terrain_carries_ahead_only_when_configured():
             assert live.carried_from == {2: 1}
             # what was at old x lies at x - 0.5 now, on the floor (height 0)
             assert np.nanmax(np.abs(new.height_m)) < 1e-6  # float32 depth
+            # ... and 0.5 m nearer: the far edge of the known cells moved 25 cells back
+            far_first = np.flatnonzero(first.known.any(axis=1)).max()
+            far_new = np.flatnonzero(new.known.any(axis=1)).max()
+            assert abs((far_first - far_new) - 0.5 / new.cell_m) <= 1, (far_first, far_new)
+            assert far_first < first.known.shape[0] - 1  # not cut by the grid's end
             assert np.nanmin(new.sigma_m) > np.nanmin(first.sigma_m)
 
 
