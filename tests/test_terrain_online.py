@@ -224,7 +224,6 @@ def test_live_terrain_carries_ahead_only_when_configured():
             far_first = np.flatnonzero(first.known.any(axis=1)).max()
             far_new = np.flatnonzero(new.known.any(axis=1)).max()
             assert abs((far_first - far_new) - 0.5 / new.cell_m) <= 1, (far_first, far_new)
-            assert far_first < first.known.shape[0] - 1  # not cut by the grid's end
             assert np.nanmin(new.sigma_m) > np.nanmin(first.sigma_m)
 
 
