@@ -232,3 +232,24 @@ def test_cell_sums_empty_view_is_nan():
     v = m.view()
     assert np.isnan(v.height_at(0.5, 0.0)) and np.isnan(v.height_at(50.0, 0.0))
     assert v.obstacles_ahead() == ()
+
+
+def test_grid_obstacles_find_a_box_on_a_floor():
+    """A 10 cm box from x = 0.8 to 1.1 m on a flat floor, seen from 1 m straight above: one
+    grid box, leading edge within a cell, height within a millimetre, seen whole."""
+    from graph_slam.terrain.grid_obstacles import grid_obstacles
+
+    x, y = np.meshgrid(np.arange(0.0, 1.6, 0.005), np.arange(-0.5, 0.5, 0.005), indexing="ij")
+    box = (x >= 0.8) & (x < 1.1) & (np.abs(y) < 0.15)
+    pts = np.column_stack([x.ravel(), y.ravel(), np.where(box, 0.1, 0.0).ravel()])
+    pose = np.eye(4)  # camera 1 m up, looking down: x_cam = -y, y_cam = -x, z_cam = -z
+    pose[:3, :3] = np.column_stack([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    pose[:3, 3] = [0.8, 0.0, 1.0]
+    emap = OnlineElevationMap(OnlineTerrainConfig(), 0)
+    view = emap.update((pts - pose[:3, 3]) @ pose[:3, :3], pose, np.eye(6) * 1e-8, 0.0)
+    found = grid_obstacles(view).obstacles
+    assert len(found) == 1, found
+    (ob,) = found
+    assert abs(ob.leading_edge_x_m - 0.8) <= view.cell_m
+    assert abs(ob.height_m - 0.1) < 1e-3
+    assert abs(ob.width_m - 0.3) <= 2 * view.cell_m
