@@ -259,7 +259,7 @@ def _check(
         raise ClockOffsetError(
             f"{where}: the {n} matched foot strikes spread by σ {1e3 * (result.sigma_s or 0):.1f}"
             f" ms (1.4826 × MAD) around the offset {result.offset_s:+.3f} s, above the bound "
-            f"{1e3 * cfg.max_spread_s:.0f} ms (prosthesis_log.clock.max_spread_s): the two "
+            f"{1e3 * cfg.max_spread_s:.1f} ms (prosthesis_log.clock.max_spread_s): the two "
             f"strike sequences do not agree well enough; {fix}"
         )
 
