@@ -77,6 +77,11 @@ class BagError(ConversionError):
     """A bag cannot be read (truncated, unindexed, damaged); the message carries a hint."""
 
 
+class ClockOffsetError(ConversionError):
+    """The clock offset between a prosthesis log and the camera cannot be estimated (too few
+    matched foot strikes, too large a spread, or two offsets that fit equally well)."""
+
+
 class DepthUnitsError(ConversionError):
     """The depth values are implausible in the stated units (detected from the data)."""
 

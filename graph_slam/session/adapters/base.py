@@ -61,6 +61,8 @@ class ConversionReport:
     source: str
     streams: list[StreamReport] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: The prosthesis log's clock offset (a ``clock_offset.ClockOffset``) when one was merged.
+    clock_offset: Any = None
 
     def add(self, stream: StreamReport) -> StreamReport:
         self.streams.append(stream)
@@ -80,6 +82,7 @@ class ConversionReport:
             "source": self.source,
             "streams": [s.to_dict() for s in self.streams],
             "notes": list(self.notes),
+            **({"clock_offset": self.clock_offset.to_dict()} if self.clock_offset else {}),
         }
 
 

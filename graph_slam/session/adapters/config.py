@@ -173,8 +173,58 @@ class LoadColumn(ConfigModel):
         return self
 
 
+class ClockOffsetConfig(ConfigModel):
+    """How the clock offset between a prosthesis log and the camera is estimated when
+    ``prosthesis_log.time_offset_s`` is None (graph_slam.session.adapters.clock_offset).
+
+    The foot strikes the offline detector finds in the camera's own IMU (on the thigh) are
+    matched to the log's foot strikes (load cell or event column); the offset is the median of
+    the matched differences and σ their spread (1.4826 × MAD). The expected difference between
+    an IMU-detected strike and the log's strike of the same step, on one clock, is
+    ``imu_strike_bias_s − log_strike_lag_s``; it is removed before the median is taken.
+    """
+
+    tolerance_s: float = Field(
+        0.04,
+        gt=0,
+        le=0.3,
+        description="a camera strike and a log strike match when, after the offset, they are "
+        "at most this far apart (the detector's worst error on real walking is ~50 ms)",
+    )
+    min_matched_strikes: int = Field(
+        5, ge=2, description="fewer matched foot strikes than this is an error"
+    )
+    max_spread_s: float = Field(
+        0.02,
+        gt=0,
+        le=0.2,
+        description="a spread (1.4826 × MAD of the matched differences) above this is an error",
+    )
+    imu_strike_bias_s: float = Field(
+        -0.0002,
+        ge=-0.2,
+        le=0.2,
+        description="the thigh-IMU detector's bias, detected − true foot strike: median "
+        "−0.2 ms over 630 simulated strikes at 0.8/1.1/1.4 m/s (−1.8/0.0/+0.1 ms each; "
+        "docs/adapters.md)",
+    )
+    log_strike_lag_s: float = Field(
+        0.0,
+        ge=-0.2,
+        le=0.2,
+        description="how late the log's strike is after the true contact (a load cell's "
+        "threshold crossing lags the contact by its rise time to the threshold); 0 = unknown",
+    )
+
+
 class ProsthesisLogConfig(ConfigModel):
-    """The column mapping of a prosthesis controller's CSV log."""
+    """The column mapping of a prosthesis controller's CSV log.
+
+    ``time_offset_s`` (camera time = log time + offset): None (the default) estimates it from
+    the foot strikes of the camera's IMU and of the log (``clock``) when the log is merged into
+    a recording; a number is used as given. A log converted on its own has no other clock:
+    None means 0 there.
+    """
 
     path: str | None = Field(
         None,
@@ -183,7 +233,13 @@ class ProsthesisLogConfig(ConfigModel):
     )
     delimiter: str = Field(",", min_length=1, max_length=1)
     time: TimeColumn = TimeColumn()
-    time_offset_s: float = Field(0.0, description="added to the log's times (to the camera clock)")
+    time_offset_s: float | None = Field(
+        None,
+        description="added to the log's times (to the camera clock); None: estimated from "
+        "foot strikes when merged into a recording with an IMU (see 'clock'), 0 for a log on "
+        "its own",
+    )
+    clock: ClockOffsetConfig = ClockOffsetConfig()
     knee: AngleColumn = AngleColumn(column="knee_rad")
     ankle: AngleColumn = AngleColumn(column="ankle_rad")
     events: EventColumn | None = None

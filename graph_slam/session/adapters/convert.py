@@ -18,15 +18,20 @@ import numpy as np
 import yaml
 
 from graph_slam.config import write_config
-from graph_slam.errors import ConversionError, RecordError
+from graph_slam.errors import ClockOffsetError, ConversionError, RecordError
 from graph_slam.session.adapters.base import ConversionReport, Recording
+from graph_slam.session.adapters.clock_offset import (
+    ClockOffset,
+    camera_imu_strikes,
+    estimate_clock_offset,
+)
 from graph_slam.session.adapters.config import ConvertConfig
 from graph_slam.session.adapters.prosthesis_log import read_prosthesis_log
 from graph_slam.session.adapters.registry import select_adapter
 from graph_slam.session.atomic import atomic_folder, check_output
 from graph_slam.session.format import SessionWriter
 from graph_slam.session.manifest import MANIFEST_NAME, Provenance
-from graph_slam.session.records import Calibration
+from graph_slam.session.records import Calibration, GaitEvents, JointSeries
 
 CONFIG_NAME = "conversion.yaml"
 REPORT_NAME = "conversion_report.yaml"
@@ -42,6 +47,11 @@ class ConversionResult:
     report: ConversionReport
     config: ConvertConfig
     n_frames: int
+
+    @property
+    def clock_offset(self):
+        """The prosthesis log's offset to the camera clock (``ClockOffset``), or None."""
+        return self.report.clock_offset
 
     @property
     def config_path(self) -> Path:
@@ -72,7 +82,10 @@ def check_paths(src: Path, dst: Path, overwrite: bool) -> None:
 
 
 def merge_prosthesis_log(recording: Recording, config: ConvertConfig) -> Recording:
-    """Add the joints and events of ``prosthesis_log.path`` to a recording that has none."""
+    """Add the joints and events of ``prosthesis_log.path`` to a recording that has none, on
+    the camera clock: ``prosthesis_log.time_offset_s`` when given, else the offset estimated
+    from the foot strikes of the recording's IMU and of the log (:mod:`.clock_offset`). The
+    report and the resolved config carry the offset used and where it came from."""
     log = config.prosthesis_log
     if log.path is None or recording.resolved.format == "prosthesis-log":
         return recording
@@ -86,8 +99,56 @@ def merge_prosthesis_log(recording: Recording, config: ConvertConfig) -> Recordi
     joints, events, reports = read_prosthesis_log(Path(log.path), log)
     for r in reports:
         recording.report.add(r)
+    if log.time_offset_s is None:
+        offset = _estimate_log_offset(recording, config, events)
+        joints = JointSeries(joints.t_s + offset.offset_s, joints.knee_rad, joints.ankle_rad)
+        if events is not None:
+            events = GaitEvents(events.t_s + offset.offset_s, events.kind, events.source)
+    else:
+        offset = ClockOffset(float(log.time_offset_s), "config")
+    recording.report.clock_offset = offset
+    recording.report.notes.append(offset.describe())
     recording.report.notes.append(f"joints and events merged from {log.path}")
-    return replace(recording, joints=joints, events=events if has_events else recording.events)
+    resolved = recording.resolved.model_copy(
+        update={
+            "prosthesis_log": recording.resolved.prosthesis_log.model_copy(
+                update={"time_offset_s": offset.offset_s}
+            )
+        }
+    )
+    return replace(
+        recording,
+        joints=joints,
+        events=events if has_events else recording.events,
+        resolved=resolved,
+    )
+
+
+def _estimate_log_offset(
+    recording: Recording, config: ConvertConfig, events: GaitEvents | None
+) -> ClockOffset:
+    """The log → camera offset from foot strikes (only the recording's IMU and the log's
+    strikes are read). The IMU's own offset to the camera clock comes from the calibration
+    (the config's value when set, else the source's)."""
+    log = config.prosthesis_log
+    where = f"prosthesis_log.path = {log.path!r}"
+    hint = "set prosthesis_log.time_offset_s to merge it without an estimate"
+    if recording.imu is None or not len(recording.imu):
+        raise ClockOffsetError(
+            f"{where}: the clock offset (prosthesis_log.time_offset_s: null) is estimated from "
+            f"the foot strikes in the camera's IMU, but {recording.report.source} has no IMU; "
+            f"{hint}"
+        )
+    if events is None:
+        raise ClockOffsetError(
+            f"{where}: the clock offset (prosthesis_log.time_offset_s: null) is estimated from "
+            f"the log's foot strikes, but the mapping has neither 'events' nor 'load'; {hint}"
+        )
+    imu_offset_s = config.calibration.imu_time_offset_s
+    if imu_offset_s is None:
+        imu_offset_s = recording.calibration.imu_time_offset_s
+    camera_strikes = camera_imu_strikes(recording.imu, imu_offset_s)
+    return estimate_clock_offset(camera_strikes, events.foot_strikes_s, log.clock, where=where)
 
 
 def apply_calibration(recording: Recording, config: ConvertConfig) -> Recording:

@@ -4,7 +4,8 @@ The column mapping is part of the conversion config (``prosthesis_log:`` in the 
 
     prosthesis_log:
       time: {column: time_ms, unit: ms}
-      time_offset_s: 0.0                 # added to the log's times (to the camera clock)
+      time_offset_s: null                # added to the log's times (to the camera clock);
+                                         # null: estimated from foot strikes when merged
       knee: {column: knee_deg, unit: deg, scale: 1.0, offset: 0.0}   # rad = to_rad(v*scale+offset)
       ankle: {column: ankle_deg, unit: deg, scale: -1.0}              # a sign flip
       events: {column: event, values: {HS: foot_strike, TO: toe_off}, ignore: [MS]}
@@ -112,7 +113,7 @@ def read_prosthesis_log(
     k_col = _column(path, header, spec.knee.column, "knee.column")
     a_col = _column(path, header, spec.ankle.column, "ankle.column")
     t_s = _numbers(path, body, t_col, spec.time.column) * TIME_UNITS_S[spec.time.unit]
-    t_s = t_s + spec.time_offset_s
+    t_s = t_s + (spec.time_offset_s or 0.0)  # None (estimate it later) reads on the log's clock
     knee = _angle_rad(_numbers(path, body, k_col, spec.knee.column), spec.knee)
     ankle = _angle_rad(_numbers(path, body, a_col, spec.ankle.column), spec.ankle)
     finite = np.isfinite(t_s) & np.isfinite(knee) & np.isfinite(ankle)
