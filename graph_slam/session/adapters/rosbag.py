@@ -11,7 +11,6 @@ all counted in the report.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +19,14 @@ from typing import Any
 import numpy as np
 
 from graph_slam.errors import BagError, ConversionError, MissingStreamError, RecordError
+from graph_slam.session.adapters.bag_images import (
+    COLOR_ENCODINGS,
+    DEPTH_ENCODINGS,
+    check_format,
+    image_array,
+)
+from graph_slam.session.adapters.bag_reader import Bag, bag_path
+from graph_slam.session.adapters.bag_topics import TopicChoice, listing, resolve_topics
 from graph_slam.session.adapters.base import ConversionReport, Recording, StreamReport
 from graph_slam.session.adapters.config import BagConfig, ConvertConfig, IntrinsicsConfig
 from graph_slam.session.adapters.timing import (
@@ -36,430 +43,14 @@ from graph_slam.session.records import (
     RgbdFrame,
 )
 
-IMAGE = "sensor_msgs/msg/Image"
-CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-IMU = "sensor_msgs/msg/Imu"
-JOINT_STATE = "sensor_msgs/msg/JointState"
-FLOAT32 = "std_msgs/msg/Float32"
-EVENT_TYPES = frozenset(
-    f"std_msgs/msg/{t}"
-    for t in ("String", "Int8", "Int16", "Int32", "Int64", "UInt8", "UInt16", "UInt32", "UInt64")
-)
-DEPTH_ENCODINGS = ("16UC1", "mono16", "32FC1")
-COLOR_ENCODINGS = ("rgb8", "bgr8")
+__all__ = ["RosbagAdapter", "bag_path", "image_array", "resolve_topics"]
+
 #: REP 118: 16UC1 depth images are in millimetres.
 DEFAULT_DEPTH_UNIT_M = 1e-3
 #: Float depth is written to the session with this unit unless output.depth_unit_m says otherwise
 #: (0.1 mm quantisation, 13.1 m range).
 FLOAT_DEPTH_SESSION_UNIT_M = 2e-4
 DEPTH_CHECK_FRAMES = 5
-INSTALL_HINT = "reading bags needs the optional package 'rosbags': pip install graph_slam[bags]"
-
-ROLES = (
-    "depth",
-    "color",
-    "camera_info",
-    "imu",
-    "accel",
-    "gyro",
-    "joint_states",
-    "gait_events",
-    "depth_units",
-)
-ROLE_TYPES: dict[str, frozenset[str]] = {
-    "depth": frozenset({IMAGE}),
-    "color": frozenset({IMAGE}),
-    "camera_info": frozenset({CAMERA_INFO}),
-    "imu": frozenset({IMU}),
-    "accel": frozenset({IMU}),
-    "gyro": frozenset({IMU}),
-    "joint_states": frozenset({JOINT_STATE}),
-    "gait_events": EVENT_TYPES,
-    "depth_units": frozenset({FLOAT32}),
-}
-
-
-def _listing(topics: Mapping[str, str | None]) -> str:
-    return ", ".join(f"{t} ({m})" for t, m in sorted(topics.items())) or "none"
-
-
-def _unique(pattern: str, topics: Mapping[str, str | None], role: str) -> str | None:
-    regex = re.compile(pattern)
-    found = sorted(t for t in topics if regex.match(t))
-    if len(found) > 1:
-        raise ConversionError(
-            f"several topics could be the {role} stream: {found}; choose one with "
-            f"bag.{role}_topic in the conversion config"
-        )
-    return found[0] if found else None
-
-
-# --------------------------------------------------------------------------- presets
-class RealsenseSdkPreset:
-    """Recordings of the RealSense SDK / realsense-viewer (``/device_N/sensor_M/...``).
-
-    Depth ``/device_0/sensor_0/Depth_0/image/data``; accel and gyro are separate ``Accel_K`` and
-    ``Gyro_K`` streams whose sensor index varies by device, so they are found by pattern on the
-    same device. Colour is recorded unregistered to depth (its own intrinsics), so it is not used
-    unless ``bag.color_registered_to_depth: true``. Depth units: the ``Depth Units`` option topic.
-    """
-
-    name = "realsense-sdk"
-    depth_pattern = re.compile(r"^/device_(\d+)/sensor_(\d+)/Depth_\d+/image/data$")
-
-    def depth_candidates(self, topics: Mapping[str, str | None]) -> list[str]:
-        return sorted(t for t in topics if self.depth_pattern.match(t))
-
-    def related(self, depth: str, topics: Mapping[str, str | None]) -> dict[str, Any]:
-        match = self.depth_pattern.match(depth)
-        if match is None:
-            return {"color_registered": False}
-        device, sensor = match.group(1), match.group(2)
-        base = rf"^/device_{device}/sensor_\d+"
-        info = depth.replace("/image/data", "/info/camera_info")
-        return {
-            "camera_info": info if info in topics else None,
-            "color": _unique(rf"{base}/Color_\d+/image/data$", topics, "color"),
-            "accel": _unique(rf"{base}/Accel_\d+/imu/data$", topics, "accel"),
-            "gyro": _unique(rf"{base}/Gyro_\d+/imu/data$", topics, "gyro"),
-            "depth_units": _unique(
-                rf"^/device_{device}/sensor_{sensor}/option/Depth[ _]Units/value$",
-                topics,
-                "depth_units",
-            ),
-            "color_registered": False,
-        }
-
-
-class RealsenseRosPreset:
-    """The RealSense ROS wrapper (``realsense2_camera``), ROS 1 or 2, any namespace.
-
-    Depth: ``<ns>/aligned_depth_to_color/image_raw`` (registered to colour, so colour is used),
-    else ``<ns>/depth/image_rect_raw``; ``camera_info`` next to it; colour
-    ``<ns>/color/image_raw``; IMU ``<ns>/imu`` (united) or ``<ns>/accel/sample`` +
-    ``<ns>/gyro/sample``; joints ``/joint_states`` when present.
-    """
-
-    name = "realsense-ros"
-    aligned = re.compile(r"^(.*)/aligned_depth_to_color/image_raw$")
-    raw = re.compile(r"^(.*)/depth/image_rect_raw$")
-
-    def depth_candidates(self, topics: Mapping[str, str | None]) -> list[str]:
-        aligned = sorted(t for t in topics if self.aligned.match(t))
-        return aligned or sorted(t for t in topics if self.raw.match(t))
-
-    def related(self, depth: str, topics: Mapping[str, str | None]) -> dict[str, Any]:
-        match = self.aligned.match(depth) or self.raw.match(depth)
-        if match is None:
-            return {"color_registered": False}
-        ns = match.group(1)
-
-        def present(topic: str) -> str | None:
-            return topic if topic in topics else None
-
-        return {
-            "camera_info": present(depth.rsplit("/", 1)[0] + "/camera_info"),
-            "color": present(f"{ns}/color/image_raw"),
-            "imu": present(f"{ns}/imu"),
-            "accel": present(f"{ns}/accel/sample"),
-            "gyro": present(f"{ns}/gyro/sample"),
-            "joint_states": present("/joint_states"),
-            "color_registered": self.aligned.match(depth) is not None,
-        }
-
-
-PRESETS: dict[str, RealsenseSdkPreset | RealsenseRosPreset] = {
-    p.name: p for p in (RealsenseSdkPreset(), RealsenseRosPreset())
-}
-
-
-@dataclass(frozen=True)
-class TopicChoice:
-    """The topics a conversion reads, and how they were chosen."""
-
-    preset: str
-    depth: str
-    camera_info: str | None = None
-    color: str | None = None
-    imu: str | None = None
-    accel: str | None = None
-    gyro: str | None = None
-    joint_states: str | None = None
-    gait_events: str | None = None
-    depth_units: str | None = None
-    color_registered: bool = False
-    notes: tuple[str, ...] = ()
-
-    def topic_of(self) -> dict[str, str]:
-        """role → topic for every role in use."""
-        return {r: getattr(self, r) for r in ROLES if getattr(self, r) is not None}
-
-
-def resolve_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> TopicChoice:
-    """Choose the topics: explicit ones from ``cfg``, the rest from the preset.
-
-    ``topics`` maps each topic in the bag to its message type. A missing or mistyped topic is a
-    :class:`MissingStreamError` / :class:`ConversionError` listing the topics found.
-    """
-    explicit = {
-        "depth": cfg.depth_topic,
-        "color": cfg.color_topic,
-        "camera_info": cfg.camera_info_topic,
-        "imu": cfg.imu_topic,
-        "accel": cfg.accel_topic,
-        "gyro": cfg.gyro_topic,
-        "joint_states": cfg.joint_states_topic,
-        "gait_events": cfg.gait_events_topic,
-    }
-    for role, topic in explicit.items():
-        if topic is not None and topic not in topics:
-            raise MissingStreamError(
-                f"bag.{role}_topic = {topic!r} is not in the bag; topics found: {_listing(topics)}"
-            )
-    if cfg.preset == "auto":
-        preset = next(
-            (p for p in PRESETS.values() if p.depth_candidates(topics)), None
-        )  # first preset that recognises a depth topic
-        if cfg.depth_topic is not None:
-            preset = next(
-                (p for p in PRESETS.values() if cfg.depth_topic in p.depth_candidates(topics)),
-                preset,
-            )
-    elif cfg.preset == "none":
-        preset = None
-    else:
-        preset = PRESETS[cfg.preset]
-    depth = cfg.depth_topic
-    if depth is None:
-        candidates = preset.depth_candidates(topics) if preset is not None else []
-        if len(candidates) > 1:
-            raise ConversionError(
-                f"several depth topics: {candidates}; choose one with bag.depth_topic"
-            )
-        if not candidates:
-            how = f"preset {preset.name!r}" if preset else f"preset {cfg.preset!r}"
-            raise MissingStreamError(
-                f"no depth topic found ({how}); set bag.depth_topic or another bag.preset. "
-                f"Topics found: {_listing(topics)}"
-            )
-        depth = candidates[0]
-    related = preset.related(depth, topics) if preset is not None else {}
-    choice: dict[str, Any] = {"depth": depth}
-    for role in ("color", "camera_info", "joint_states", "gait_events", "depth_units"):
-        choice[role] = explicit.get(role) or related.get(role)
-    notes: list[str] = []
-    if cfg.imu_topic:
-        choice["imu"] = cfg.imu_topic
-    elif cfg.accel_topic:
-        choice["accel"], choice["gyro"] = cfg.accel_topic, cfg.gyro_topic
-    elif related.get("imu"):
-        choice["imu"] = related["imu"]
-    elif related.get("accel") and related.get("gyro"):
-        choice["accel"], choice["gyro"] = related["accel"], related["gyro"]
-    elif related.get("accel") or related.get("gyro"):
-        notes.append(
-            f"only one of accel/gyro found ({related.get('accel') or related.get('gyro')}): "
-            "no IMU stream"
-        )
-    for role, topic in choice.items():
-        if topic is None:
-            continue
-        msgtype = topics.get(topic)
-        if msgtype not in ROLE_TYPES[role]:
-            raise ConversionError(
-                f"topic {topic} ({role}) has message type {msgtype}; expected one of "
-                f"{sorted(ROLE_TYPES[role])}"
-            )
-    registered = (
-        cfg.color_registered_to_depth
-        if cfg.color_registered_to_depth is not None
-        else bool(related.get("color_registered", False))
-    )
-    return TopicChoice(
-        preset=preset.name if preset is not None else "none",
-        color_registered=registered,
-        notes=tuple(notes),
-        **choice,
-    )
-
-
-# --------------------------------------------------------------------------- rosbags access
-def _rosbags():
-    """Import rosbags lazily; a clear error when the optional extra is missing."""
-    try:
-        from rosbags.highlevel import AnyReader
-    except ImportError:
-        raise ConversionError(INSTALL_HINT) from None
-    return AnyReader
-
-
-def _rosbag_errors() -> tuple[type[BaseException], ...]:
-    import sqlite3
-    import struct
-
-    from rosbags.highlevel import AnyReaderError
-    from rosbags.rosbag1 import ReaderError as Reader1Error
-    from rosbags.rosbag2 import ReaderError as Reader2Error
-    from rosbags.serde import SerdeError
-
-    return (
-        AnyReaderError,
-        Reader1Error,
-        Reader2Error,
-        SerdeError,
-        sqlite3.DatabaseError,
-        struct.error,
-        EOFError,
-        # rosbags on random or damaged bytes (found by tests/test_faults_fuzz.py): a header
-        # that is not UTF-8, a record length past the end, a field it does not know
-        UnicodeDecodeError,
-        ValueError,
-        IndexError,
-        KeyError,
-        OverflowError,
-        OSError,  # a seek to a negative offset (a damaged index position)
-        AssertionError,  # rosbags' own consistency checks on a damaged chunk
-    )
-
-
-def _hint(message: str, path: Path) -> str:
-    text = message.lower()
-    if "not indexed" in text:
-        return (
-            "the bag has no index (an interrupted recording?); rebuild it with "
-            f"`rosbag reindex {path.name}` (ROS 1 tools), then convert again"
-        )
-    if "malformed" in text or "not a database" in text:
-        return (
-            "the SQLite file is damaged or truncated; recover what is left with sqlite3's "
-            "`.recover`, or re-record"
-        )
-    if "magic" in text and path.suffix != ".bag":
-        return (
-            "the MCAP file is truncated or damaged; `mcap recover IN.mcap -o OUT.mcap` "
-            "rewrites what is readable"
-        )
-    if "magic" in text:
-        return "this is not a ROS 1 bag (wrong file magic)"
-    return (
-        "the bag looks truncated or damaged; `rosbag reindex FILE` rebuilds the index of a "
-        "truncated ROS 1 bag, `ros2 bag reindex DIR` the metadata of a ROS 2 bag"
-    )
-
-
-def _bag_error(path: Path, err: BaseException) -> BagError:
-    message = " ".join(str(a) for a in err.args) or type(err).__name__
-    if isinstance(err, UnicodeDecodeError):
-        message = f"byte {err.start} is not text where the bag's header should be"
-    message = message if len(message) <= 200 else message[:200] + "..."
-    return BagError(f"{path}: cannot read the bag ({message}); {_hint(message, path)}")
-
-
-def bag_path(path: Path) -> Path:
-    """The path to give rosbags (a .bag file, a .db3/.mcap file, or a ROS 2 folder)."""
-    path = Path(path)
-    if path.is_file():
-        if path.suffix in (".bag", ".db3", ".mcap"):
-            return path
-        if path.name.endswith(".bag.active"):
-            raise BagError(
-                f"{path}: an unfinished recording (.bag.active has no index); rebuild it with "
-                f"`rosbag reindex {path.name}` (ROS 1 tools) and rename it to .bag"
-            )
-        raise ConversionError(f"{path}: not a bag (expected .bag, .db3, .mcap or a ROS 2 folder)")
-    if path.is_dir():
-        if (path / "metadata.yaml").is_file():
-            return path
-        storage = sorted(p.name for p in path.iterdir() if p.suffix in (".db3", ".mcap"))
-        if storage:
-            raise BagError(
-                f"{path}: ROS 2 bag folder without metadata.yaml; `ros2 bag reindex {path}` "
-                f"rebuilds it, or convert the storage file itself ({storage[0]})"
-            )
-        raise ConversionError(f"{path}: not a ROS 2 bag folder (no metadata.yaml)")
-    raise MissingStreamError(f"{path}: no such file or folder")
-
-
-class _Bag:
-    """An open rosbags reader whose failures become :class:`BagError` with a hint."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        any_reader = _rosbags()
-        self._errors = _rosbag_errors()
-        try:
-            self.reader = any_reader([bag_path(path)])
-            self.reader.open()
-        except FileNotFoundError as err:
-            raise _bag_error(path, err) from None
-        except self._errors as err:
-            raise _bag_error(path, err) from None
-        self.is_ros2 = bool(self.reader.is2)
-
-    def close(self) -> None:
-        if self.reader.stack is not None:
-            self.reader.close()
-
-    def __enter__(self) -> _Bag:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def topics(self) -> dict[str, str | None]:
-        return {name: info.msgtype for name, info in self.reader.topics.items()}
-
-    def counts(self) -> dict[str, int]:
-        return {name: int(info.msgcount) for name, info in self.reader.topics.items()}
-
-    def messages(self, topics: set[str]) -> Iterator[tuple[str, int, Any]]:
-        """(topic, bag time ns, decoded message) in bag time order."""
-        conns = [c for c in self.reader.connections if c.topic in topics]
-        gen = self.reader.messages(connections=conns)
-        while True:
-            try:
-                conn, bag_ns, raw = next(gen)
-                msg = self.reader.deserialize(raw, conn.msgtype)
-            except StopIteration:
-                return
-            except self._errors as err:
-                raise _bag_error(self.path, err) from None
-            yield conn.topic, int(bag_ns), msg
-
-
-# --------------------------------------------------------------------------- decoding
-def image_array(msg: Any, topic: str, index: int) -> np.ndarray:
-    """A sensor_msgs/Image as an array: uint16 / float32 H×W, or uint8 H×W×3 in RGB order."""
-    enc = str(msg.encoding)
-    base: np.dtype
-    if enc in ("16UC1", "mono16"):
-        base, channels = np.dtype(np.uint16), 1
-    elif enc == "32FC1":
-        base, channels = np.dtype(np.float32), 1
-    elif enc in COLOR_ENCODINGS:
-        base, channels = np.dtype(np.uint8), 3
-    else:
-        raise ConversionError(
-            f"topic {topic}, message {index}: image encoding {enc!r} is not supported "
-            f"(depth: {', '.join(DEPTH_ENCODINGS)}; colour: {', '.join(COLOR_ENCODINGS)})"
-        )
-    dtype = base.newbyteorder(">" if msg.is_bigendian else "<")
-    height, width, step = int(msg.height), int(msg.width), int(msg.step)
-    row = width * channels * dtype.itemsize
-    data = np.asarray(msg.data, dtype=np.uint8).ravel()
-    if height <= 0 or width <= 0 or step < row or data.size < step * (height - 1) + row:
-        raise ConversionError(
-            f"topic {topic}, message {index}: {width}×{height} {enc} image with step {step} "
-            f"needs {step * (height - 1) + row} bytes, the message holds {data.size}"
-        )
-    if data.size < step * height:
-        data = np.concatenate([data, np.zeros(step * height - data.size, dtype=np.uint8)])
-    rows = data[: step * height].reshape(height, step)[:, :row]
-    array = np.ascontiguousarray(rows).view(dtype).reshape(height, width, channels)
-    array = array.astype(base, copy=False)
-    if channels == 1:
-        return array[:, :, 0]
-    return np.ascontiguousarray(array[:, :, ::-1]) if enc == "bgr8" else array
 
 
 def _stamp_ns(msg: Any, bag_ns: int, use_header: bool) -> int:
@@ -488,33 +79,11 @@ class _Collected:
     events: list[tuple[int, str]] = field(default_factory=list)
 
 
-def _check_format(
-    previous: tuple[str, int, int] | None,
-    msg: Any,
-    topic: str,
-    index: int,
-    encodings: tuple[str, ...],
-) -> tuple[str, int, int]:
-    """Encoding and size: supported, and the same in every message of the topic."""
-    current = (str(msg.encoding), int(msg.width), int(msg.height))
-    if current[0] not in encodings:
-        raise ConversionError(
-            f"topic {topic}, message {index}: image encoding {current[0]!r} is not supported "
-            f"here (supported: {', '.join(encodings)})"
-        )
-    if previous is not None and current != previous:
-        raise ConversionError(
-            f"topic {topic}, message {index}: {current[0]} {current[1]}×{current[2]} differs "
-            f"from the first message's {previous[0]} {previous[1]}×{previous[2]}"
-        )
-    return current
-
-
 def _vec(v: Any) -> tuple[float, float, float]:
     return float(v.x), float(v.y), float(v.z)
 
 
-def _first_pass(bag: _Bag, choice: TopicChoice, cfg: BagConfig, counts: Mapping[str, int]):
+def _first_pass(bag: Bag, choice: TopicChoice, cfg: BagConfig, counts: Mapping[str, int]):
     topic_of = choice.topic_of()
     role_of: dict[str, list[str]] = {}
     for role, topic in topic_of.items():
@@ -529,12 +98,12 @@ def _first_pass(bag: _Bag, choice: TopicChoice, cfg: BagConfig, counts: Mapping[
         i = index[topic] = index.get(topic, -1) + 1
         for role in role_of[topic]:
             if role == "depth":
-                out.depth_format = _check_format(out.depth_format, msg, topic, i, DEPTH_ENCODINGS)
+                out.depth_format = check_format(out.depth_format, msg, topic, i, DEPTH_ENCODINGS)
                 out.depth_ns.append(_stamp_ns(msg, bag_ns, use_header))
                 if i in sample_at:
                     out.depth_samples.append(image_array(msg, topic, i))
             elif role == "color":
-                out.color_format = _check_format(out.color_format, msg, topic, i, COLOR_ENCODINGS)
+                out.color_format = check_format(out.color_format, msg, topic, i, COLOR_ENCODINGS)
                 out.color_ns.append(_stamp_ns(msg, bag_ns, use_header))
             elif role == "camera_info":
                 out.camera_info_count += 1
@@ -665,13 +234,13 @@ class RosbagAdapter:
         path = Path(path)
         cfg = config.bag
         report = ConversionReport(adapter=self.name, source=str(path))
-        with _Bag(path) as bag:
+        with Bag(path) as bag:
             topics, counts, is_ros2 = bag.topics(), bag.counts(), bag.is_ros2
             choice = resolve_topics(topics, cfg)
             if choice.camera_info is None and cfg.intrinsics is None:
                 raise MissingStreamError(
                     f"{path}: no camera_info topic for {choice.depth}; set bag.camera_info_topic "
-                    f"or bag.intrinsics. Topics found: {_listing(topics)}"
+                    f"or bag.intrinsics. Topics found: {listing(topics)}"
                 )
             got = _first_pass(bag, choice, cfg, counts)
         report.notes.append(
@@ -954,7 +523,7 @@ def _frame_reader(
         position = dict.fromkeys(topics, -1)
         non_finite = 0
         scale = np.float32(unit_m)
-        with _Bag(path) as bag:
+        with Bag(path) as bag:
             for topic, _, msg in bag.messages(topics):
                 position[topic] += 1
                 pos = position[topic]
