@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from graph_slam.errors import ConversionError
+from graph_slam.errors import CompressedImageError, ConversionError
 
 DEPTH_ENCODINGS = ("16UC1", "mono16", "32FC1")
 COLOR_ENCODINGS = ("rgb8", "bgr8")
@@ -68,3 +68,79 @@ def check_format(
             f"from the first message's {previous[0]} {previous[1]}×{previous[2]}"
         )
     return current
+
+
+# --------------------------------------------------------------------------- compressed images
+COMPRESSED = "sensor_msgs/msg/CompressedImage"
+#: compressed_depth_image_transport's ConfigHeader: int32 format, float32 depthParam[2]
+COMPRESSED_DEPTH_HEADER_BYTES = 12
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _pil_decode(data: bytes, where: str, formats: tuple[str, ...]) -> Any:
+    """Decode with Pillow, strictly: a PNG's chunks and CRCs are verified first; a truncated
+    JPEG or PNG is an error (Pillow's LOAD_TRUNCATED_IMAGES is never set)."""
+    import io
+
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(io.BytesIO(data)) as probe:
+            if probe.format not in formats:
+                raise CompressedImageError(
+                    f"{where}: expected {' or '.join(formats)} data, found {probe.format}"
+                )
+            if probe.format == "PNG":
+                probe.verify()
+        img = Image.open(io.BytesIO(data))
+        img.load()
+        return img
+    except CompressedImageError:
+        raise
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, EOFError) as err:
+        raise CompressedImageError(f"{where}: corrupt or truncated image ({err})") from None
+
+
+def compressed_array(msg: Any, topic: str, index: int, role: str) -> np.ndarray:
+    """A ``sensor_msgs/CompressedImage`` → uint8 H×W×3 RGB (``role`` colour: jpeg or png) or
+    uint16 H×W (``role`` depth: image_transport's ``compressedDepth``, 16UC1 as PNG after its
+    12-byte header). RVL and 32FC1 (inverse-depth) compressedDepth are refused, named."""
+    fmt = str(msg.format).strip()
+    where = f"topic {topic}, message {index} (format {fmt!r})"
+    data = bytes(np.asarray(msg.data, dtype=np.uint8).tobytes())
+    if role == "depth":
+        lowered = fmt.lower()
+        if "compresseddepth" not in lowered:
+            raise CompressedImageError(
+                f"{where}: a depth topic must be image_transport's compressedDepth "
+                "('16UC1; compressedDepth png')"
+            )
+        if "rvl" in lowered:
+            raise CompressedImageError(
+                f"{where}: RVL compressedDepth is not supported; record with the png "
+                "compressedDepth format or raw depth"
+            )
+        if not lowered.startswith(("16uc1", "mono16")):
+            raise CompressedImageError(
+                f"{where}: only 16UC1 compressedDepth is supported (32FC1 is stored as "
+                "quantised inverse depth)"
+            )
+        if data[: len(PNG_MAGIC)] != PNG_MAGIC:  # current transports prefix a ConfigHeader
+            data = data[COMPRESSED_DEPTH_HEADER_BYTES:]
+        img = _pil_decode(data, where, ("PNG",))
+        if img.mode not in ("I;16", "I;16B", "I;16L"):
+            raise CompressedImageError(f"{where}: depth PNG must be 16-bit, found {img.mode!r}")
+        return np.array(img, dtype=np.uint16)
+    img = _pil_decode(data, where, ("JPEG", "PNG"))
+    if img.mode == "RGBA":
+        img = img.convert("RGB")
+    if img.mode != "RGB":
+        raise CompressedImageError(f"{where}: colour must be 8-bit RGB, found mode {img.mode!r}")
+    return np.array(img, dtype=np.uint8)
+
+
+def decode_image(msg: Any, msgtype: str, topic: str, index: int, role: str) -> np.ndarray:
+    """Raw or compressed image message → array (see :func:`image_array`, :func:`compressed_array`)."""
+    if msgtype == COMPRESSED:
+        return compressed_array(msg, topic, index, role)
+    return image_array(msg, topic, index)

@@ -12,6 +12,8 @@ from graph_slam.errors import ConversionError, MissingStreamError
 from graph_slam.session.adapters.config import BagConfig
 
 IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED = "sensor_msgs/msg/CompressedImage"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 IMU = "sensor_msgs/msg/Imu"
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -30,10 +32,12 @@ ROLES = (
     "joint_states",
     "gait_events",
     "depth_units",
+    "color_info",
+    "tf_static",
 )
 ROLE_TYPES: dict[str, frozenset[str]] = {
-    "depth": frozenset({IMAGE}),
-    "color": frozenset({IMAGE}),
+    "depth": frozenset({IMAGE, COMPRESSED}),
+    "color": frozenset({IMAGE, COMPRESSED}),
     "camera_info": frozenset({CAMERA_INFO}),
     "imu": frozenset({IMU}),
     "accel": frozenset({IMU}),
@@ -41,6 +45,8 @@ ROLE_TYPES: dict[str, frozenset[str]] = {
     "joint_states": frozenset({JOINT_STATE}),
     "gait_events": EVENT_TYPES,
     "depth_units": frozenset({FLOAT32}),
+    "color_info": frozenset({CAMERA_INFO}),
+    "tf_static": frozenset({TF_MESSAGE}),
 }
 
 
@@ -65,8 +71,9 @@ class RealsenseSdkPreset:
 
     Depth ``/device_0/sensor_0/Depth_0/image/data``; accel and gyro are separate ``Accel_K`` and
     ``Gyro_K`` streams whose sensor index varies by device, so they are found by pattern on the
-    same device. Colour is recorded unregistered to depth (its own intrinsics), so it is not used
-    unless ``bag.color_registered_to_depth: true``. Depth units: the ``Depth Units`` option topic.
+    same device. Colour is recorded unregistered to depth, with its own camera_info
+    (``…/Color_0/info/camera_info``); it is registered to depth with the extrinsics of the
+    streams' ``tf`` topics. Depth units: the ``Depth Units`` option topic.
     """
 
     name = "realsense-sdk"
@@ -82,9 +89,12 @@ class RealsenseSdkPreset:
         device, sensor = match.group(1), match.group(2)
         base = rf"^/device_{device}/sensor_\d+"
         info = depth.replace("/image/data", "/info/camera_info")
+        color = _unique(rf"{base}/Color_\d+/image/data$", topics, "color")
+        color_info = color.replace("/image/data", "/info/camera_info") if color else None
         return {
             "camera_info": info if info in topics else None,
-            "color": _unique(rf"{base}/Color_\d+/image/data$", topics, "color"),
+            "color": color,
+            "color_info": color_info if color_info in topics else None,
             "accel": _unique(rf"{base}/Accel_\d+/imu/data$", topics, "accel"),
             "gyro": _unique(rf"{base}/Gyro_\d+/imu/data$", topics, "gyro"),
             "depth_units": _unique(
@@ -99,19 +109,32 @@ class RealsenseSdkPreset:
 class RealsenseRosPreset:
     """The RealSense ROS wrapper (``realsense2_camera``), ROS 1 or 2, any namespace.
 
-    Depth: ``<ns>/aligned_depth_to_color/image_raw`` (registered to colour, so colour is used),
-    else ``<ns>/depth/image_rect_raw``; ``camera_info`` next to it; colour
-    ``<ns>/color/image_raw``; IMU ``<ns>/imu`` (united) or ``<ns>/accel/sample`` +
-    ``<ns>/gyro/sample``; joints ``/joint_states`` when present.
+    Depth: ``<ns>/aligned_depth_to_color/image_raw`` (registered to colour, so colour is used
+    as is), else ``<ns>/depth/image_rect_raw`` (colour registered to it with ``/tf_static``);
+    either may be its ``/compressedDepth`` topic when the raw one was not recorded;
+    ``camera_info`` next to it; colour ``<ns>/color/image_raw`` (else its ``/compressed``) and
+    ``<ns>/color/camera_info``; IMU ``<ns>/imu`` (united) or ``<ns>/accel/sample`` +
+    ``<ns>/gyro/sample``; joints ``/joint_states`` and ``/tf_static`` when present.
     """
 
     name = "realsense-ros"
-    aligned = re.compile(r"^(.*)/aligned_depth_to_color/image_raw$")
-    raw = re.compile(r"^(.*)/depth/image_rect_raw$")
+    aligned = re.compile(r"^(.*)/aligned_depth_to_color/image_raw(/compressedDepth)?$")
+    raw = re.compile(r"^(.*)/depth/image_rect_raw(/compressedDepth)?$")
 
     def depth_candidates(self, topics: Mapping[str, str | None]) -> list[str]:
-        aligned = sorted(t for t in topics if self.aligned.match(t))
-        return aligned or sorted(t for t in topics if self.raw.match(t))
+        for pattern in (self.aligned, self.raw):
+            found = sorted(t for t in topics if pattern.match(t))
+            plain = [t for t in found if not t.endswith("/compressedDepth")]
+            # a raw topic wins over its compressed twin; a compressed one alone is used
+            found = plain + [
+                t
+                for t in found
+                if t.endswith("/compressedDepth")
+                and t.removesuffix("/compressedDepth") not in plain
+            ]
+            if found:
+                return found
+        return []
 
     def related(self, depth: str, topics: Mapping[str, str | None]) -> dict[str, Any]:
         match = self.aligned.match(depth) or self.raw.match(depth)
@@ -122,9 +145,13 @@ class RealsenseRosPreset:
         def present(topic: str) -> str | None:
             return topic if topic in topics else None
 
+        image = depth.removesuffix("/compressedDepth")
         return {
-            "camera_info": present(depth.rsplit("/", 1)[0] + "/camera_info"),
-            "color": present(f"{ns}/color/image_raw"),
+            "camera_info": present(image.rsplit("/", 1)[0] + "/camera_info"),
+            "color": present(f"{ns}/color/image_raw")
+            or present(f"{ns}/color/image_raw/compressed"),
+            "color_info": present(f"{ns}/color/camera_info"),
+            "tf_static": present("/tf_static"),
             "imu": present(f"{ns}/imu"),
             "accel": present(f"{ns}/accel/sample"),
             "gyro": present(f"{ns}/gyro/sample"),
@@ -152,6 +179,8 @@ class TopicChoice:
     joint_states: str | None = None
     gait_events: str | None = None
     depth_units: str | None = None
+    color_info: str | None = None
+    tf_static: str | None = None
     color_registered: bool = False
     notes: tuple[str, ...] = ()
 
@@ -175,6 +204,7 @@ def resolve_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> TopicCho
         "gyro": cfg.gyro_topic,
         "joint_states": cfg.joint_states_topic,
         "gait_events": cfg.gait_events_topic,
+        "color_info": cfg.color_info_topic,
     }
     for role, topic in explicit.items():
         if topic is not None and topic not in topics:
@@ -210,7 +240,15 @@ def resolve_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> TopicCho
         depth = candidates[0]
     related = preset.related(depth, topics) if preset is not None else {}
     choice: dict[str, Any] = {"depth": depth}
-    for role in ("color", "camera_info", "joint_states", "gait_events", "depth_units"):
+    for role in (
+        "color",
+        "camera_info",
+        "joint_states",
+        "gait_events",
+        "depth_units",
+        "color_info",
+        "tf_static",
+    ):
         choice[role] = explicit.get(role) or related.get(role)
     notes: list[str] = []
     if cfg.imu_topic:
