@@ -82,6 +82,11 @@ class ClockOffsetError(ConversionError):
     matched foot strikes, too large a spread, or two offsets that fit equally well)."""
 
 
+class CompressedImageError(BagError):
+    """A CompressedImage / compressedDepth message in a bag is corrupt or of an unsupported kind
+    (the message names the topic and the message index)."""
+
+
 class DepthUnitsError(ConversionError):
     """The depth values are implausible in the stated units (detected from the data)."""
 

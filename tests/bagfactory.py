@@ -24,6 +24,88 @@ JOINT_NS = 10_000_000  # 100 Hz
 BAG_DELAY_NS = 1_000_000  # receive time = stamp + 1 ms
 EVENT_TOPIC = "/prosthesis/gait_event"
 
+# Unaligned colour (``BagSpec.color_mode = "unaligned"``): its own camera, and a textured plane
+# seen by both, so the colour each depth pixel must get is known analytically.
+CW, CH = 40, 30
+CFX, CFY, CCX, CCY = 36.0, 36.5, 19.5, 14.5
+#: depth camera → colour camera: a small rotation and a 15 mm baseline (maps depth points)
+COLOR_T_DEPTH_ROTVEC = np.array([0.01, -0.02, 0.015])
+COLOR_T_DEPTH_T = np.array([0.015, -0.002, 0.001])
+#: the depth camera → IMU (accel and gyro share it): camera_T_imu
+CAMERA_T_IMU_ROTVEC = np.array([0.02, 0.01, -0.03])
+CAMERA_T_IMU_T = np.array([0.005, -0.006, 0.012])
+#: the SDK's extrinsics reference stream, deliberately not the depth: depth_T_ref
+DEPTH_T_REF_ROTVEC = np.array([0.0, 0.05, 0.0])
+DEPTH_T_REF_T = np.array([-0.02, 0.0, 0.003])
+#: the plane n·p = d in the depth frame
+PLANE_N = np.array([0.1, -0.2, 1.0]) / np.linalg.norm([0.1, -0.2, 1.0])
+PLANE_D = 1.3
+#: colour encodes the depth pixel it shows: R = 7 u_depth, G = 9 v_depth
+U_CODE, V_CODE = 7.0, 9.0
+IMU_INTRINSIC = np.arange(12, dtype=np.float64).reshape(3, 4) * 0.01 + np.c_[np.eye(3), np.zeros(3)]
+IMU_INTRINSIC_MSG = """float32[12] data
+float32[3] noise_variances
+float32[3] bias_variances
+"""
+TF_MESSAGE_MSG = "geometry_msgs/TransformStamped[] transforms\n"
+
+
+def pose(rotvec: np.ndarray, t: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    out[:3, 3] = t
+    return out
+
+
+def color_T_depth() -> np.ndarray:
+    return pose(COLOR_T_DEPTH_ROTVEC, COLOR_T_DEPTH_T)
+
+
+def camera_T_imu() -> np.ndarray:
+    return pose(CAMERA_T_IMU_ROTVEC, CAMERA_T_IMU_T)
+
+
+def plane_depth_m() -> np.ndarray:
+    """Depth (m) of the plane at every depth pixel centre (pinhole depth camera)."""
+    v, u = np.mgrid[0:H, 0:W]
+    rays = np.stack([(u - CX) / FX, (v - CY) / FY, np.ones((H, W))], -1)
+    return PLANE_D / (rays @ PLANE_N)
+
+
+def _distort(x: np.ndarray, y: np.ndarray, k: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    k1, k2, p1, p2, k3 = (tuple(k) + (0.0,) * 5)[:5]
+    r2 = x * x + y * y
+    f = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    return x * f + 2 * p1 * x * y + p2 * (r2 + 2 * x * x), y * f + 2 * p2 * x * y + p1 * (
+        r2 + 2 * y * y
+    )
+
+
+def unaligned_color(k: int, distortion: tuple[float, ...] = ()) -> np.ndarray:
+    """The colour camera's image of the plane: each colour pixel's ray meets the plane at a
+    point whose depth-camera pixel (u, v) is encoded as R = 7u, G = 9v (B = frame number)."""
+    cv, cu = np.mgrid[0:CH, 0:CW]
+    xd, yd = (cu - CCX) / CFX, (cv - CCY) / CFY
+    x, y = xd.copy(), yd.copy()
+    for _ in range(50):  # invert the plumb_bob distortion (fixed point)
+        px, py = _distort(x, y, distortion)
+        x, y = x + xd - px, y + yd - py
+    rays = np.stack([x, y, np.ones_like(x)], -1)
+    c_T_d = color_T_depth()
+    n_c = c_T_d[:3, :3] @ PLANE_N
+    d_c = PLANE_D + n_c @ c_T_d[:3, 3]
+    p_c = rays * (d_c / (rays @ n_c))[..., None]
+    p_d = (p_c - c_T_d[:3, 3]) @ c_T_d[:3, :3]  # R^T (p_c - t), row-wise
+    u = FX * p_d[..., 0] / p_d[..., 2] + CX
+    v = FY * p_d[..., 1] / p_d[..., 2] + CY
+    rgb = np.stack(
+        [np.clip(np.rint(u * U_CODE), 0, 255), np.clip(np.rint(v * V_CODE), 0, 255),
+         np.full_like(u, 100 + 10 * k)], -1
+    )  # fmt: skip
+    return rgb.astype(np.uint8)
+
 
 def accel_at(t_s: np.ndarray) -> np.ndarray:
     """Linear in time, so linear interpolation reproduces it exactly."""
@@ -72,6 +154,12 @@ class BagSpec:
     events: bool = True
     accel_span_s: tuple[float, float] = (-0.01, 0.30)
     gyro_span_s: tuple[float, float] = (-0.02, 0.32)
+    color_mode: str = "registered"  # registered (same size) | unaligned (CW×CH, own camera)
+    color_distortion: tuple[float, ...] = ()  # plumb_bob k1 k2 p1 p2 k3 of the unaligned colour
+    extrinsics: bool = False  # SDK tf topics + imu_intrinsic, or the wrapper's /tf_static
+    compressed_color: str | None = None  # ros layout: png | jpeg on <ns>/color/image_raw/compressed
+    compressed_depth: bool = False  # ros layout: 16UC1 compressedDepth png
+    corrupt_color_message: int | None = None  # cut this compressed colour message in half
 
 
 @dataclass
@@ -94,6 +182,7 @@ def _topics(spec: BagSpec) -> dict[str, str]:
             "depth": "/device_0/sensor_0/Depth_0/image/data",
             "info": "/device_0/sensor_0/Depth_0/info/camera_info",
             "color": "/device_0/sensor_1/Color_0/image/data",
+            "color_info": "/device_0/sensor_1/Color_0/info/camera_info",
             "accel": f"/device_0/sensor_{m}/Accel_0/imu/data",
             "gyro": f"/device_0/sensor_{m}/Gyro_0/imu/data",
             "units": "/device_0/sensor_0/option/Depth_Units/value",
@@ -101,10 +190,17 @@ def _topics(spec: BagSpec) -> dict[str, str]:
         }
     else:
         ns = "/camera/camera"
+        d = (
+            "depth/image_rect_raw"
+            if spec.color_mode == "unaligned"
+            else "aligned_depth_to_color/image_raw"
+        )
         t = {
-            "depth": f"{ns}/aligned_depth_to_color/image_raw",
-            "info": f"{ns}/aligned_depth_to_color/camera_info",
-            "color": f"{ns}/color/image_raw",
+            "depth": f"{ns}/{d}" + ("/compressedDepth" if spec.compressed_depth else ""),
+            "info": f"{ns}/{d.rsplit('/', 1)[0]}/camera_info",
+            "color_info": f"{ns}/color/camera_info",
+            "tf_static": "/tf_static",
+            "color": f"{ns}/color/image_raw" + ("/compressed" if spec.compressed_color else ""),
             "accel": f"{ns}/accel/sample",
             "gyro": f"{ns}/gyro/sample",
             "imu": f"{ns}/imu",
@@ -116,9 +212,13 @@ def _topics(spec: BagSpec) -> dict[str, str]:
 
 def write_bag(path: Path, spec: BagSpec) -> BagTruth:
     """Write the bag described by ``spec`` to ``path`` (a .bag file or a ROS 2 folder)."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     ts = get_typestore(Stores.ROS2_HUMBLE if spec.ros2 else Stores.ROS1_NOETIC)
+    extra_types = get_types_from_msg(IMU_INTRINSIC_MSG, "realsense_msgs/msg/ImuIntrinsic")
+    if "tf2_msgs/msg/TFMessage" not in ts.types:
+        extra_types.update(get_types_from_msg(TF_MESSAGE_MSG, "tf2_msgs/msg/TFMessage"))
+    ts.register(extra_types)
     T = ts.types
     Time = T["builtin_interfaces/msg/Time"]
     Header = T["std_msgs/msg/Header"]
@@ -134,14 +234,22 @@ def write_bag(path: Path, spec: BagSpec) -> BagTruth:
             return Header(stamp=stamp, frame_id=frame)
         return Header(seq=0, stamp=stamp, frame_id=frame)
 
-    def add(ns: int, role: str, msgtype: str, msg: object) -> None:
-        truth.topics[names[role]] = msgtype
-        out.append((ns + BAG_DELAY_NS, names[role], msgtype, msg))
+    def add(ns: int, role: str, msgtype: str, msg: object, literal: bool = False) -> None:
+        topic = role if literal else names[role]
+        truth.topics[topic] = msgtype
+        out.append((ns + BAG_DELAY_NS, topic, msgtype, msg))
 
     Image = T["sensor_msgs/msg/Image"]
+    Compressed = T["sensor_msgs/msg/CompressedImage"]
+    unaligned = spec.color_mode == "unaligned"
+    ros_frames = spec.layout == "ros"
+    depth_frame = "camera_depth_optical_frame" if ros_frames else "camera"
+    color_frame = "camera_color_optical_frame" if ros_frames else "camera"
+    if ros_frames and not unaligned:
+        depth_frame = color_frame  # aligned_depth_to_color is in the colour frame
     for k in range(spec.n_frames):
         ns = T0_NS + k * FRAME_NS
-        raw = depth_raw(k)
+        raw = np.rint(plane_depth_m() * 1000).astype(np.uint16) if unaligned else depth_raw(k)
         if spec.depth_encoding == "32FC1":
             arr = (raw.astype(np.float32) * np.float32(1e-3 * spec.depth_scale)).astype("<f4")
             arr[:2, :2] = np.nan
@@ -150,17 +258,33 @@ def write_bag(path: Path, spec: BagSpec) -> BagTruth:
             arr = (raw * spec.depth_scale).astype("<u2")
             step = W * 2
         data = np.frombuffer(arr.tobytes(), dtype=np.uint8)
-        add(ns, "depth", Image.__msgtype__, Image(header=header(ns), height=H, width=W,
-            encoding=spec.depth_encoding, is_bigendian=0, step=step, data=data))  # fmt: skip
+        if spec.compressed_depth:
+            payload = bytes(12) + _png(arr.astype(np.uint16))  # ConfigHeader, then the PNG
+            add(ns, "depth", Compressed.__msgtype__, Compressed(header=header(ns, depth_frame),
+                format="16UC1; compressedDepth png", data=np.frombuffer(payload, np.uint8)))  # fmt: skip
+        else:
+            add(ns, "depth", Image.__msgtype__, Image(header=header(ns, depth_frame), height=H,
+                width=W, encoding=spec.depth_encoding, is_bigendian=0, step=step, data=data))  # fmt: skip
         truth.depth_ns.append(ns)
         if k not in spec.missing_color:
             cns = ns + COLOR_DELAY_NS
-            rgb = color_rgb(k)
+            rgb = unaligned_color(k, spec.color_distortion) if unaligned else color_rgb(k)
+            if spec.compressed_color:
+                payload = _encode(rgb, spec.compressed_color)
+                n_color = len(truth.color_ns)
+                if n_color == spec.corrupt_color_message:
+                    payload = payload[: len(payload) // 2]
+                add(cns, "color", Compressed.__msgtype__, Compressed(header=header(cns, color_frame),
+                    format=f"rgb8; {spec.compressed_color} compressed bgr8",
+                    data=np.frombuffer(payload, np.uint8)))  # fmt: skip
+                truth.color_ns.append(cns)
+                continue
             if spec.color_encoding == "bgr8":
                 rgb = rgb[:, :, ::-1]
             cdata = np.frombuffer(np.ascontiguousarray(rgb).tobytes(), dtype=np.uint8)
-            add(cns, "color", Image.__msgtype__, Image(header=header(cns), height=H, width=W,
-                encoding=spec.color_encoding, is_bigendian=0, step=W * 3, data=cdata))  # fmt: skip
+            ch, cw = rgb.shape[:2]
+            add(cns, "color", Image.__msgtype__, Image(header=header(cns, color_frame), height=ch,
+                width=cw, encoding=spec.color_encoding, is_bigendian=0, step=cw * 3, data=cdata))  # fmt: skip
             truth.color_ns.append(cns)
 
     Info = T["sensor_msgs/msg/CameraInfo"]
@@ -174,6 +298,17 @@ def write_bag(path: Path, spec: BagSpec) -> BagTruth:
     mats = {"d": np.zeros(5), "k": k_mat, "r": np.eye(3).ravel(), "p": np.zeros(12)}
     cam.update({(key if spec.ros2 else key.upper()): v for key, v in mats.items()})
     add(T0_NS, "info", Info.__msgtype__, Info(**cam))
+    if unaligned:
+        c_k = np.array([CFX, 0, CCX, 0, CFY, CCY, 0, 0, 1], dtype=np.float64)
+        d = np.zeros(5)
+        d[: len(spec.color_distortion)] = spec.color_distortion
+        model = "plumb_bob" if ros_frames else "Brown Conrady"  # the SDK writes its own names
+        ccam = dict(cam, height=CH, width=CW, distortion_model=model)
+        mats = {"d": d, "k": c_k, "r": np.eye(3).ravel(), "p": np.zeros(12)}
+        ccam.update({(key if spec.ros2 else key.upper()): v for key, v in mats.items()})
+        add(T0_NS, "color_info", Info.__msgtype__, Info(**ccam))
+    if spec.extrinsics:
+        _write_extrinsics(spec, ts, add, header)
 
     if spec.layout == "sdk" and spec.depth_units_option is not None:
         F32 = T["std_msgs/msg/Float32"]
@@ -203,14 +338,21 @@ def write_bag(path: Path, spec: BagSpec) -> BagTruth:
     if spec.imu == "separate":
         a_ns, g_ns = times(spec.accel_span_s, ACCEL_NS), times(spec.gyro_span_s, GYRO_NS)
         for ns, acc in zip(a_ns, accel_at(rel(a_ns)), strict=True):
-            add(int(ns), "accel", Imu.__msgtype__, imu_msg(int(ns), np.zeros(3), acc, "accel"))
+            add(int(ns), "accel", Imu.__msgtype__,
+                imu_msg(int(ns), np.zeros(3), acc, "camera_accel_optical_frame"))  # fmt: skip
         for ns, gyr in zip(g_ns, gyro_at(rel(g_ns)), strict=True):
-            add(int(ns), "gyro", Imu.__msgtype__, imu_msg(int(ns), gyr, np.zeros(3), "gyro"))
+            add(int(ns), "gyro", Imu.__msgtype__,
+                imu_msg(int(ns), gyr, np.zeros(3), "camera_gyro_optical_frame"))  # fmt: skip
         truth.accel_ns, truth.gyro_ns = a_ns, g_ns
     elif spec.imu == "combined":
         i_ns = times((0.0, 0.25), GYRO_NS)
         for ns, gyr, acc in zip(i_ns, gyro_at(rel(i_ns)), accel_at(rel(i_ns)), strict=True):
-            add(int(ns), "imu", Imu.__msgtype__, imu_msg(int(ns), gyr, acc, "imu"))
+            add(
+                int(ns),
+                "imu",
+                Imu.__msgtype__,
+                imu_msg(int(ns), gyr, acc, "camera_imu_optical_frame"),
+            )
         truth.imu_ns = i_ns
 
     if spec.joints:
@@ -256,3 +398,100 @@ def write_bag(path: Path, spec: BagSpec) -> BagTruth:
             for ns, topic, msgtype, msg in out:
                 writer.write(conns[topic], ns, ts.serialize_ros1(msg, msgtype))
     return truth
+
+
+def _png(array: np.ndarray) -> bytes:
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(array).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _encode(rgb: np.ndarray, kind: str) -> bytes:
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    if kind == "jpeg":
+        Image.fromarray(rgb).save(buf, format="JPEG", quality=95, subsampling=0)
+    else:
+        Image.fromarray(rgb).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+#: x right, y down, z forward (optical) in a body frame x forward, y left, z up: body_T_optical
+OPTICAL = np.array([[0, 0, 1, 0], [-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dtype=float)
+
+
+def _transform(T, pose4: np.ndarray):
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_matrix(pose4[:3, :3]).as_quat()  # x y z w
+    Vec3, Quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
+    return T["geometry_msgs/msg/Transform"](
+        translation=Vec3(x=pose4[0, 3], y=pose4[1, 3], z=pose4[2, 3]),
+        rotation=Quat(x=q[0], y=q[1], z=q[2], w=q[3]),
+    )
+
+
+def _write_extrinsics(spec: BagSpec, ts, add_role, header) -> None:
+    """SDK: ``<stream>/tf/0`` = stream_T_ref for depth, colour, accel, gyro (reference: a
+    frame that is not the depth) and ``imu_intrinsic``; wrapper: a ``/tf_static`` tree rooted
+    at camera_link whose optical frames give the same color_T_depth and camera_T_imu."""
+    T = ts.types
+    inv = np.linalg.inv
+    d_T_ref = pose(DEPTH_T_REF_ROTVEC, DEPTH_T_REF_T)
+    c_T_d, d_T_i = color_T_depth(), camera_T_imu()
+    if spec.layout == "sdk":
+        m = spec.motion_sensor
+        streams = {
+            "/device_0/sensor_0/Depth_0": d_T_ref,
+            "/device_0/sensor_1/Color_0": c_T_d @ d_T_ref,
+            f"/device_0/sensor_{m}/Accel_0": inv(d_T_i) @ d_T_ref,
+            f"/device_0/sensor_{m}/Gyro_0": inv(d_T_i) @ d_T_ref,
+        }
+        for stream, s_T_ref in streams.items():
+            add_raw(add_role, f"{stream}/tf/0", T["geometry_msgs/msg/Transform"].__msgtype__,
+                    _transform(T, s_T_ref))  # fmt: skip
+        Intr = T["realsense_msgs/msg/ImuIntrinsic"]
+        for stream in ("Accel_0", "Gyro_0"):
+            msg = Intr(data=IMU_INTRINSIC.ravel().astype(np.float32),
+                       noise_variances=np.full(3, 1e-4, np.float32),
+                       bias_variances=np.full(3, 2e-6, np.float32))  # fmt: skip
+            add_raw(add_role, f"/device_0/sensor_{m}/{stream}/imu_intrinsic", Intr.__msgtype__, msg)
+        return
+    link_T_dframe = pose(np.array([0.0, 0.0, 0.01]), np.array([0.0, 0.0, 0.0]))
+    link_T_dopt = link_T_dframe @ OPTICAL
+    link_T_copt = link_T_dopt @ inv(c_T_d)
+    link_T_iopt = link_T_dopt @ d_T_i
+    edges = [
+        ("camera_link", "camera_depth_frame", link_T_dframe),
+        ("camera_depth_frame", "camera_depth_optical_frame", OPTICAL),
+        ("camera_link", "camera_color_frame", link_T_copt @ inv(OPTICAL)),
+        ("camera_color_frame", "camera_color_optical_frame", OPTICAL),
+        ("camera_link", "camera_gyro_frame", link_T_iopt @ inv(OPTICAL)),
+        ("camera_gyro_frame", "camera_gyro_optical_frame", OPTICAL),
+        ("camera_gyro_frame", "camera_imu_optical_frame", OPTICAL),
+        ("camera_link", "camera_accel_frame", link_T_iopt @ inv(OPTICAL)),
+        ("camera_accel_frame", "camera_accel_optical_frame", OPTICAL),
+    ]
+    Stamped = T["geometry_msgs/msg/TransformStamped"]
+    msg = T["tf2_msgs/msg/TFMessage"](
+        transforms=[
+            Stamped(
+                header=header(T0_NS, parent),
+                child_frame_id=child,
+                transform=_transform(T, parent_T_child),
+            )
+            for parent, child, parent_T_child in edges
+        ]
+    )
+    add_role(T0_NS, "tf_static", msg.__msgtype__, msg)
+
+
+def add_raw(add_role, topic: str, msgtype: str, msg) -> None:
+    add_role(T0_NS, topic, msgtype, msg, literal=True)

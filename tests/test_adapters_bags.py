@@ -227,7 +227,7 @@ def test_wrapper_raw_depth_is_not_registered_to_colour() -> None:
 
 def test_wrong_message_type_is_named() -> None:
     topics = dict(SDK_TOPICS)
-    topics["/device_0/sensor_1/Color_0/image/data"] = "sensor_msgs/msg/CompressedImage"
+    topics["/device_0/sensor_1/Color_0/image/data"] = "sensor_msgs/msg/PointCloud2"
     with pytest.raises(ConversionError, match=r"Color_0/image/data \(color\) has message type"):
         resolve_topics(topics, BagConfig())
 

@@ -63,6 +63,8 @@ class ConversionReport:
     notes: list[str] = field(default_factory=list)
     #: The prosthesis log's clock offset (a ``clock_offset.ClockOffset``) when one was merged.
     clock_offset: Any = None
+    #: calibration name → {"source": "bag (topic…)" | "config" | "default", "value": …}
+    calibration: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def add(self, stream: StreamReport) -> StreamReport:
         self.streams.append(stream)
@@ -83,6 +85,7 @@ class ConversionReport:
             "streams": [s.to_dict() for s in self.streams],
             "notes": list(self.notes),
             **({"clock_offset": self.clock_offset.to_dict()} if self.clock_offset else {}),
+            "calibration": {k: dict(v) for k, v in self.calibration.items()},
         }
 
 

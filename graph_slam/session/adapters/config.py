@@ -71,6 +71,9 @@ class BagConfig(ConfigModel):
     depth_topic: str | None = None
     color_topic: str | None = None
     camera_info_topic: str | None = None
+    color_info_topic: str | None = Field(
+        None, description="the colour camera's CameraInfo (to register unaligned colour)"
+    )
     imu_topic: str | None = Field(None, description="combined sensor_msgs/Imu (gyro + accel)")
     accel_topic: str | None = None
     gyro_topic: str | None = None
@@ -93,6 +96,16 @@ class BagConfig(ConfigModel):
     )
     intrinsics: IntrinsicsConfig | None = Field(
         None, description="use these instead of the camera_info topic"
+    )
+    align_color: bool = Field(
+        True,
+        description="register unaligned colour to the depth image (needs the colour camera_info "
+        "and the depth→colour extrinsics); false: drop it, counted",
+    )
+    color_T_depth: Matrix4 | None = Field(
+        None,
+        description="depth camera → colour camera extrinsics (maps depth-frame points to the "
+        "colour frame); None: from the bag (SDK tf topics, /tf_static)",
     )
     stamps: Literal["header", "bag"] = Field(
         "header", description="message time: header.stamp, or the bag's receive time"

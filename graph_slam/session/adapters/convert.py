@@ -172,6 +172,7 @@ def apply_calibration(recording: Recording, config: ConvertConfig) -> Recording:
         )
     except RecordError as err:
         raise ConversionError(f"config section 'calibration': {err}") from None
+    _report_calibration_sources(recording, calibration, c)
     resolved = recording.resolved.model_copy(
         update={
             "calibration": c.model_copy(
@@ -185,6 +186,22 @@ def apply_calibration(recording: Recording, config: ConvertConfig) -> Recording:
         }
     )
     return replace(recording, calibration=calibration, resolved=resolved)
+
+
+def _report_calibration_sources(recording: Recording, calibration: Calibration, c) -> None:
+    """Say in the report which source won for each calibration value: the config (it
+    overrides), the source recording (e.g. a bag's extrinsics), or the default."""
+    entries = recording.report.calibration
+    for name in ("thigh_T_camera", "camera_T_imu", "imu_time_offset_s", "joints_time_offset_s"):
+        value = getattr(calibration, name)
+        value = value.tolist() if isinstance(value, np.ndarray) else value
+        if getattr(c, name) is not None:
+            overridden = entries.get(name, {}).get("source")
+            entries[name] = {"source": "config", "value": value}
+            if overridden:
+                entries[name]["overrides"] = overridden
+        elif name not in entries:
+            entries[name] = {"source": "default", "value": value}
 
 
 def write_recording(
