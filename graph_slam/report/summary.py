@@ -166,6 +166,13 @@ def summarise_session(session, results: dict, reference: Variant) -> dict:
     }
 
 
+def _short(reason: str | None, n: int = 100) -> str:
+    """A stop reason for a table (run.json keeps it whole)."""
+    if not reason:
+        return ""
+    return reason if len(reason) <= n else reason[: n - 1] + "…"
+
+
 def _fmt(x, spec: str = ".1f") -> str:
     return "–" if x is None else format(x, spec)
 
@@ -203,7 +210,7 @@ def _per_stride_table(variants: dict) -> list[str]:
             lines.append(
                 f"| {name} | {s['stride']} ({s['first_frame']}–{s['last_frame']}) | "
                 f"{s['frames']} | {s['registered']} | {s['partial']} | {s['bridged']} | "
-                f"{s['other']} | {s['stop_reason'] or ''} |"
+                f"{s['other']} | {_short(s['stop_reason'], 40)} |"
             )
     return [*lines, ""]
 
@@ -264,7 +271,7 @@ def run_markdown(summary: dict, cfg) -> str:
         if stops:
             lines += [
                 f"- {v}, stride {p['stride']}: frame {p['frame_index']} (t = {p['t_s']:.3f} s), "
-                f"{p['frames_without_pose']} frames without pose: {p['reason']}"
+                f"{p['frames_without_pose']} frames without pose: {_short(p['reason'])}"
                 for v, p in stops
             ]
         else:
