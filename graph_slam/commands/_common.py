@@ -1,4 +1,4 @@
-"""Shared helpers of the CLI commands: error mapping."""
+"""Shared helpers of the CLI commands: error mapping, progress."""
 
 from __future__ import annotations
 
@@ -23,8 +23,35 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     return 0
 
 
-def progress_bar(description: str):
-    """A rich progress bar on a terminal, silent otherwise; yields ``update(done, total)``.
+PLAIN_PROGRESS_EVERY_S = 5.0
+"""How often the plain progress line is printed when stderr is not a terminal (a log file, CI)."""
+
+
+def plain_progress(description: str, every_s: float = PLAIN_PROGRESS_EVERY_S, stream=None):
+    """``update(done, total)`` that prints ``description: done/total (pct %), elapsed`` to
+    ``stream`` (stderr) at most every ``every_s`` seconds, and always the last step."""
+    import time
+
+    t0 = time.monotonic()
+    last = -float("inf")
+
+    def update(done: int, total: int | None) -> None:
+        nonlocal last
+        now = time.monotonic()
+        finished = total is not None and done >= total
+        if now - last < every_s and not finished:
+            return
+        last = now
+        of = f"{done}/{total} ({100.0 * done / total:.0f} %)" if total else f"{done}"
+        print(f"{description}: {of}, {now - t0:.0f} s", file=stream or sys.stderr, flush=True)
+
+    return update
+
+
+def progress_bar(description: str, every_s: float = PLAIN_PROGRESS_EVERY_S):
+    """A rich progress bar on a terminal; otherwise a plain line every ``every_s`` seconds
+    (:func:`plain_progress`), so a long run in a log shows it is alive. Yields
+    ``update(done, total)``.
 
     Use as ``with progress_bar("rendering") as update: work(progress=update)``.
     """
@@ -41,15 +68,16 @@ def progress_bar(description: str):
 
     @contextmanager
     def _bar():
+        if not Console(stderr=True).is_terminal:
+            yield plain_progress(description, every_s)
+            return
         columns = (
             TextColumn("{task.description}"),
             BarColumn(),
             MofNCompleteColumn(),
             TimeRemainingColumn(),
         )
-        with Progress(
-            *columns, transient=True, disable=not Console(stderr=True).is_terminal
-        ) as progress:
+        with Progress(*columns, transient=True) as progress:
             task = progress.add_task(description, total=None)
             yield lambda done, total: progress.update(task, completed=done, total=total)
 

@@ -22,14 +22,17 @@ from graph_slam.session.plausibility import (
 )
 
 
-def preflight(sessions, variants: list[str], event_source: str | None) -> list[Finding]:
+def preflight(
+    sessions, variants: list[str], event_source: str | None, *, scoring: bool = True
+) -> list[Finding]:
     """Raise a :class:`SessionError` for the first fatal finding, or an
-    :class:`EvaluationError` when scoring needs evo and it is missing; return the caveats."""
+    :class:`EvaluationError` when scoring needs evo and it is missing (``scoring``: a session
+    has ground truth and will be scored; ``run`` never scores); return the caveats."""
     from graph_slam.evaluation._evo import require_evo
     from graph_slam.strides.online_events import ONLINE_SOURCE
     from graph_slam.strides.streams import stride_events
 
-    if any(s.ground_truth is not None for s in sessions):
+    if scoring and any(s.ground_truth is not None for s in sessions):
         require_evo()  # the optional extra, before minutes of work rather than after
     from_events = event_source != ONLINE_SOURCE
     found: list[Finding] = []
@@ -83,9 +86,10 @@ def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
     ]
 
 
-def _rejected(session, run) -> list[Finding]:
+def rejected_samples(session, results: dict) -> list[Finding]:
+    """Per variant: the IMU and encoder samples its pipeline rejected, by reason."""
     out = []
-    for variant, res in run.results.items():
+    for variant, res in results.items():
         bad = {
             k: v
             for k, v in res.counts.items()
@@ -101,7 +105,7 @@ def _rejected(session, run) -> list[Finding]:
 
 def run_warnings(session, run, event_source: str | None) -> list[Finding]:
     """Caveats only the run knows: strides dropped and why, samples rejected by reason."""
-    return _dropped_strides(session, run, event_source) + _rejected(session, run)
+    return _dropped_strides(session, run, event_source) + rejected_samples(session, run.results)
 
 
 def write_compare_config(cfg, path: Path) -> Path:

@@ -1,6 +1,8 @@
-"""``compare``: run the thesis baseline and the factor-graph variants on sessions, write a report.
+"""``compare``: ``run``'s variants on sessions, scored against their ground truth; a report.
 
-:func:`compare` reads as its steps. For every session (one walking speed each):
+:func:`compare` reads as its steps; step 1 and the recording's writer are shared with
+:func:`graph_slam.report.run.run` (which writes more per variant but scores nothing). For every
+session (one walking speed each):
 
 1. run every variant (``graph_slam.pipelines.run_session``): poses, and each stride's terrain
    maps from its online and smoothed poses;
@@ -19,15 +21,13 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from pydantic import Field, model_validator
 
-from graph_slam.config import ConfigModel
-from graph_slam.errors import EvaluationError
 from graph_slam.evaluation.boxes import collect_measurements, obstacle_accuracy
 from graph_slam.evaluation.report import (
     MapEvaluation,
@@ -40,29 +40,32 @@ from graph_slam.evaluation.report import (
 )
 from graph_slam.evaluation.tables import table_4_1, table_4_2, table_box_counts
 from graph_slam.evaluation.timing import timing_stats
-from graph_slam.pipelines import PipelineConfig
 from graph_slam.report.checks import preflight, run_warnings, write_compare_config
 from graph_slam.report.keys import Kind, MapSource, RunKey, run_keys
+from graph_slam.report.run import (
+    ProgressCallback,
+    RunSettings,
+    SessionSpec,
+    count_progress,
+    open_sessions,
+    run_variants,
+)
 from graph_slam.report.scoring import SessionRun, score_maps, score_session, stride_maps
 from graph_slam.session.atomic import atomic_folder, check_output
 from graph_slam.session.plausibility import Finding
-from graph_slam.variants import VARIANTS, Variant
+from graph_slam.variants import Variant
 
 log = logging.getLogger(__name__)
 
-ProgressCallback = Callable[[int, int], None]
 SPEED_CLASSES = ((0.95, "Slow"), (1.25, "Normal"), (float("inf"), "Fast"))
 """Walking speed label from the measured speed (m/s): below 0.95 slow, below 1.25 normal."""
 
 
-class CompareConfig(ConfigModel):
-    """What ``compare`` runs and how much it writes. The terrain maps (voxel size, depth range,
-    pixel step) are the pipeline's: ``pipeline.terrain``."""
+class CompareConfig(RunSettings):
+    """What ``compare`` runs (the variants, the pipeline and the recording: ``run``'s settings)
+    and how it scores and plots. The terrain maps (voxel size, depth range, pixel step) are the
+    pipeline's: ``pipeline.terrain``."""
 
-    variants: list[Variant] = Field(
-        default_factory=lambda: list(VARIANTS), min_length=1, description="variants to run"
-    )
-    pipeline: PipelineConfig = PipelineConfig()
     match_margin_m: float = Field(
         0.05,
         gt=0,
@@ -71,11 +74,6 @@ class CompareConfig(ConfigModel):
     )
     truth_map: bool = Field(
         True, description="also fuse each stride with the true poses (mapping-only accuracy)"
-    )
-    rrd: bool = Field(True, description="write recording.rrd (rerun)")
-    rrd_frame_step: int = Field(3, ge=1, description="log every n-th frame's images to the .rrd")
-    rrd_image_step: int = Field(
-        2, ge=1, le=8, description="subsample the .rrd's depth/colour images by this factor"
     )
     plot_maps_per_session: int = Field(
         1,
@@ -102,14 +100,6 @@ class CompareConfig(ConfigModel):
                 f"(Table 4.1); add 'smoothed' (got {list(terrain.poses)})"
             )
         return self
-
-
-@dataclass(frozen=True)
-class SessionSpec:
-    """A session folder and, optionally, its walking-speed label (else from the ground truth)."""
-
-    path: Path
-    speed: str | None = None
 
 
 @dataclass
@@ -200,7 +190,7 @@ def compare(
 
     t_start = time.perf_counter()
     cfg = config or CompareConfig()
-    specs, opened = _open_sessions(sessions)
+    specs, opened = open_sessions(sessions, "compare")
     out = check_output(out, overwrite=overwrite)
     warnings = preflight(opened, [str(v) for v in cfg.variants], cfg.pipeline.event_source)
     with atomic_folder(out, overwrite=overwrite) as tmp:
@@ -216,7 +206,7 @@ def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnin
     from graph_slam.report import views
 
     files: list[Path] = [write_compare_config(cfg, tmp / "config.yaml")]
-    tick = _progress(progress, sum(len(cfg.variants) * s.n_frames for s in opened))
+    tick = count_progress(progress, sum(len(cfg.variants) * s.n_frames for s in opened))
     study = _Study.empty(cfg)
     logger = views.make_logger(tmp / "recording.rrd" if cfg.rrd else None)
     t_offset = 0.0
@@ -252,36 +242,10 @@ def _relocate(report: CompareReport, tmp: Path, out: Path) -> None:
     report.files = [out / f.relative_to(tmp) for f in report.files]
 
 
-def _open_sessions(sessions):
-    """Open every session first: a bad one stops the run before any work."""
-    from graph_slam.session import open_session
-
-    specs = [s if isinstance(s, SessionSpec) else SessionSpec(Path(s)) for s in sessions]
-    if not specs:
-        raise EvaluationError("compare: no session given")
-    return specs, [open_session(s.path) for s in specs]
-
-
-def _progress(progress: ProgressCallback | None, total: int) -> ProgressCallback:
-    done = 0
-
-    def tick(_: int, __: int) -> None:
-        nonlocal done
-        done += 1
-        if progress is not None:
-            progress(done, total)
-
-    return tick
-
-
 def _run_variants(session, label: str, cfg: CompareConfig, tick, first_stride: int) -> SessionRun:
-    """Step 1 and 2: every variant's results, and the references (none without ground truth)."""
-    from graph_slam.pipelines import run_session
-
-    results = {}
-    for v in cfg.variants:
-        pcfg = PipelineConfig.model_validate({**cfg.pipeline.model_dump(), "variant": v})
-        results[Variant(v)] = run_session(session, pcfg, progress=tick)
+    """Step 1 (``run``'s) and 2: every variant's results, and the references (none without
+    ground truth)."""
+    results = run_variants(session, cfg.variants, cfg.pipeline, tick)
     return SessionRun.build(session, label, results, cfg.pipeline, first_stride)
 
 

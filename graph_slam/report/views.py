@@ -13,6 +13,7 @@ from graph_slam.terrain.builder import scaled_intrinsics
 from graph_slam.viz.rerun_logger import MAP
 
 __all__ = [
+    "log_run",
     "make_logger",
     "write_maps_and_views",
     "write_plots",
@@ -65,7 +66,7 @@ def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]
         tag_stride = f"{run.session.name}_s{run.global_index(k):02d}"
         title = f"{run.label} stride {k + 1} ({run.session.name})"
         if cfg.rrd:
-            _log_frames(run, ref, primary, cfg, logger, t0_s, run.global_index(k))
+            _log_frames(run.session, ref, primary, cfg, logger, t0_s, run.global_index(k))
         truth_boxes = truth_boxes_in_stride(scene, ref.world_T_stride) if scene is not None else []
         for source, smap in run.maps[k].items():
             fused = smap.fused
@@ -103,20 +104,46 @@ def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]
     return files
 
 
-def _log_frames(run, ref, primary, cfg, logger, t0_s: float, stride: int) -> None:
-    """Every ``rrd_frame_step``-th frame's images at the main variant's smoothed pose."""
+def _log_frames(session, stride_, primary, cfg, logger, t0_s: float, stride: int) -> None:
+    """Every ``rrd_frame_step``-th frame of ``stride_`` (a reference or a pipeline's stride:
+    its ``frame_indices`` and ``world_T_stride``), images at the main variant's smoothed pose."""
     step = cfg.rrd_image_step
-    intr = scaled_intrinsics(run.session.intrinsics, step)
-    for i in ref.frame_indices[:: cfg.rrd_frame_step]:
-        frame = run.session.frame(int(i))
+    intr = scaled_intrinsics(session.intrinsics, step)
+    for i in list(stride_.frame_indices)[:: cfg.rrd_frame_step]:
+        frame = session.frame(int(i))
         logger.set_time(stride, t0_s + float(frame.t_s))
-        logger.log_stride(ref.world_T_stride)
+        logger.log_stride(stride_.world_T_stride)
         logger.log_camera(
             primary.smoothed_stride_T_camera[i],
             intr,
             frame.depth_m[::step, ::step],
             None if frame.color_rgb is None else frame.color_rgb[::step, ::step],
         )
+
+
+def log_run(session, results: dict, cfg, logger, t0_s: float) -> None:
+    """``run``'s recording of one session: per stride of the main (last) variant, its frames'
+    images, its smoothed map and obstacles, and every variant's smoothed positions in it."""
+    primary = results[list(results)[-1]]
+    for s in primary.strides:
+        idx = [int(i) for i in s.frame_indices]
+        if not idx:
+            continue
+        _log_frames(session, s, primary, cfg, logger, t0_s, s.index)
+        logger.set_time(s.index, t0_s + float(primary.frames[idx[-1]].t_s))
+        logger.log_stride(s.world_T_stride)
+        smap = None if s.terrain is None else s.terrain.smoothed or s.terrain.online
+        if smap is not None and len(smap.fused):
+            logger.log_cloud(smap.fused.points_m, smap.fused.colors_rgb, entity=MAP)
+            if smap.obstacles is not None:
+                logger.log_obstacles(
+                    smap.obstacles.obstacles, smap.obstacles.floor.floor_T_stride()
+                )
+        for v, res in results.items():
+            poses = res.smoothed_stride_T_camera[idx]
+            keep = np.isfinite(poses).all(axis=(1, 2))
+            if keep.any():
+                logger.log_trajectory(v, poses[keep][:, :3, 3])
 
 
 def _map_plots(out: Path, source: MapSource, smap, tag_stride: str, title: str, truth_boxes):

@@ -1,0 +1,226 @@
+"""``run``: every requested variant on recordings with or without ground truth; write what came out.
+
+:func:`run` reads as its steps. Before any work: every session opens, the output folder can be
+written (replaced only with ``overwrite`` when graph-slam wrote it) and the plausibility checks
+(:func:`graph_slam.report.checks.preflight`) find nothing that makes the run meaningless. Then,
+into a temporary sibling renamed on success (:mod:`graph_slam.session.atomic`):
+
+1. run every variant on every session (:func:`run_variants`, ``graph_slam.pipelines.
+   run_session``);
+2. write each variant's artefacts (:mod:`.artefacts`): trajectories, per-stride maps, elevation
+   grids and obstacles, per-frame flags and timing;
+3. say what can be said without ground truth (:mod:`.summary`): frames registered / partial /
+   bridged per stride, the baseline's stop points, timing, the variants' agreement;
+4. the rerun recording, ``config.yaml``, ``run.json`` and ``report.md``.
+
+``compare`` (:mod:`.compare`) is steps 1 and 4 of this module plus the scoring against ground
+truth; it shares :func:`open_sessions`, :func:`count_progress` and :func:`run_variants`. The
+output layout is documented in docs/run.md.
+
+    from graph_slam.report import RunConfig, run
+    report = run(["runs/walk"], "runs/walk_out", RunConfig(variants=["icp", "icp+imu+kin"]))
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field
+
+from graph_slam.config import ConfigModel
+from graph_slam.errors import EvaluationError
+from graph_slam.pipelines import PipelineConfig
+from graph_slam.session.atomic import atomic_folder, check_output
+from graph_slam.session.plausibility import Finding
+from graph_slam.variants import VARIANTS, Variant
+
+ProgressCallback = Callable[[int, int], None]
+"""Called after every frame of every variant with (frames done, frames in total)."""
+
+
+class RunSettings(ConfigModel):
+    """What every application that runs the variants shares: the variants, the pipeline and the
+    rerun recording."""
+
+    variants: list[Variant] = Field(
+        default_factory=lambda: list(VARIANTS), min_length=1, description="variants to run"
+    )
+    pipeline: PipelineConfig = PipelineConfig()
+    rrd: bool = Field(True, description="write recording.rrd (rerun)")
+    rrd_frame_step: int = Field(3, ge=1, description="log every n-th frame's images to the .rrd")
+    rrd_image_step: int = Field(
+        2, ge=1, le=8, description="subsample the .rrd's depth/colour images by this factor"
+    )
+
+
+class RunConfig(RunSettings):
+    """What ``run`` runs and writes (docs/run.md)."""
+
+    kitti: bool = Field(
+        False, description="also write KITTI trajectories (12 numbers a line) and their times"
+    )
+    map_dtype: Literal["float32", "float64"] = Field(
+        "float32", description="PLY coordinate type of the stride maps"
+    )
+    reference: Variant | None = Field(
+        None,
+        description="the variant the others are compared with (agreement); None: icp+imu+kin "
+        "when it runs, else the last variant",
+    )
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """A session folder and, optionally, its walking-speed label (else from the ground truth)."""
+
+    path: Path
+    speed: str | None = None
+
+
+@dataclass
+class RunReport:
+    """What :func:`run` wrote and found; ``summary`` is ``run.json``'s content."""
+
+    out: Path
+    sessions: list[str]
+    summary: dict
+    files: list[Path] = field(default_factory=list)
+    wall_s: float = 0.0
+    warnings: list[Finding] = field(default_factory=list)
+
+
+def open_sessions(sessions: Sequence[str | Path | SessionSpec], command: str = "run"):
+    """Open every session first: a bad one stops the run before any work."""
+    from graph_slam.session import open_session
+
+    specs = [s if isinstance(s, SessionSpec) else SessionSpec(Path(s)) for s in sessions]
+    if not specs:
+        raise EvaluationError(f"{command}: no session given")
+    return specs, [open_session(s.path) for s in specs]
+
+
+def count_progress(progress: ProgressCallback | None, total: int) -> ProgressCallback:
+    """A per-frame callback that counts frames over every variant and session."""
+    done = 0
+
+    def tick(_: int, __: int) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    return tick
+
+
+def run_variants(session, variants, pipeline: PipelineConfig, tick) -> dict:
+    """Step 1: every variant's :class:`~graph_slam.pipelines.PipelineResults` on ``session``."""
+    from graph_slam.pipelines import run_session
+
+    results = {}
+    for v in variants:
+        pcfg = PipelineConfig.model_validate({**pipeline.model_dump(), "variant": v})
+        results[Variant(v)] = run_session(session, pcfg, progress=tick)
+    return results
+
+
+def reference_variant(cfg: RunConfig) -> Variant:
+    """The variant the others are compared with."""
+    variants = [Variant(v) for v in cfg.variants]
+    if cfg.reference is not None:
+        if Variant(cfg.reference) not in variants:
+            from graph_slam.errors import ConfigError
+
+            raise ConfigError(
+                f"field 'reference': {cfg.reference} is not among the variants "
+                f"({', '.join(map(str, variants))})"
+            )
+        return Variant(cfg.reference)
+    return Variant.ICP_IMU_KIN if Variant.ICP_IMU_KIN in variants else variants[-1]
+
+
+def _check_names(opened) -> None:
+    names = [s.name for s in opened]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise EvaluationError(
+            f"run: sessions named {', '.join(twice)} more than once; their outputs would share "
+            "a folder (rename one session folder)"
+        )
+
+
+def run(
+    sessions: Sequence[str | Path | SessionSpec],
+    out: str | Path,
+    config: RunConfig | None = None,
+    progress: ProgressCallback | None = None,
+    *,
+    overwrite: bool = False,
+) -> RunReport:
+    """Run every variant on every session and write the output folder ``out`` (docs/run.md)."""
+    from graph_slam.report.checks import preflight
+
+    t_start = time.perf_counter()
+    cfg = config or RunConfig()
+    reference = reference_variant(cfg)
+    _, opened = open_sessions(sessions)
+    _check_names(opened)
+    out = check_output(out, overwrite=overwrite)
+    variants = [str(v) for v in cfg.variants]
+    warnings = preflight(opened, variants, cfg.pipeline.event_source, scoring=False)
+    with atomic_folder(out, overwrite=overwrite) as tmp:
+        report = _write_run(tmp, opened, cfg, reference, progress, warnings)
+        report.wall_s = time.perf_counter() - t_start
+        report.summary["wall_s"] = report.wall_s
+        report.files += _write_documents(tmp, report, cfg)
+        report.out = out
+        report.files = [out / f.relative_to(tmp) for f in report.files]
+    return report
+
+
+def _write_run(tmp: Path, opened, cfg: RunConfig, reference, progress, warnings) -> RunReport:
+    """Steps 1-3 for every session, and the rerun recording, into ``tmp``."""
+    from graph_slam.report import views
+    from graph_slam.report.artefacts import write_variant
+    from graph_slam.report.checks import rejected_samples, write_compare_config
+    from graph_slam.report.summary import summarise_session
+
+    files = [write_compare_config(cfg, tmp / "config.yaml")]
+    tick = count_progress(progress, sum(len(cfg.variants) * s.n_frames for s in opened))
+    logger = views.make_logger(tmp / "recording.rrd" if cfg.rrd else None)
+    sessions: dict[str, dict] = {}
+    t_offset = 0.0
+    for session in opened:
+        results = run_variants(session, cfg.variants, cfg.pipeline, tick)
+        warnings += rejected_samples(session, results)
+        for variant, res in results.items():
+            files += write_variant(tmp / session.name / variant.tag, res, cfg)
+        sessions[session.name] = summarise_session(session, results, reference)
+        if cfg.rrd:
+            views.log_run(session, results, cfg, logger, t_offset)
+        t_offset += float(session.frame_times_s[-1]) + 1.0 if session.n_frames else 0.0
+    logger.close()
+    files += [tmp / "recording.rrd"] if cfg.rrd else []
+    summary = {
+        "variants": [str(v) for v in cfg.variants],
+        "reference": str(reference),
+        "sessions": sessions,
+        "warnings": [w.to_dict() for w in warnings],
+    }
+    return RunReport(tmp, list(sessions), summary, files, warnings=warnings)
+
+
+def _write_documents(tmp: Path, report: RunReport, cfg: RunConfig) -> list[Path]:
+    """``run.json`` and ``report.md``."""
+    import json
+
+    from graph_slam.report.summary import run_markdown
+
+    (tmp / "run.json").write_text(
+        json.dumps(report.summary, indent=1, allow_nan=False), encoding="utf-8"
+    )
+    (tmp / "report.md").write_text(run_markdown(report.summary, cfg), encoding="utf-8")
+    return [tmp / "run.json", tmp / "report.md"]
