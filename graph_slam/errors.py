@@ -151,3 +151,8 @@ def library_errors() -> tuple[type[Exception], ...]:
 
 class OutputError(GraphSlamError):
     """An output folder cannot be written or replaced (a file, a user's folder, no permission)."""
+
+
+class BatchError(GraphSlamError):
+    """A batch study (``graph-slam batch``) cannot start: its optional extra is missing, the
+    scheduler cannot be reached, or its output folder is not one it wrote."""

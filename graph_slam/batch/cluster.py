@@ -1,0 +1,117 @@
+"""The Dask side of a batch: a local cluster sized to the machine, or a scheduler's address.
+
+Only this module and :mod:`graph_slam.batch.run` import Dask, and only when a batch starts;
+the estimator never does. Workers run with one BLAS/OpenMP thread per Dask thread
+(:data:`WORKER_ENV`), so Open3D and numpy do not oversubscribe the cores.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from graph_slam.errors import BatchError
+
+INSTALL_HINT = "graph-slam batch needs the optional extra: pip install 'graph_slam[batch]'"
+WORKER_ENV = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMEXPR_NUM_THREADS": "1",
+    "MPLBACKEND": "Agg",
+}
+"""Set in every local worker before it starts (remote workers: see docs/batch.md)."""
+
+
+def require_dask() -> None:
+    """A clear error, before any work, when dask.distributed is not installed."""
+    if importlib.util.find_spec("distributed") is None or importlib.util.find_spec("dask") is None:
+        raise BatchError(INSTALL_HINT)
+
+
+def has_bokeh() -> bool:
+    """The dashboard needs bokeh (optional: without it there is no dashboard)."""
+    return importlib.util.find_spec("bokeh") is not None
+
+
+@dataclass(frozen=True)
+class ClusterInfo:
+    """What the batch runs on, for the user: a description and the dashboard (or why none)."""
+
+    description: str
+    dashboard: str
+
+
+def default_workers(threads_per_worker: int) -> int:
+    """Workers of a local cluster sized to the machine: usable cores / threads per worker."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, (cores or 1) // threads_per_worker)
+
+
+@contextmanager
+def open_client(
+    scheduler: str | None,
+    *,
+    workers: int | None,
+    threads_per_worker: int,
+    memory_limit: str,
+    retries: int,
+) -> Iterator[tuple[object, ClusterInfo]]:
+    """A ``distributed.Client`` on a new local cluster (no ``scheduler``) or on ``scheduler``.
+
+    ``retries`` is also the scheduler's ``allowed-failures`` (a task whose worker died is
+    re-run that many times, then fails with ``KilledWorker``); on a remote scheduler that
+    setting is the scheduler's own (docs/batch.md). Workers get at most as many tasks as
+    threads (``worker-saturation`` 1.0), so one crash does not take queued tasks with it.
+    """
+    require_dask()
+    import dask
+    from distributed import Client, LocalCluster
+
+    settings = {
+        "distributed.scheduler.allowed-failures": retries,
+        "distributed.scheduler.worker-saturation": 1.0,
+        "distributed.worker.daemon": False,
+    }
+    with dask.config.set(settings):
+        if scheduler is not None:
+            try:
+                client = Client(scheduler, timeout="20s")
+            except (OSError, TimeoutError) as err:
+                raise BatchError(f"--scheduler {scheduler}: cannot connect ({err})") from None
+            n = len(client.scheduler_info().get("workers", {}))
+            info = ClusterInfo(f"scheduler {scheduler} ({n} workers now)", _dashboard(client))
+            try:
+                yield client, info
+            finally:
+                client.close()
+            return
+        n_workers = workers or default_workers(threads_per_worker)
+        cluster = LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=threads_per_worker,
+            processes=True,
+            memory_limit=memory_limit,
+            dashboard_address=":0" if has_bokeh() else None,
+            env=WORKER_ENV,
+        )
+        client = Client(cluster)
+        info = ClusterInfo(
+            f"local cluster: {n_workers} worker(s) × {threads_per_worker} thread(s), "
+            f"memory limit {memory_limit} each",
+            _dashboard(client),
+        )
+        try:
+            yield client, info
+        finally:
+            client.close()
+            cluster.close()
+
+
+def _dashboard(client) -> str:
+    if not has_bokeh():
+        return "none (install bokeh for the Dask dashboard)"
+    return client.dashboard_link or "none"

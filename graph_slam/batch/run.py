@@ -1,0 +1,159 @@
+"""``run_batch``: plan the grid, skip what is finished, run the rest on Dask, pool the report.
+
+Its steps:
+
+1. load and check the spec (:func:`~graph_slam.batch.spec.load_spec`) and the output folder —
+   every bad input stops here, before a worker starts;
+2. plan the tasks and their input hashes; a task whose folder holds ``done`` with the same hash
+   is skipped (a re-run after Ctrl-C resumes);
+3. submit the rest to the cluster, one Dask task each, and record every outcome as it comes
+   (done, a typed error, a bug's traceback after ``retries``, ``KilledWorker`` after as many
+   worker deaths);
+4. write the pooled report (:mod:`graph_slam.batch.pool`) over every finished task.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from graph_slam.batch.spec import ResolvedSpec, load_spec
+from graph_slam.batch.tasks import (
+    DONE,
+    FAILED,
+    SKIPPED,
+    Task,
+    execute_task,
+    is_finished,
+    plan_tasks,
+    read_state,
+    write_state,
+)
+
+TaskCallback = Callable[[Task, dict[str, Any], int, int], None]
+"""Called as ``(task, state, finished so far, to run)`` when a task ends."""
+ClusterCallback = Callable[[Any], None]
+"""Called with the :class:`~graph_slam.batch.cluster.ClusterInfo` once the cluster is up."""
+
+
+@dataclass
+class ClusterOptions:
+    """Command-line overrides of the spec's ``cluster:`` (None: the spec's value)."""
+
+    scheduler: str | None = None
+    workers: int | None = None
+    threads_per_worker: int | None = None
+    memory_limit: str | None = None
+
+
+@dataclass
+class BatchResult:
+    """What a batch did: every task's state, the pooled report's files, the wall time."""
+
+    out: Path
+    states: dict[str, dict[str, Any]]
+    files: list[Path] = field(default_factory=list)
+    wall_s: float = 0.0
+    cluster: str = ""
+
+    def count(self, status: str) -> int:
+        return sum(s["status"] == status for s in self.states.values())
+
+    @property
+    def ok(self) -> bool:
+        return self.count(FAILED) == 0
+
+
+def run_batch(
+    spec_path: str | Path,
+    out: str | Path,
+    options: ClusterOptions | None = None,
+    on_task: TaskCallback | None = None,
+    on_cluster: ClusterCallback | None = None,
+) -> BatchResult:
+    """Run the study ``spec_path`` into ``out`` (created, or resumed when batch wrote it)."""
+    from graph_slam.batch.cluster import require_dask
+    from graph_slam.batch.pool_report import write_pooled_report
+    from graph_slam.session.atomic import check_output, mark_folder
+
+    t0 = time.perf_counter()
+    options = options or ClusterOptions()
+    require_dask()
+    resolved = load_spec(spec_path)
+    out = check_output(out, overwrite=True)
+    mark_folder(out)
+    tasks = plan_tasks(resolved, out)
+    states: dict[str, dict[str, Any]] = {}
+    pending = []
+    for task in tasks:
+        if is_finished(task):
+            states[task.id] = {**(read_state(task) or {}), "status": DONE, "this_run": SKIPPED}
+        else:
+            pending.append(task)
+    result = BatchResult(out, states)
+    if pending:
+        result.cluster = _run_pending(resolved, pending, options, states, on_task, on_cluster)
+    result.files = write_pooled_report(out, resolved, tasks, states)
+    result.wall_s = time.perf_counter() - t0
+    return result
+
+
+def _run_pending(
+    resolved: ResolvedSpec,
+    pending: list[Task],
+    options: ClusterOptions,
+    states: dict[str, dict[str, Any]],
+    on_task: TaskCallback | None,
+    on_cluster: ClusterCallback | None,
+) -> str:
+    """Step 3: submit, then record each outcome as it arrives (in the order they finish)."""
+    from distributed import as_completed
+
+    from graph_slam.batch.cluster import open_client
+
+    spec_cluster = resolved.spec.cluster
+    retries = resolved.spec.retries
+    with open_client(
+        options.scheduler,
+        workers=options.workers or spec_cluster.workers,
+        threads_per_worker=options.threads_per_worker or spec_cluster.threads_per_worker,
+        memory_limit=options.memory_limit or spec_cluster.memory_limit,
+        retries=retries,
+    ) as (client, info):
+        if on_cluster is not None:
+            on_cluster(info)
+        by_key = {}
+        for task in pending:
+            future = client.submit(
+                execute_task, task, key=f"graph-slam-{task.id}", retries=retries, pure=False
+            )
+            by_key[future.key] = (task, future)
+        for n, future in enumerate(as_completed([f for _, f in by_key.values()]), start=1):
+            task = by_key[future.key][0]
+            state = _outcome(task, future, retries)
+            states[task.id] = {**state, "this_run": state["status"]}
+            if on_task is not None:
+                on_task(task, state, n, len(pending))
+        return info.description
+
+
+def _outcome(task: Task, future, retries: int) -> dict[str, Any]:
+    """The task's state: what the worker wrote, or the exception Dask gave back."""
+    import traceback
+
+    if future.status == "finished":
+        return future.result()
+    err = future.exception()
+    name = type(err).__name__
+    if name == "KilledWorker":
+        reason = (
+            f"KilledWorker: the task's worker died {retries + 1} time(s) (native crash, "
+            "out of memory or killed); see the worker logs"
+        )
+    else:
+        tb = "".join(traceback.format_exception(err, value=err, tb=future.traceback()))
+        reason = f"{name}: {err} (a bug, after {retries + 1} attempt(s))\n{tb}"
+    return write_state(task, FAILED, error=reason, attempts=retries + 1)
