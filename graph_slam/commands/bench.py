@@ -275,6 +275,7 @@ def calibration_bench(
     from graph_slam.bench.registration import default_tum_folder, read_tum_sample, session_dataset
     from graph_slam.frontend.config import realtime_registration
     from graph_slam.pipelines.config import PipelineConfig
+    from graph_slam.pipelines.protocol import sensor_registration
 
     datasets = [session_dataset(p, stop=pairs + 1) for p in sessions or ()]
     folder = tum or default_tum_folder()
@@ -283,7 +284,10 @@ def calibration_bench(
     presets = {"accurate": PipelineConfig().graph.registration, "realtime": realtime_registration()}
     for data in datasets:
         typer.echo(data.name)
-        for name, config in presets.items():
+        has_color = all(f.color_rgb is not None for f in data.frames)
+        for name, preset in presets.items():
+            # depth only: point-to-plane with the graph's depth-only settings
+            config = sensor_registration(preset, has_color, PipelineConfig().graph.depth_only)
             typer.echo(chi2_of_pairs(data, config, name=name).line())
 
 
