@@ -244,6 +244,13 @@ def scenarios_bench(
     ] = None,
     strides: Annotated[int, typer.Option(help="Strides simulated per scenario.")] = 2,
     seed: Annotated[int, typer.Option(help="Simulator seed.")] = 3,
+    speeds: Annotated[
+        str | None,
+        typer.Option(
+            help="Comma-separated walking speeds (slow,normal,fast): every scenario at each "
+            "(default: each scenario's own)."
+        ),
+    ] = None,
 ) -> None:
     """Issue 20: a fixed list of scenes and conditions (flat floor and box course with and
     without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered
@@ -254,8 +261,9 @@ def scenarios_bench(
     known = {s.name for s in sc.SCENARIOS}
     if names and (unknown := [n for n in names if n not in known]):
         raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(sorted(known))}")
+    chosen = None if speeds is None else tuple(v.strip() for v in speeds.split(",") if v.strip())
     typer.echo(sc.HEADER)
-    sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()))
+    sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()), speeds=chosen)
 
 
 @bench_app.command("calibration")
