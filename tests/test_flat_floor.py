@@ -48,3 +48,18 @@ def test_report_counts_registered_partial_and_bridged_apart(flat_run) -> None:
     flags = [fl for f in results.frames for fl in f.flags if fl.startswith("icp:partial")]
     assert set(flags) == {"icp:partial (3 DoF)"}
     assert np.isfinite(results.smoothed_stride_T_camera[:, 0, 0]).all()
+
+
+def test_scenarios_at_speeds_are_expanded_and_checked() -> None:
+    from graph_slam.bench.scenarios import at_speeds
+    from graph_slam.errors import ConfigError
+
+    pico = [s for s in SCENARIOS if s.name == "boxes-pico-flexx"]
+    out = at_speeds(pico, ("slow", "fast"))
+    assert [(s.name, s.speed, s.camera) for s in out] == [
+        ("boxes-pico-flexx@slow", "slow", "pico_flexx"),
+        ("boxes-pico-flexx@fast", "fast", "pico_flexx"),
+    ]
+    assert at_speeds(pico, None) == pico
+    with pytest.raises(ConfigError, match="walk"):
+        at_speeds(pico, ("walk",))

@@ -12,7 +12,7 @@ not in the true stride frame) beside them. Figures: docs/benchmarks.md ("Scenari
 from __future__ import annotations
 
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +64,7 @@ class ScenarioScore:
             return "-" if values.size == 0 else f"{np.median(values):.1f}/{values.max():.1f}"
 
         return (
-            f"{self.name:20s} {self.with_pose:4d}/{self.frames:<4d} {self.registered:4d} "
+            f"{self.name:24s} {self.with_pose:4d}/{self.frames:<4d} {self.registered:4d} "
             f"{self.partial:4d} {self.bridged:4d} {self.wrong_registered:4d}   "
             f"{stat(self.smoothed_mm):>11s} {stat(self.online_mm):>11s}   "
             f"{self.baseline_registered:4d} {stat(self.baseline_mm):>13s}"
@@ -72,9 +72,9 @@ class ScenarioScore:
 
 
 HEADER = (
-    f"{'scenario':20s} {'posed':>9s} {'reg':>4s} {'part':>4s} {'brid':>4s} {'wrong':>4s}   "
+    f"{'scenario':24s} {'posed':>9s} {'reg':>4s} {'part':>4s} {'brid':>4s} {'wrong':>4s}   "
     f"{'smoothed mm':>11s} {'online mm':>11s}   {'base':>4s} {'baseline mm':>13s}\n"
-    f"{'':20s} {'':9s} {'(6)':>4s} {'(k)':>4s} {'(0)':>4s} {'>2cm':>4s}   "
+    f"{'':24s} {'':9s} {'(6)':>4s} {'(k)':>4s} {'(0)':>4s} {'>2cm':>4s}   "
     f"{'med/worst':>11s} {'med/worst':>11s}   {'reg':>4s} {'aligned m/w':>13s}"
 )
 
@@ -188,11 +188,28 @@ def _aligned_rmse_m(ref, poses: np.ndarray) -> float:
     return float(metrics.rmse_aligned_m)
 
 
+def at_speeds(scenarios, speeds: tuple[str, ...] | None) -> list[Scenario]:
+    """Every scenario at each of ``speeds`` (named ``<name>@<speed>``); None: as listed."""
+    from graph_slam.errors import ConfigError
+    from graph_slam.sim import SPEEDS_M_S
+
+    if speeds is None:
+        return list(scenarios)
+    if unknown := [v for v in speeds if v not in SPEEDS_M_S]:
+        raise ConfigError(f"speeds: unknown {unknown}; choose from {', '.join(SPEEDS_M_S)}")
+    return [replace(s, name=f"{s.name}@{v}", speed=v) for s in scenarios for v in speeds]
+
+
 def run_scenarios(
-    names: tuple[str, ...] | None = None, strides: int = 2, seed: int = 3, on_score=None
+    names: tuple[str, ...] | None = None,
+    strides: int = 2,
+    seed: int = 3,
+    on_score=None,
+    speeds: tuple[str, ...] | None = None,
 ) -> list[ScenarioScore]:
-    """Simulate and score every scenario (or those named); ``on_score`` as each finishes."""
-    chosen = [s for s in SCENARIOS if names is None or s.name in names]
+    """Simulate and score every scenario (or those named), at each of ``speeds`` when given;
+    ``on_score`` as each finishes."""
+    chosen = at_speeds([s for s in SCENARIOS if names is None or s.name in names], speeds)
     scores = []
     with tempfile.TemporaryDirectory() as tmp:
         for scenario in chosen:

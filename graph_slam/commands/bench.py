@@ -244,6 +244,13 @@ def scenarios_bench(
     ] = None,
     strides: Annotated[int, typer.Option(help="Strides simulated per scenario.")] = 2,
     seed: Annotated[int, typer.Option(help="Simulator seed.")] = 3,
+    speeds: Annotated[
+        str | None,
+        typer.Option(
+            help="Comma-separated walking speeds (slow,normal,fast): every scenario at each "
+            "(default: each scenario's own)."
+        ),
+    ] = None,
 ) -> None:
     """Issue 20: a fixed list of scenes and conditions (flat floor and box course with and
     without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered
@@ -254,8 +261,9 @@ def scenarios_bench(
     known = {s.name for s in sc.SCENARIOS}
     if names and (unknown := [n for n in names if n not in known]):
         raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(sorted(known))}")
+    chosen = None if speeds is None else tuple(v.strip() for v in speeds.split(",") if v.strip())
     typer.echo(sc.HEADER)
-    sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()))
+    sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()), speeds=chosen)
 
 
 @bench_app.command("calibration")
@@ -275,6 +283,7 @@ def calibration_bench(
     from graph_slam.bench.registration import default_tum_folder, read_tum_sample, session_dataset
     from graph_slam.frontend.config import realtime_registration
     from graph_slam.pipelines.config import PipelineConfig
+    from graph_slam.pipelines.protocol import sensor_registration
 
     datasets = [session_dataset(p, stop=pairs + 1) for p in sessions or ()]
     folder = tum or default_tum_folder()
@@ -283,7 +292,10 @@ def calibration_bench(
     presets = {"accurate": PipelineConfig().graph.registration, "realtime": realtime_registration()}
     for data in datasets:
         typer.echo(data.name)
-        for name, config in presets.items():
+        has_color = all(f.color_rgb is not None for f in data.frames)
+        for name, preset in presets.items():
+            # depth only: point-to-plane with the graph's depth-only settings
+            config = sensor_registration(preset, has_color, PipelineConfig().graph.depth_only)
             typer.echo(chi2_of_pairs(data, config, name=name).line())
 
 

@@ -11,6 +11,7 @@ from graph_slam.config import ConfigModel
 from graph_slam.frontend.config import (
     THESIS_LEVELS,
     CloudConfig,
+    DepthOnlyConfig,
     GicpConfig,
     LevelConfig,
     ProjectiveConfig,
@@ -133,6 +134,12 @@ class GraphFrontendConfig(ConfigModel):
     floor: FloorConfig = Field(
         default_factory=FloorConfig,
         description="the floor plane in the stride's first frame, fused into the anchor's tilt",
+    )
+    depth_only: DepthOnlyConfig | None = Field(
+        default_factory=DepthOnlyConfig,
+        description="a session without colour: point-to-plane with these settings in place of "
+        "the RGB-D ones (Open3D registration; docs/frontend.md, 'Depth-only sensors'); None: "
+        "point-to-plane with the registration's own settings",
     )
 
     @field_validator("registration", mode="before")

@@ -95,7 +95,9 @@ class GraphPipeline:
         self.variant = config.variant
         self.intrinsics = intrinsics
         self.use_icp = config.backend.factors["icp"]
-        self.registration = sensor_registration(config.graph.registration, has_color)
+        self.registration = sensor_registration(
+            config.graph.registration, has_color, config.graph.depth_only
+        )
         self.has_color = has_color
         self.imu_guess = self._imu_guess_for(config)
         self.camera_T_imu = np.asarray(camera_T_imu, float)

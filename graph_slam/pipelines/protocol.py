@@ -7,18 +7,24 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from graph_slam.frontend.config import CloudConfig, RegistrationConfig
+from graph_slam.frontend.config import CloudConfig, DepthOnlyConfig, RegistrationConfig
 from graph_slam.pipelines.results import FrameOutput, PipelineResults
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.variants import Variant
 
 
-def sensor_registration(reg: RegistrationConfig, has_color: bool) -> RegistrationConfig:
+def sensor_registration(
+    reg: RegistrationConfig, has_color: bool, depth_only: DepthOnlyConfig | None = None
+) -> RegistrationConfig:
     """``reg`` for the session's camera: colored ICP falls back to point-to-plane without
-    colour (a depth-only sensor such as the Pico Flexx)."""
-    if not has_color and reg.method == "colored":
-        return reg.model_copy(update={"method": "point_to_plane"})
-    return reg
+    colour (a depth-only sensor such as the Pico Flexx), with the ``depth_only`` settings
+    when given (the graph's ``graph.depth_only``; the thesis baseline keeps its own)."""
+    if has_color or reg.method != "colored":
+        return reg
+    update: dict = {"method": "point_to_plane"}
+    if depth_only is not None:
+        update.update(depth_only.model_dump())
+    return reg.model_copy(update=update)
 
 
 def frame_cloud(
