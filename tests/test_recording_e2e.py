@@ -164,3 +164,11 @@ def test_trajectory_is_close_to_the_ground_truth(ran, converted) -> None:
     travelled = float(np.linalg.norm(p_gt[-1] - p_gt[0]))
     assert travelled > 0.5
     assert rms < 0.03, rms
+
+
+def test_an_unknown_export_is_a_clear_error(tmp_path: Path, capsys) -> None:
+    with pytest.raises(SystemExit) as done:
+        main(["simulate", "--export", "rosbag2", "--out", str(tmp_path / "x"), "--strides", "1"])
+    assert done.value.code == 2
+    assert "--export 'rosbag2': choose session or realsense-sdk-bag" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
