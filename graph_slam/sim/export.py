@@ -216,25 +216,8 @@ def _write_bag(
     world_T_color = world_T_depth @ np.linalg.inv(color_T_depth)
     gyro_depth, _ = sim.motion.imu_ideal(t_frames, sim.thigh_T_camera)
     gyro_color = gyro_depth @ color_T_depth[:3, :3].T
-    imu_kw = dict(noise_scale=cfg.noise_scale, accel_range_g=cfg.accel_range_g,
-                  time_offset_s=cfg.imu_time_offset_s)  # fmt: skip
-    gyro, _ = simulate_imu(sim.motion, sim.thigh_T_imu, sim.imu,
-                           np.random.default_rng([cfg.seed, _IMU]), rate_hz=export.gyro_rate_hz,
-                           **imu_kw)  # fmt: skip
-    accel, _ = simulate_imu(sim.motion, sim.thigh_T_imu, sim.imu,
-                            np.random.default_rng([cfg.seed, _ACCEL_STREAM]),
-                            rate_hz=export.accel_rate_hz, **imu_kw)  # fmt: skip
-
-    def ns(t_s: np.ndarray) -> np.ndarray:
-        return np.rint((np.asarray(t_s) + export.camera_epoch_s) * 1e9).astype(np.int64)
-
-    delay_ns = round(export.color_delay_s * 1e9)
-    events = sorted(
-        [(int(n), 0, i) for i, n in enumerate(ns(t_frames))]
-        + [(int(n) + delay_ns, 1, i) for i, n in enumerate(ns(t_frames))]
-        + [(int(n), 2, i) for i, n in enumerate(ns(accel.t_s))]
-        + [(int(n), 3, i) for i, n in enumerate(ns(gyro.t_s))]
-    )
+    accel, gyro = _imu_streams(sim, export)
+    events = _schedule(t_frames, accel.t_s, gyro.t_s, export)
     rng_depth = np.random.default_rng([cfg.seed, _DEPTH])
     imu = sim.imu
     variances = (
@@ -261,6 +244,38 @@ def _write_bag(
             else:
                 bag.write_gyro(stamp, gyro.gyro_rad_s[i])
         return dict(bag.counts)
+
+
+def _imu_streams(sim: Simulation, export: RecordingExportConfig):
+    """(accel, gyro) ImuSeries at their own rates (each from its own random stream)."""
+    cfg = sim.cfg
+    kw = dict(noise_scale=cfg.noise_scale, accel_range_g=cfg.accel_range_g,
+              time_offset_s=cfg.imu_time_offset_s)  # fmt: skip
+    gyro, _ = simulate_imu(sim.motion, sim.thigh_T_imu, sim.imu,
+                           np.random.default_rng([cfg.seed, _IMU]), rate_hz=export.gyro_rate_hz,
+                           **kw)  # fmt: skip
+    accel, _ = simulate_imu(sim.motion, sim.thigh_T_imu, sim.imu,
+                            np.random.default_rng([cfg.seed, _ACCEL_STREAM]),
+                            rate_hz=export.accel_rate_hz, **kw)  # fmt: skip
+    return accel, gyro
+
+
+def _schedule(
+    t_frames: np.ndarray, t_accel: np.ndarray, t_gyro: np.ndarray, export: RecordingExportConfig
+) -> list[tuple[int, int, int]]:
+    """Every message as (bag ns, kind, index), in time order: kind 0 depth, 1 colour (the
+    depth stamp + ``color_delay_s``), 2 accel, 3 gyro."""
+
+    def ns(t_s: np.ndarray) -> np.ndarray:
+        return np.rint((np.asarray(t_s) + export.camera_epoch_s) * 1e9).astype(np.int64)
+
+    delay_ns = round(export.color_delay_s * 1e9)
+    return sorted(
+        [(int(n), 0, i) for i, n in enumerate(ns(t_frames))]
+        + [(int(n) + delay_ns, 1, i) for i, n in enumerate(ns(t_frames))]
+        + [(int(n), 2, i) for i, n in enumerate(ns(t_accel))]
+        + [(int(n), 3, i) for i, n in enumerate(ns(t_gyro))]
+    )
 
 
 def load_signal(
