@@ -28,7 +28,12 @@ def register(app: typer.Typer) -> None:
 
     @app.command("simulate")
     def simulate_cmd(
-        out: Annotated[Path, typer.Option("--out", help="Session folder to write.")],
+        out: Annotated[
+            Path,
+            typer.Option(
+                "--out", help="Session folder to write (with --export: the recording's folder)."
+            ),
+        ],
         scene: Annotated[str, typer.Option(help="models/scenes/<name>.yaml or a path.")] = (
             "thesis-boxes"
         ),
@@ -64,6 +69,20 @@ def register(app: typer.Typer) -> None:
             Path | None, typer.Option("--config", help="YAML of SimConfig overrides (base).")
         ] = None,
         overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace --out.")] = False,
+        export: Annotated[
+            str,
+            typer.Option(
+                help="session: a session folder with ground truth; realsense-sdk-bag: what a "
+                "real recording gives (a RealSense SDK bag with unaligned colour and the "
+                "extrinsics, a prosthesis CSV log on its own clock; docs/recording.md)."
+            ),
+        ] = "session",
+        clock_offset: Annotated[
+            float,
+            typer.Option(
+                help="With --export realsense-sdk-bag: camera time = log time + this (s)."
+            ),
+        ] = 3.217,
     ) -> None:
         """Simulate walking with a thigh-mounted camera, IMU, encoders and load cell; write a
         session with exact ground truth, sim_config.yaml and quicklook.png."""
@@ -90,9 +109,30 @@ def register(app: typer.Typer) -> None:
         if resolution is not None:
             base["resolution"] = resolution
         cfg = config_from_dict(SimConfig, base, source="graph-slam simulate options")
+        if export != "session":
+            _export(cfg, out, export, clock_offset, overwrite)
+            return
         with progress_bar("rendering") as update:
             result = simulate(cfg, out, overwrite=overwrite, progress=update)
         if cfg.quicklook:
             write_quicklook(result)
         for line in result.lines():
             typer.echo(line)
+
+
+EXPORTS = ("session", "realsense-sdk-bag")
+
+
+def _export(cfg, out: Path, export: str, clock_offset_s: float, overwrite: bool) -> None:
+    """``--export realsense-sdk-bag``: the walk as a bag + a prosthesis log (graph_slam.sim.export)."""
+    from graph_slam.commands._common import progress_bar
+    from graph_slam.errors import ConfigError
+    from graph_slam.sim.export import RecordingExportConfig, export_realsense_recording
+
+    if export not in EXPORTS:
+        raise ConfigError(f"--export {export!r}: choose {' or '.join(EXPORTS)}")
+    options = RecordingExportConfig(clock_offset_s=clock_offset_s)
+    with progress_bar("rendering") as update:
+        result = export_realsense_recording(cfg, out, options, overwrite=overwrite, progress=update)
+    for line in result.lines():
+        typer.echo(line)

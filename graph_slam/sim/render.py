@@ -127,6 +127,18 @@ class Renderer:
         )
         if not self.profile.color:
             return depth, None
+        return depth, self._shade(hit, gyro_camera_rad_s)
+
+    def render_color(
+        self, world_T_camera: np.ndarray, gyro_camera_rad_s: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Colour only (uint8, blurred like :meth:`render`'s): the pass of a colour camera
+        that is not the depth camera (its own pose, intrinsics and size; no depth noise, so
+        no random numbers are drawn)."""
+        return self._shade(self.cast(world_T_camera), gyro_camera_rad_s)
+
+    def _shade(self, hit: dict[str, np.ndarray], gyro_camera_rad_s: np.ndarray | None):
+        hw = self.intrinsics.shape_hw
         t = hit["depth"]
         ok = np.isfinite(t)
         rgb = np.empty((t.size, 3), np.float32)
@@ -136,7 +148,7 @@ class Renderer:
         rgb = rgb.reshape(*hw, 3)
         if self.motion_blur and gyro_camera_rad_s is not None:
             rgb = self._blur(rgb, gyro_camera_rad_s)
-        return depth, np.clip(rgb + 0.5, 0, 255).astype(np.uint8)
+        return np.clip(rgb + 0.5, 0, 255).astype(np.uint8)
 
     def blur_vector_px(self, gyro_camera_rad_s: np.ndarray) -> np.ndarray:
         """Image motion (du, dv) in pixels during the exposure, from the rotation rate.

@@ -64,7 +64,9 @@ def leg_model_for(thigh_T_camera: np.ndarray, mount_pitch_deg: float | None = No
     if mismatch(best) > 1e-3:
         raise ConfigError(
             "calibration.thigh_T_camera: no leg-model camera mount (pitch 30-45°, default "
-            f"geometry) reproduces it (mismatch {mismatch(best):.3g}); set mount_pitch_deg"
+            f"geometry) reproduces it (mismatch {mismatch(best):.3g}); say how the camera sits "
+            "on the thigh: pipeline.mount_pitch_deg in the run config (a converted recording's "
+            "calibration is identity unless calibration.thigh_T_camera was set)"
         )
     return best
 
