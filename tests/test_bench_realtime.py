@@ -26,7 +26,8 @@ def test_rows_are_variants_or_variant_colon_preset() -> None:
         rt.row_config("icp+imu+kin:nope")
     real = rt.row_config("icp+imu+kin:realtime", base)  # every real-time setting, over base
     assert real.graph.registration.method == "projective" and real.graph.imu_guess
-    assert real.backend.defer_smoothing and not real.terrain.enabled
+    assert not real.backend.smoothing and not real.terrain.enabled  # iSAM2 smooths
+    assert not real.terrain.online.keep_clouds and real.terrain.online.enabled
     assert real.max_frames == 7
 
 

@@ -130,3 +130,20 @@ def test_fuse_up_inverse_variance():
     up, sigma = fuse_up(a, 0.01, b * 9.81, 0.002)  # magnitudes do not matter
     assert math.acos(up @ a) == pytest.approx(0.01 * 25 / 26, rel=1e-3)
     assert sigma == pytest.approx(1 / math.sqrt(1e4 + 2.5e5))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_preemptive_scoring_finds_the_same_floor(seed):
+    """The pre-emptive RANSAC (every hypothesis on 1000 points, the best 10 on all) fits the
+    same floor as scoring every hypothesis on every sample point, boxes and a wall in view."""
+    rng = np.random.default_rng(seed)
+    cam_R_world = camera_looking_down(math.radians(40.0), math.radians(2.0))
+    pts = floor_scene(rng, cam_R_world, wall=True)
+    up = cam_R_world @ np.array([0.0, 0.0, 1.0])
+    hint = _rot([1.0, 0.0, 0.0], math.radians(3.0)) @ up
+    fast = fit_floor(pts, hint, FloorConfig(seed=seed))
+    full = fit_floor(pts, hint, FloorConfig(seed=seed, prescore_keep=10_000))
+    assert fast.ok and full.ok
+    assert math.degrees(math.acos(min(1.0, float(fast.normal @ full.normal)))) < 0.01
+    assert abs(fast.offset_m - full.offset_m) < 1e-4
+    assert math.degrees(math.acos(min(1.0, float(fast.normal @ up)))) < 0.1

@@ -34,6 +34,14 @@ class FloorConfig(ConfigModel):
     distance_m: float = Field(0.01, gt=0, description="RANSAC inlier distance to the plane")
     iterations: int = Field(200, ge=10, description="RANSAC hypotheses")
     sample_points: int = Field(4000, ge=100, description="points the hypotheses are scored on")
+    prescore_points: int = Field(
+        1000,
+        ge=10,
+        description="pre-emptive RANSAC: every hypothesis is scored on this many of the sample "
+        "points first, and only the best prescore_keep on all of them (the fit at a stride's "
+        "first frame took 12-15 ms, the whole real-time frame budget)",
+    )
+    prescore_keep: int = Field(10, ge=1, description="hypotheses kept after the pre-scoring")
     min_inliers: int = Field(500, ge=3, description="fewer inliers (all points): no floor")
     min_extent_m: float = Field(
         0.3, gt=0, description="the inliers' smaller in-plane spread (2σ) must reach this"
@@ -121,6 +129,11 @@ def fit_floor(
     if not valid.any():
         return FloorFit(False, "no_plane_near_up: no 3-point hypothesis within the angle gate")
     n_h, d_h = normals[valid], offsets[valid]
+    if len(n_h) > cfg.prescore_keep:  # pre-emptive: every hypothesis on the first points
+        pre = sample[: cfg.prescore_points]
+        pre_scores = (np.abs(pre @ n_h.T + d_h) < cfg.distance_m).sum(axis=0)
+        top = np.argsort(-pre_scores, kind="stable")[: cfg.prescore_keep]
+        n_h, d_h = n_h[top], d_h[top]
     scores = (np.abs(sample @ n_h.T + d_h) < cfg.distance_m).sum(axis=0)
     best = int(np.argmax(scores))
     normal, offset = n_h[best], d_h[best]

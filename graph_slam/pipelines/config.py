@@ -225,8 +225,11 @@ class PipelineConfig(ConfigModel):
 
 #: Named settings of a whole pipeline, applied over a config (``VARIANT:PRESET`` rows of the
 #: benchmarks). ``realtime``: the real-time registration preset with the IMU's initial guess,
-#: the batch smoothing deferred off the foot strike (``backend.defer_smoothing``; at most two
-#: strides wait, so memory stays flat over a long run: ``backend.max_deferred_strides``) and
+#: iSAM2 as the stride's smoother (``backend.smoothing: false``: a stride's smoothed poses are
+#: iSAM2's estimate at its close, its end-state marginals come from the live iSAM2 — no batch
+#: LM, no second factorisation, no graph kept after the close; measured on the 424×240
+#: sessions, docs/benchmarks.md), the online grid without kept clouds (``terrain.online.
+#: keep_clouds: false``: no re-fusion at the close; the stride's grid is the online one) and
 #: no stride maps: fusing a stride's map at its close takes 0.3–1.2 s at 424×240, which the
 #: real-time path cannot afford; the terrain for the controller is the incremental grid
 #: updated at every frame (``terrain.online``, docs/terrain.md), on in every preset.
@@ -236,13 +239,13 @@ PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
     "thesis": {"graph": {"registration": "thesis"}},
     "realtime": {
         "graph": {"registration": "realtime", "imu_guess": True},
-        "backend": {"defer_smoothing": True, "max_deferred_strides": 2},
-        "terrain": {"enabled": False, "online": {"enabled": True}},
+        "backend": {"smoothing": False},
+        "terrain": {"enabled": False, "online": {"enabled": True, "keep_clouds": False}},
     },
     "realtime-gicp": {
         "graph": {"registration": "realtime-gicp", "imu_guess": True},
-        "backend": {"defer_smoothing": True, "max_deferred_strides": 2},
-        "terrain": {"enabled": False, "online": {"enabled": True}},
+        "backend": {"smoothing": False},
+        "terrain": {"enabled": False, "online": {"enabled": True, "keep_clouds": False}},
     },
 }
 
