@@ -45,3 +45,17 @@ def test_gate_rejects_with_the_reason():
     gate.start_stride()  # a new stride: earlier frames are no targets
     decision, _ = gate.factor(icp(5, 3), 5, 1)
     assert decision.reason == "target frame not in this stride"
+
+
+def test_a_frames_record_keeps_the_verdict_without_the_matrices():
+    """What a long run keeps per frame: the verdict, rank and dropped directions; the 6×6
+    information and its square root stay with the factor only."""
+    gate = make_registration_gate(BackendConfig(), np.eye(4))
+    gate.start_stride()
+    gate.add_frame(10, 0)
+    decision, _ = gate.factor(icp(11, 10), 11, 1)
+    assert decision.information is not None and decision.sqrt_information is not None
+    kept = decision.record()
+    assert (kept.accepted, kept.reason, kept.rank) == (decision.accepted, decision.reason, 6)
+    assert kept.information is None and kept.sqrt_information is None
+    assert decision.information is not None  # the decision itself is unchanged

@@ -277,7 +277,7 @@ class StrideChain:
             stride_T_camera=stride_T_camera,
             world_T_camera=self.world_T_stride @ stride_T_camera,
             flags=tuple(flags),
-            gate=gate,
+            gate=None if gate is None else gate.record(),  # the factor holds the matrices
             kinematic_factor="kin" in kept,
             imu_factor="imu" in kept,
             update_s=time.perf_counter() - t_start,
