@@ -88,11 +88,26 @@ def _by_first_frame(results) -> dict[int, object]:
     return {int(s.frame_indices[0]): s for s in results.strides if s.frame_indices}
 
 
-def _position_rms(a: np.ndarray, b: np.ndarray) -> tuple[float | None, int]:
+def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``R, t`` minimising ``Σ |R·src + t − dst|²`` (N×3 each; Kabsch, no scale)."""
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rot, cd - rot @ cs
+
+
+def _position_rms(a: np.ndarray, b: np.ndarray, aligned: bool) -> tuple[float | None, int]:
+    """RMS of the positions' difference over the frames both posed; ``aligned``: after the
+    rigid fit of ``a`` onto ``b`` (a pose set not in the stride frame: the baseline's)."""
     both = np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2))
-    if not both.any():
+    if both.sum() < (3 if aligned else 1):
         return None, 0
-    d = a[both, :3, 3] - b[both, :3, 3]
+    pa, pb = a[both, :3, 3], b[both, :3, 3]
+    if aligned:
+        rot, t = rigid_fit(pa, pb)
+        pa = pa @ rot.T + t
+    d = pa - pb
     return float(np.sqrt(np.mean(np.sum(d * d, axis=1)))), int(both.sum())
 
 
@@ -115,8 +130,10 @@ def _grid_difference(a, b) -> dict | None:
 def agreement(results: dict, reference: Variant) -> dict[str, list[dict]]:
     """Per variant other than ``reference`` and per stride both cut at the same frames:
     the RMS of the camera positions' difference in the stride frame (online and smoothed poses;
-    over frames both have) and the elevation grids' height difference (the smoothed maps; the
-    baseline's is its online one) over the cells both saw."""
+    over frames both have; after a rigid fit when either is the thesis baseline, whose frame
+    restarts at its own reset, not at the heel: ``aligned`` in the row) and the elevation
+    grids' height difference (the smoothed maps; the baseline's is its online one) over the
+    cells both saw."""
     ref = results[reference]
     ref_strides = _by_first_frame(ref)
     ref_poses = {k: ref.poses(k) for k in ("online", "smoothed")}
@@ -131,9 +148,10 @@ def agreement(results: dict, reference: Variant) -> dict[str, list[dict]]:
             if r is None or len(r.frame_indices) != len(s.frame_indices):
                 continue
             idx = np.asarray(s.frame_indices, dtype=int)
-            row: dict = {"stride": int(s.index), "first_frame": first}
+            aligned = variant.is_baseline or Variant(reference).is_baseline
+            row: dict = {"stride": int(s.index), "first_frame": first, "aligned": aligned}
             for kind in ("online", "smoothed"):
-                rms, n = _position_rms(poses[kind][idx], ref_poses[kind][idx])
+                rms, n = _position_rms(poses[kind][idx], ref_poses[kind][idx], aligned)
                 row[f"{kind}_position_rms_mm"] = None if rms is None else rms * 1e3
                 row[f"{kind}_frames"] = n
             maps = [x.terrain.smoothed if x.terrain is not None else None for x in (s, r)]
@@ -219,13 +237,14 @@ def _agreement_table(agree: dict, reference: str) -> list[str]:
     if not agree:
         return [f"Only {reference} ran: nothing to compare it with.", ""]
     lines = [
-        f"Against {reference}, medians over strides (max in brackets):",
+        f"Against {reference}, medians over strides (online: max in brackets):",
         "",
         "| variant | strides | position RMS online (mm) | smoothed (mm) | "
         "elevation |Δh| median / p95 (mm) |",
         "| :-- | --: | --: | --: | --: |",
     ]
-    for name, rows in agree.items():
+    for variant, rows in agree.items():
+        name = f"{variant} (rigidly aligned)" if rows and rows[0]["aligned"] else variant
         on = [r["online_position_rms_mm"] for r in rows]
         sm = [r["smoothed_position_rms_mm"] for r in rows]
         el = [r["elevation"] for r in rows if r["elevation"] is not None]
