@@ -169,28 +169,10 @@ def write_stride_maps(folder: Path, results, cfg) -> list[Path]:
 
 
 def _write_map_ply(path: Path, fused, dtype: str) -> Path:
-    """The fused map as binary PLY, coordinates ``float`` (float32) or ``double``."""
-    if dtype == "float64":
-        from graph_slam.session.adapters.ply import write_ply
+    """The fused map as binary PLY, coordinates ``float32`` (PLY float) or ``float64``."""
+    from graph_slam.session.adapters.ply import write_ply
 
-        write_ply(fused.to_point_cloud(), path)
-        return path
-    colors = fused.colors_rgb
-    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
-    header = ["ply", "format binary_little_endian 1.0", "comment written by graph_slam",
-              f"element vertex {len(fused)}", "property float x", "property float y",
-              "property float z"]  # fmt: skip
-    if colors is not None:
-        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
-        header += ["property uchar red", "property uchar green", "property uchar blue"]
-    rec = np.empty(len(fused), dtype=np.dtype(fields))
-    for i, axis in enumerate("xyz"):
-        rec[axis] = fused.points_m[:, i]
-    for i, ch in enumerate(("red", "green", "blue") if colors is not None else ()):
-        rec[ch] = colors[:, i]
-    with path.open("wb") as handle:
-        handle.write(("\n".join([*header, "end_header"]) + "\n").encode("ascii"))
-        handle.write(rec.tobytes())
+    write_ply(fused.to_point_cloud(), path, dtype=dtype)
     return path
 
 

@@ -52,9 +52,15 @@ def _binary(target: str | Path | BinaryIO, mode: str):
         yield target, str(getattr(target, "name", "<stream>"))
 
 
-def write_ply(cloud: Cloud, dest: str | Path | BinaryIO, *, binary: bool = True) -> None:
-    """Write a point cloud as PLY (binary little-endian by default, or ASCII): points as double,
-    colours as uchar (``Cloud.colors_rgb``); normals are not written."""
+def write_ply(
+    cloud: Cloud, dest: str | Path | BinaryIO, *, binary: bool = True, dtype: str = "float64"
+) -> None:
+    """Write a point cloud as PLY (binary little-endian by default, or ASCII): points as double
+    (``dtype`` "float32": float), colours as uchar (``Cloud.colors_rgb``); normals are not
+    written."""
+    if dtype not in ("float64", "float32"):
+        raise ValueError(f"write_ply: dtype must be 'float64' or 'float32', got {dtype!r}")
+    ply_type, np_type = ("double", "<f8") if dtype == "float64" else ("float", "<f4")
     n = len(cloud)
     colors_rgb = cloud.colors_rgb
     has_color = colors_rgb is not None
@@ -63,14 +69,14 @@ def write_ply(cloud: Cloud, dest: str | Path | BinaryIO, *, binary: bool = True)
         f"format {'binary_little_endian' if binary else 'ascii'} 1.0",
         "comment written by graph_slam",
         f"element vertex {n}",
-        "property double x",
-        "property double y",
-        "property double z",
+        f"property {ply_type} x",
+        f"property {ply_type} y",
+        f"property {ply_type} z",
     ]
     if has_color:
         header += ["property uchar red", "property uchar green", "property uchar blue"]
     header.append("end_header")
-    fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+    fields = [("x", np_type), ("y", np_type), ("z", np_type)]
     if has_color:
         fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
     rec = np.empty(n, dtype=np.dtype(fields))
