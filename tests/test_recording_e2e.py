@@ -156,10 +156,10 @@ def test_trajectory_is_close_to_the_ground_truth(ran, converted) -> None:
     assert np.all(np.abs(t_gt[idx] - t_est) < 1e-4)
     assert t_est.size >= 0.8 * RUN_FRAMES
     p_gt = p_gt[idx]
-    mu_e, mu_g = p_est.mean(0), p_gt.mean(0)
-    u, _, vt = np.linalg.svd((p_est - mu_e).T @ (p_gt - mu_g))
-    d = np.diag([1.0, 1.0, np.sign(np.linalg.det(vt.T @ u.T))])
-    aligned = (p_est - mu_e) @ (vt.T @ d @ u.T).T + mu_g
+    from graph_slam.report.summary import rigid_fit
+
+    rot, t = rigid_fit(p_est, p_gt)
+    aligned = p_est @ rot.T + t
     rms = float(np.sqrt(np.mean(np.sum((aligned - p_gt) ** 2, axis=1))))
     travelled = float(np.linalg.norm(p_gt[-1] - p_gt[0]))
     assert travelled > 0.5
@@ -171,4 +171,12 @@ def test_an_unknown_export_is_a_clear_error(tmp_path: Path, capsys) -> None:
         main(["simulate", "--export", "rosbag2", "--out", str(tmp_path / "x"), "--strides", "1"])
     assert done.value.code == 2
     assert "--export 'rosbag2': choose session or realsense-sdk-bag" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_a_clock_offset_without_an_export_is_a_clear_error(tmp_path: Path, capsys) -> None:
+    with pytest.raises(SystemExit) as done:
+        main(["simulate", "--clock-offset", "2.0", "--out", str(tmp_path / "x"), "--strides", "1"])
+    assert done.value.code == 2
+    assert "--clock-offset: only with --export realsense-sdk-bag" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()

@@ -78,11 +78,12 @@ def register(app: typer.Typer) -> None:
             ),
         ] = "session",
         clock_offset: Annotated[
-            float,
+            float | None,
             typer.Option(
-                help="With --export realsense-sdk-bag: camera time = log time + this (s)."
+                help="With --export realsense-sdk-bag: camera time = log time + this (s; "
+                "default 3.217)."
             ),
-        ] = 3.217,
+        ] = None,
     ) -> None:
         """Simulate walking with a thigh-mounted camera, IMU, encoders and load cell; write a
         session with exact ground truth, sim_config.yaml and quicklook.png."""
@@ -110,8 +111,13 @@ def register(app: typer.Typer) -> None:
             base["resolution"] = resolution
         cfg = config_from_dict(SimConfig, base, source="graph-slam simulate options")
         if export != "session":
-            _export(cfg, out, export, clock_offset, overwrite)
+            _export(cfg, out, export, 3.217 if clock_offset is None else clock_offset, overwrite)
             return
+        if clock_offset is not None:
+            from graph_slam.errors import ConfigError
+
+            raise ConfigError("--clock-offset: only with --export realsense-sdk-bag (a session "
+                              "has one clock)")  # fmt: skip
         with progress_bar("rendering") as update:
             result = simulate(cfg, out, overwrite=overwrite, progress=update)
         if cfg.quicklook:
