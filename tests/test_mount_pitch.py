@@ -15,12 +15,8 @@ from graph_slam.session.records import Calibration
 from graph_slam.sim import SimConfig
 from graph_slam.sim.recording import prepare
 from graph_slam.sim.sensors import load_cell_events, simulate_encoders, simulate_imu
-from graph_slam.strides.mount import (
-    MountEstimateConfig,
-    estimate_from_streams,
-    estimate_mount_pitch,
-    session_leg_model,
-)
+from graph_slam.strides.kinematics import estimate_from_streams, session_leg_model
+from graph_slam.strides.mount import MountEstimateConfig, estimate_mount_pitch
 from graph_slam.strides.streams import Streams, stride_events
 
 STRIDES = 6

@@ -127,7 +127,7 @@ def run_pipelines_bench(
     ``on_variant(session_score, variant)`` is called as soon as a variant is scored (the CLI
     prints its lines then: a full run takes many minutes)."""
     from graph_slam.session import open_session
-    from graph_slam.strides.mount import session_leg_model
+    from graph_slam.strides.kinematics import session_leg_model
 
     scores = []
     for speed, path in sessions.items():

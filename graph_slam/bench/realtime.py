@@ -132,7 +132,7 @@ def run_row(
     from graph_slam.pipelines.replay import replay_session
     from graph_slam.session import open_session
     from graph_slam.session.looped import LoopedSession
-    from graph_slam.strides.mount import session_leg_model
+    from graph_slam.strides.kinematics import session_leg_model
 
     cfg = row_config(row, base)
     session = open_session(session_path)

@@ -135,7 +135,7 @@ def score_scenario(name: str, path: Path) -> ScenarioScore:
     from graph_slam.bench.accuracy import score, variant_config
     from graph_slam.pipelines import run_session
     from graph_slam.session import open_session
-    from graph_slam.strides.mount import session_leg_model
+    from graph_slam.strides.kinematics import session_leg_model
     from graph_slam.strides.reference import stride_references
     from graph_slam.strides.streams import session_streams
 

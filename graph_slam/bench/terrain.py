@@ -34,7 +34,7 @@ from graph_slam.evaluation.boxes import truth_boxes_in_stride
 from graph_slam.evaluation.terrain_deadline import obstacle_deadlines, summarise_deadlines
 from graph_slam.pipelines import PipelineConfig
 from graph_slam.pipelines.runner import open_pipeline
-from graph_slam.strides.mount import session_leg_model
+from graph_slam.strides.kinematics import session_leg_model
 from graph_slam.strides.reference import stride_references
 
 EDGE_MARGIN_M = 0.03

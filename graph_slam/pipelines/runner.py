@@ -12,7 +12,7 @@ from graph_slam.errors import SessionError
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
-from graph_slam.strides.mount import session_leg_model
+from graph_slam.strides.kinematics import session_leg_model
 from graph_slam.strides.streams import session_streams
 
 log = logging.getLogger(__name__)

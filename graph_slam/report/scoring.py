@@ -39,7 +39,7 @@ class SessionRun:
     def build(
         cls, session, label: str, results, pipeline: PipelineConfig, first_stride: int
     ) -> SessionRun:
-        from graph_slam.strides.mount import session_leg_model
+        from graph_slam.strides.kinematics import session_leg_model
         from graph_slam.strides.reference import stride_references
         from graph_slam.strides.streams import session_streams
 

@@ -27,9 +27,10 @@ a spread, or a result outside the leg model's 30-45°. The lever arm of the IMU 
 frame depends on the pitch a little: the estimate is made twice, the second time with the
 first's lever arm.
 
-:func:`session_leg_model` picks the source: ``pipeline.mount_pitch_deg`` when set, else the
-session's ``thigh_T_camera`` when it is not the identity (the fit of
-:func:`graph_slam.strides.kinematics.leg_model_for`), else the estimate.
+:func:`graph_slam.strides.kinematics.session_leg_model` picks the source:
+``pipeline.mount_pitch_deg`` when set, else the session's ``thigh_T_camera`` when it is not the
+identity (the fit of :func:`~graph_slam.strides.kinematics.leg_model_for`), else this
+estimate.
 """
 
 from __future__ import annotations
@@ -37,7 +38,6 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -51,8 +51,6 @@ GRAVITY_M_S2 = 9.81
 MAD_TO_SIGMA = 1.4826
 PITCH_RANGE_DEG = (30.0, 45.0)
 """The leg model's valid mount pitch (``LegParams``)."""
-
-MountSource = Literal["config", "calibration", "estimated"]
 
 
 class MountEstimateConfig(ConfigModel):
@@ -108,31 +106,6 @@ class MountPitchEstimate:
     n_samples: int
     counts: dict[str, int] = field(default_factory=dict)
     """IMU samples in the stance windows, and rejected by reason (rate, accel, no encoders)."""
-
-
-@dataclass(frozen=True)
-class MountPitch:
-    """Which source set the leg model's mount pitch, and its value."""
-
-    source: MountSource
-    pitch_deg: float
-    estimate: MountPitchEstimate | None = None
-
-    def to_dict(self) -> dict:
-        out: dict = {"source": self.source, "pitch_deg": round(self.pitch_deg, 4)}
-        if self.estimate is not None:
-            out["spread_deg"] = round(self.estimate.spread_deg, 4)
-            out["n_samples"] = self.estimate.n_samples
-            out["counts"] = dict(self.estimate.counts)
-        return out
-
-    def describe(self) -> str:
-        """One line for logs and reports."""
-        text = f"mount pitch {self.pitch_deg:.2f}° ({self.source}"
-        if self.estimate is not None:
-            e = self.estimate
-            text += f" from {e.n_samples} foot-flat IMU samples, spread {e.spread_deg:.2f}°"
-        return text + ")"
 
 
 # --------------------------------------------------------------------------- geometry
@@ -273,7 +246,7 @@ def estimate_mount_pitch(
     cfg = config or MountEstimateConfig()
     params = leg or LegParams()
     model = LegModel(params)
-    y_thigh, up_in_plane = sagittal_axes(model)
+    _, up_in_plane = sagittal_axes(model)
     camera_R_imu = np.asarray(camera_T_imu, float)[:3, :3]
     imu = (np.asarray(imu_t_s, float), np.asarray(gyro_rad_s, float), np.asarray(accel_m_s2, float))
     joints, n_dropped = _usable_joints(joints_t_s, q_rad, model, where)
@@ -282,25 +255,9 @@ def estimate_mount_pitch(
             f"{where}: estimating the camera's mount pitch needs the IMU and the joint "
             "encoders; set pipeline.mount_pitch_deg"
         )
-    strikes, offs = np.sort(foot_strikes_s), np.sort(toe_offs_s)
     counts = {"encoder_rows_dropped": n_dropped, "stances": 0, "in_window": 0}
     counts |= {"no_encoders": 0, "rate": 0, "accel": 0, "used": 0}
-    stances: list[_Stance] = []
-    for k, t0 in enumerate(strikes):
-        t_next = strikes[k + 1] if k + 1 < strikes.size else np.inf
-        after = offs[(offs > t0) & (offs < t_next)]
-        if after.size == 0:
-            continue
-        t1 = float(after[0])
-        lo, hi = t0 + cfg.stance_start * (t1 - t0), t0 + cfg.stance_end * (t1 - t0)
-        stance, n_window, n_uncovered = _stance_samples(
-            t0, t1, lo, hi, imu, joints, model, camera_R_imu, y_thigh, cfg
-        )
-        counts["stances"] += 1
-        counts["in_window"] += n_window
-        counts["no_encoders"] += n_uncovered
-        if stance is not None:
-            stances.append(stance)
+    stances = _stances(foot_strikes_s, toe_offs_s, imu, joints, model, camera_R_imu, cfg, counts)
     pitch_rad = params.mount_pitch_down_rad
     for _ in range(2):  # the lever arm of the IMU in the thigh frame depends on the pitch
         leg_now = LegParams(**{**params.to_dict(), "mount_pitch_down_rad": _clamp(pitch_rad)})
@@ -318,6 +275,30 @@ def estimate_mount_pitch(
         pitch_rad = math.radians(float(np.median(values)))
     counts.update(rate=rate_bad, accel=accel_bad, used=int(values.size))
     return _checked(values, counts, cfg, where)
+
+
+def _stances(strikes_s, offs_s, imu, joints, model, camera_R_imu, cfg, counts) -> list[_Stance]:
+    """Every stance's foot-flat candidates (a foot strike to the first toe-off before the next
+    strike; a strike without one is no stance); ``counts`` updated."""
+    y_thigh, _ = sagittal_axes(model)
+    strikes, offs = np.sort(strikes_s), np.sort(offs_s)
+    stances: list[_Stance] = []
+    for k, t0 in enumerate(strikes):
+        t_next = strikes[k + 1] if k + 1 < strikes.size else np.inf
+        after = offs[(offs > t0) & (offs < t_next)]
+        if after.size == 0:
+            continue
+        t1 = float(after[0])
+        lo, hi = t0 + cfg.stance_start * (t1 - t0), t0 + cfg.stance_end * (t1 - t0)
+        stance, n_window, n_uncovered = _stance_samples(
+            t0, t1, lo, hi, imu, joints, model, camera_R_imu, y_thigh, cfg
+        )
+        counts["stances"] += 1
+        counts["in_window"] += n_window
+        counts["no_encoders"] += n_uncovered
+        if stance is not None:
+            stances.append(stance)
+    return stances
 
 
 def _usable_joints(joints_t_s, q_rad, model, where: str):
@@ -365,73 +346,3 @@ def _checked(values: np.ndarray, counts: dict, cfg: MountEstimateConfig, where: 
             f"valid {lo:g}-{hi:g}° below horizontal; {fix}"
         )
     return MountPitchEstimate(median, spread, int(values.size), dict(counts))
-
-
-# --------------------------------------------------------------------------- which source
-
-
-def is_identity(a_T_b: np.ndarray, atol: float = 1e-9) -> bool:
-    return bool(np.allclose(np.asarray(a_T_b, float), np.eye(4), atol=atol))
-
-
-def session_leg_model(
-    session,
-    mount_pitch_deg: float | None = None,
-    config: MountEstimateConfig | None = None,
-    *,
-    streams=None,
-    event_source: str | None = "load_cell",
-):
-    """``(LegModel, MountPitch)`` for a session: the mount pitch from, in this order,
-    ``mount_pitch_deg`` (``pipeline.mount_pitch_deg``), the session's ``thigh_T_camera`` when
-    it is not the identity (:func:`~graph_slam.strides.kinematics.leg_model_for`'s fit), or
-    :func:`estimate_mount_pitch` on the session's streams (``streams``: those of
-    :func:`~graph_slam.strides.streams.session_streams`, read with ``event_source`` when
-    None). The winner is logged."""
-    from graph_slam.strides.kinematics import leg_model_for
-    from kinematics.leg_model import LegModel
-    from kinematics.leg_params import LegParams
-
-    thigh_T_camera = session.calibration.thigh_T_camera
-    if mount_pitch_deg is not None:
-        model = leg_model_for(thigh_T_camera, mount_pitch_deg)
-        chosen = MountPitch("config", float(mount_pitch_deg))
-    elif not is_identity(thigh_T_camera):
-        model = leg_model_for(thigh_T_camera, None)
-        chosen = MountPitch("calibration", math.degrees(model.params.mount_pitch_down_rad))
-    else:
-        if streams is None:
-            from graph_slam.strides.streams import session_streams
-
-            streams = session_streams(session, event_source)
-        estimate = estimate_from_streams(
-            streams, session.calibration.camera_T_imu, config, where=str(session.path)
-        )
-        model = LegModel(LegParams(mount_pitch_down_rad=math.radians(estimate.pitch_deg)))
-        chosen = MountPitch("estimated", estimate.pitch_deg, estimate)
-    log.info("%s: %s", session.path, chosen.describe())
-    return model, chosen
-
-
-def estimate_from_streams(
-    streams, camera_T_imu: np.ndarray, config: MountEstimateConfig | None = None, where="session"
-) -> MountPitchEstimate:
-    """:func:`estimate_mount_pitch` on a :class:`~graph_slam.strides.streams.Streams`."""
-    if streams.imu_t_s is None or streams.joints_t_s is None:
-        missing = "imu.csv" if streams.imu_t_s is None else "joints.csv"
-        raise MountPitchError(
-            f"{where}: the session's thigh_T_camera is the identity and it has no {missing} to "
-            "estimate the camera's mount pitch from; set pipeline.mount_pitch_deg"
-        )
-    return estimate_mount_pitch(
-        streams.imu_t_s,
-        streams.gyro_rad_s,
-        streams.accel_m_s2,
-        streams.joints_t_s,
-        np.column_stack([streams.knee_rad, streams.ankle_rad]),
-        streams.events.foot_strikes_s,
-        streams.events.toe_offs_s,
-        camera_T_imu,
-        config,
-        where=where,
-    )
