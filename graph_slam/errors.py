@@ -21,6 +21,11 @@ class ConfigError(GraphSlamError):
     """A configuration value or combination is invalid (names the field)."""
 
 
+class MountPitchError(ConfigError):
+    """The camera's mount pitch on the thigh cannot be estimated from the recording (too few
+    foot-flat samples, too large a spread, or outside the leg model's range): set it."""
+
+
 class RecordError(GraphSlamError):
     """An in-memory record (frame, IMU series, ...) has a wrong shape, dtype or value."""
 

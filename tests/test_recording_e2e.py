@@ -48,7 +48,7 @@ def ran(converted, tmp_path_factory) -> Path:
         yaml.safe_dump(
             {
                 "variants": ["icp+imu+kin"],
-                "pipeline": {"mount_pitch_deg": 35.0, "max_frames": RUN_FRAMES},
+                "pipeline": {"max_frames": RUN_FRAMES},  # no mount pitch: estimated
                 "rrd": False,
             }
         )
@@ -136,8 +136,20 @@ def test_run_writes_its_artefacts_with_colored_icp(ran) -> None:
     assert list((folder / "maps").glob("s*_*.ply"))
     assert (ran / "report.md").is_file() and (ran / "run.json").is_file()
     strides = summary["sessions"][session_name]["variants"]["icp+imu+kin"]["strides"]
+    assert "mount pitch" in (ran / "report.md").read_text().lower()
     registered = sum(s["registered"] for s in strides)
     assert registered >= 0.8 * RUN_FRAMES
+
+
+def test_mount_pitch_is_estimated_from_the_recording(ran, converted) -> None:
+    """No hand-set mount: the converted session's thigh_T_camera is the identity, so the pitch
+    comes from its foot-flat stance (graph_slam.strides.mount); the export's is 35°."""
+    rec, _ = converted
+    truth = yaml.safe_load((rec / "export.yaml").read_text())["sim"]["mount_pitch_deg"]
+    mount = yaml.safe_load((ran / "run.json").read_text())["sessions"]["recording"]["mount_pitch"]
+    assert mount["source"] == "estimated"
+    assert mount["pitch_deg"] == pytest.approx(truth, abs=1.0)
+    assert mount["n_samples"] >= 100
 
 
 def _read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:

@@ -127,12 +127,12 @@ def run_pipelines_bench(
     ``on_variant(session_score, variant)`` is called as soon as a variant is scored (the CLI
     prints its lines then: a full run takes many minutes)."""
     from graph_slam.session import open_session
-    from graph_slam.strides.kinematics import leg_model_for
+    from graph_slam.strides.kinematics import session_leg_model
 
     scores = []
     for speed, path in sessions.items():
         session = open_session(path)
-        leg = leg_model_for(session.calibration.thigh_T_camera)
+        leg, _ = session_leg_model(session)
         sc = SessionScore(session.name, speed)
         for v in variants:
             t0 = time.perf_counter()

@@ -132,7 +132,7 @@ def run_row(
     from graph_slam.pipelines.replay import replay_session
     from graph_slam.session import open_session
     from graph_slam.session.looped import LoopedSession
-    from graph_slam.strides.kinematics import leg_model_for
+    from graph_slam.strides.kinematics import session_leg_model
 
     cfg = row_config(row, base)
     session = open_session(session_path)
@@ -141,7 +141,9 @@ def run_row(
     t0 = time.perf_counter()
     res = replay_session(session, cfg, pace=pace)  # type: ignore[arg-type]
     wall = time.perf_counter() - t0
-    leg = leg_model_for(session.calibration.thigh_T_camera, cfg.mount_pitch_deg)
+    leg, _ = session_leg_model(
+        session, cfg.mount_pitch_deg, cfg.mount_estimate, event_source=cfg.event_source
+    )
     strides = score(session, res.results, leg)
     on = np.array([s.online_rmse_m for s in strides]) * 1e3
     sm = np.array([s.smoothed_rmse_m for s in strides]) * 1e3

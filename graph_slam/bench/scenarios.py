@@ -135,12 +135,12 @@ def score_scenario(name: str, path: Path) -> ScenarioScore:
     from graph_slam.bench.accuracy import score, variant_config
     from graph_slam.pipelines import run_session
     from graph_slam.session import open_session
-    from graph_slam.strides.kinematics import leg_model_for
+    from graph_slam.strides.kinematics import session_leg_model
     from graph_slam.strides.reference import stride_references
     from graph_slam.strides.streams import session_streams
 
     session = open_session(path)
-    leg = leg_model_for(session.calibration.thigh_T_camera)
+    leg, _ = session_leg_model(session)
     graph = run_session(session, variant_config("icp+imu+kin"))
     base = run_session(session, variant_config("icp"))
     strides = score(session, graph, leg)

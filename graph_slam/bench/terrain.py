@@ -34,7 +34,7 @@ from graph_slam.evaluation.boxes import truth_boxes_in_stride
 from graph_slam.evaluation.terrain_deadline import obstacle_deadlines, summarise_deadlines
 from graph_slam.pipelines import PipelineConfig
 from graph_slam.pipelines.runner import open_pipeline
-from graph_slam.strides.kinematics import leg_model_for
+from graph_slam.strides.kinematics import session_leg_model
 from graph_slam.strides.reference import stride_references
 
 EDGE_MARGIN_M = 0.03
@@ -197,7 +197,7 @@ def run_terrain_row(
 
     frames, views, res = _feed(session, streams, pipe, keep)
     t_frames = np.array([f.t_s for f in frames])
-    leg = leg_model_for(session.calibration.thigh_T_camera, cfg.mount_pitch_deg)
+    leg, _ = session_leg_model(session, cfg.mount_pitch_deg, cfg.mount_estimate, streams=streams)
     refs = stride_references(session, t_frames, res.strides, streams.events, leg)
     out = TerrainRow(str(session_path), row, update_ms=[f.update_ms for f in frames])
     toe_x = cfg.terrain.online.toe_x_m

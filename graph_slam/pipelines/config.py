@@ -21,6 +21,7 @@ from graph_slam.frontend.config import (
     thesis_registration,
 )
 from graph_slam.frontend.floor import FloorConfig
+from graph_slam.strides.mount import MountEstimateConfig
 from graph_slam.terrain.builder import TerrainConfig
 from graph_slam.variants import Variant
 
@@ -175,8 +176,11 @@ class PipelineConfig(ConfigModel):
         None,
         ge=30,
         le=45,
-        description="leg model camera mount pitch; None = fit to the session's thigh_T_camera",
+        description="leg model camera mount pitch (deg below horizontal, leg straight); None = "
+        "fit to the session's thigh_T_camera, or estimated from the session's IMU, encoders "
+        "and gait events when that is the identity (mount_estimate)",
     )
+    mount_estimate: MountEstimateConfig = MountEstimateConfig()
     gravity_window_s: float = Field(
         1.0,
         gt=0,

@@ -41,7 +41,7 @@ from graph_slam.errors import ConfigError, SessionError
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
-from graph_slam.pipelines.runner import make_pipeline, open_pipeline
+from graph_slam.pipelines.runner import make_pipeline, open_pipeline, open_pipeline_mount
 from graph_slam.pipelines.schedule import Schedule, pick_frame, schedule
 from graph_slam.strides.streams import Streams, StrideEvents
 
@@ -360,7 +360,7 @@ def replay_session(
     if warmup_frames:  # built first: the measured pipeline is the factory's last
         session, streams, warm = open_pipeline(session, config, pipeline_factory)
         _warm_up(warm, streams, session, min(warmup_frames, session.n_frames))
-    session, streams, pipe = open_pipeline(session, config, pipeline_factory)
+    session, streams, pipe, mount = open_pipeline_mount(session, config, pipeline_factory)
     n = session.n_frames if config.max_frames is None else min(config.max_frames, session.n_frames)
     if n == 0:
         raise SessionError(f"{session.path}: the session has no frames to replay")
@@ -390,6 +390,7 @@ def replay_session(
     results = pipe.finish()
     finish_call = time.perf_counter() - w0
     results.counts["foot_strikes"] = feed.i_strike
+    results.config["mount_pitch"] = mount.to_dict()
     rss.append(RssSample(float(stamp[-1] - t0), rss_mb(), peak_rss_mb()))
     return ReplayResult(
         pace=pace,

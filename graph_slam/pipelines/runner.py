@@ -12,7 +12,7 @@ from graph_slam.errors import SessionError
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
-from graph_slam.strides.kinematics import leg_model_for
+from graph_slam.strides.kinematics import session_leg_model
 from graph_slam.strides.streams import session_streams
 
 log = logging.getLogger(__name__)
@@ -42,8 +42,18 @@ def open_pipeline(
     session, config: PipelineConfig, factory: Callable[..., Pipeline] = make_pipeline
 ):
     """The session (opened when a folder is given), its streams on the camera clock and the
-    config's pipeline for it (leg model fitted to the calibration): what every way of running
-    a session starts from. ``factory``: ``make_pipeline``'s signature."""
+    config's pipeline for it: what every way of running a session starts from. ``factory``:
+    ``make_pipeline``'s signature. The leg model's camera mount: :func:`open_pipeline_mount`."""
+    session, streams, pipe, _ = open_pipeline_mount(session, config, factory)
+    return session, streams, pipe
+
+
+def open_pipeline_mount(
+    session, config: PipelineConfig, factory: Callable[..., Pipeline] = make_pipeline
+):
+    """:func:`open_pipeline` and the :class:`~graph_slam.strides.mount.MountPitch` its leg
+    model was built with (``pipeline.mount_pitch_deg``, else the calibration's
+    ``thigh_T_camera``, else estimated from the session: :func:`session_leg_model`)."""
     from graph_slam.session import open_session
 
     if isinstance(session, str | Path):
@@ -52,10 +62,12 @@ def open_pipeline(
         raise SessionError(f"{session.path}: the session has no camera; pipelines need frames")
     streams = session_streams(session, config.event_source)
     calib = session.calibration
-    leg_model = leg_model_for(calib.thigh_T_camera, config.mount_pitch_deg)
+    leg_model, mount = session_leg_model(
+        session, config.mount_pitch_deg, config.mount_estimate, streams=streams
+    )
     has_color = bool(session.manifest.sensors.camera.has_color)
     pipe = factory(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
-    return session, streams, pipe
+    return session, streams, pipe, mount
 
 
 def run_session(
@@ -66,13 +78,14 @@ def run_session(
     """Run one variant over a session (a :class:`graph_slam.session.Session` or its folder).
 
     Steps: read the streams and shift them onto the camera clock (calibration offsets); build
-    the leg model matching the calibration; make the pipeline; give it the IMU and encoders;
+    the leg model (its camera mount from the config, the calibration, or estimated from the
+    session: :func:`~graph_slam.strides.mount.session_leg_model`); make the pipeline; give it the IMU and encoders;
     for every frame, announce the foot strikes (``events.csv``, source ``event_source``) that
     happened since the previous frame, then the frame with its foot-loaded state (between a
     foot strike and the next toe-off); finish.
     """
     config = config or PipelineConfig()
-    session, streams, pipe = open_pipeline(session, config)
+    session, streams, pipe, mount = open_pipeline_mount(session, config)
     if streams.imu_t_s is not None:
         pipe.add_imu(streams.imu_t_s, streams.gyro_rad_s, streams.accel_m_s2)
     if streams.joints_t_s is not None:
@@ -90,5 +103,6 @@ def run_session(
             progress(i + 1, n)
     results = pipe.finish()
     results.counts["foot_strikes"] = int(np.sum(streams.events.strikes_known_s <= t_prev))
+    results.config["mount_pitch"] = mount.to_dict()
     results.config.setdefault("strides_cut_by", streams.events.source or "all events.csv sources")
     return results

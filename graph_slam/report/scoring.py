@@ -39,16 +39,18 @@ class SessionRun:
     def build(
         cls, session, label: str, results, pipeline: PipelineConfig, first_stride: int
     ) -> SessionRun:
-        from graph_slam.strides.kinematics import leg_model_for
+        from graph_slam.strides.kinematics import session_leg_model
         from graph_slam.strides.reference import stride_references
         from graph_slam.strides.streams import session_streams
 
         refs: list[StrideReference] = []
         if session.ground_truth is not None:
             first = next(iter(results.values()))
-            events = session_streams(session, pipeline.event_source).events
-            leg = leg_model_for(session.calibration.thigh_T_camera, None)
-            refs = stride_references(session, first.t_s, first.strides, events, leg)
+            streams = session_streams(session, pipeline.event_source)
+            leg, _ = session_leg_model(
+                session, pipeline.mount_pitch_deg, pipeline.mount_estimate, streams=streams
+            )
+            refs = stride_references(session, first.t_s, first.strides, streams.events, leg)
         run = cls(session, label, results, refs, first_stride)
         run.check_same_strides()
         return run

@@ -175,10 +175,12 @@ def summarise_session(session, results: dict, reference: Variant) -> dict:
             "timing": timing(res),
             "counts": {k: int(v) for k, v in res.counts.items()},
         }
+    mounts = [res.config["mount_pitch"] for res in results.values() if "mount_pitch" in res.config]
     return {
         "path": str(session.path),
         "frames": int(session.n_frames),
         "ground_truth": session.ground_truth is not None,
+        "mount_pitch": mounts[0] if mounts else None,
         "variants": variants,
         "agreement": agreement(results, reference),
     }
@@ -257,6 +259,26 @@ def _agreement_table(agree: dict, reference: str) -> list[str]:
     return [*lines, ""]
 
 
+_MOUNT_SOURCES = {
+    "config": "set by pipeline.mount_pitch_deg",
+    "calibration": "fitted to the session's thigh_T_camera",
+    "estimated": "estimated from the session's foot-flat stance (docs/kinematics.md)",
+}
+
+
+def _mount_line(mount: dict | None) -> list[str]:
+    """The leg model's camera mount pitch and where it came from."""
+    if not mount:
+        return []
+    text = f"Camera mount pitch {mount['pitch_deg']:.2f}° below horizontal, "
+    text += _MOUNT_SOURCES.get(mount["source"], mount["source"])
+    if "n_samples" in mount:
+        text += (
+            f": {mount['n_samples']} IMU samples, spread {mount['spread_deg']:.2f}° (1.4826·MAD)"
+        )
+    return [text + ".", ""]
+
+
 def run_markdown(summary: dict, cfg) -> str:
     """``report.md`` of a run: per session, the counts, stop points, timing and agreement."""
     lines = [
@@ -283,6 +305,7 @@ def run_markdown(summary: dict, cfg) -> str:
             else ("no ground truth")
         )
         lines += [f"## Session {name}", "", f"`{sess['path']}`: {sess['frames']} frames, {gt}.", ""]
+        lines += [*_mount_line(sess.get("mount_pitch"))]
         lines += ["### Frames and timing", "", *_counts_table(sess["variants"])]
         lines += ["### Per stride", "", *_per_stride_table(sess["variants"])]
         stops = [(v, p) for v, x in sess["variants"].items() for p in x["stop_points"]]

@@ -15,7 +15,9 @@ strides.joints.JointBuffer` and the session's ``camera_T_imu``) answers, for a t
 Each returns None (logged) when no measurement exists: no model, ``t_s`` outside the buffered
 encoder samples, or a ``KinematicsError`` (e.g. a joint outside its limits).
 
-Also here: :func:`leg_model_for` (the leg model matching a calibration).
+Also here: :func:`leg_model_for` (the leg model matching a calibration) and
+:func:`session_leg_model` (the leg model for a session: its camera mount from the config, the
+calibration, or estimated from the session by :mod:`graph_slam.strides.mount`).
 """
 
 from __future__ import annotations
@@ -23,12 +25,14 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
-from graph_slam.errors import ConfigError
+from graph_slam.errors import ConfigError, MountPitchError
 from graph_slam.strides.joints import JointBuffer
 from graph_slam.strides.measurements import KinematicMeasurement
+from graph_slam.strides.mount import MountEstimateConfig, MountPitchEstimate
 from kinematics.conversions import adjoint_rot_first
 
 log = logging.getLogger(__name__)
@@ -69,6 +73,103 @@ def leg_model_for(thigh_T_camera: np.ndarray, mount_pitch_deg: float | None = No
             "calibration is identity unless calibration.thigh_T_camera was set)"
         )
     return best
+
+
+MountSource = Literal["config", "calibration", "estimated"]
+
+
+@dataclass(frozen=True)
+class MountPitch:
+    """Which source set the leg model's mount pitch, and its value."""
+
+    source: MountSource
+    pitch_deg: float
+    estimate: MountPitchEstimate | None = None
+
+    def to_dict(self) -> dict:
+        out: dict = {"source": self.source, "pitch_deg": round(self.pitch_deg, 4)}
+        if self.estimate is not None:
+            out["spread_deg"] = round(self.estimate.spread_deg, 4)
+            out["n_samples"] = self.estimate.n_samples
+            out["counts"] = dict(self.estimate.counts)
+        return out
+
+    def describe(self) -> str:
+        """One line for logs and reports."""
+        text = f"mount pitch {self.pitch_deg:.2f}° ({self.source}"
+        if self.estimate is not None:
+            e = self.estimate
+            text += f" from {e.n_samples} foot-flat IMU samples, spread {e.spread_deg:.2f}°"
+        return text + ")"
+
+
+def is_identity(a_T_b: np.ndarray, atol: float = 1e-9) -> bool:
+    return bool(np.allclose(np.asarray(a_T_b, float), np.eye(4), atol=atol))
+
+
+def session_leg_model(
+    session,
+    mount_pitch_deg: float | None = None,
+    config: MountEstimateConfig | None = None,
+    *,
+    streams=None,
+    event_source: str | None = "load_cell",
+):
+    """``(LegModel, MountPitch)`` for a session: the mount pitch from, in this order,
+    ``mount_pitch_deg`` (``pipeline.mount_pitch_deg``), the session's ``thigh_T_camera`` when
+    it is not the identity (:func:`~graph_slam.strides.kinematics.leg_model_for`'s fit), or
+    :func:`estimate_mount_pitch` on the session's streams (``streams``: those of
+    :func:`~graph_slam.strides.streams.session_streams`, read with ``event_source`` when
+    None). The winner is logged."""
+    from graph_slam.strides.kinematics import leg_model_for
+    from kinematics.leg_model import LegModel
+    from kinematics.leg_params import LegParams
+
+    thigh_T_camera = session.calibration.thigh_T_camera
+    if mount_pitch_deg is not None:
+        model = leg_model_for(thigh_T_camera, mount_pitch_deg)
+        chosen = MountPitch("config", float(mount_pitch_deg))
+    elif not is_identity(thigh_T_camera):
+        model = leg_model_for(thigh_T_camera, None)
+        chosen = MountPitch("calibration", math.degrees(model.params.mount_pitch_down_rad))
+    else:
+        if streams is None:
+            from graph_slam.strides.streams import session_streams
+
+            streams = session_streams(session, event_source)
+        estimate = estimate_from_streams(
+            streams, session.calibration.camera_T_imu, config, where=str(session.path)
+        )
+        model = LegModel(LegParams(mount_pitch_down_rad=math.radians(estimate.pitch_deg)))
+        chosen = MountPitch("estimated", estimate.pitch_deg, estimate)
+    log.info("%s: %s", session.path, chosen.describe())
+    return model, chosen
+
+
+def estimate_from_streams(
+    streams, camera_T_imu: np.ndarray, config: MountEstimateConfig | None = None, where="session"
+) -> MountPitchEstimate:
+    """:func:`estimate_mount_pitch` on a :class:`~graph_slam.strides.streams.Streams`."""
+    if streams.imu_t_s is None or streams.joints_t_s is None:
+        missing = "imu.csv" if streams.imu_t_s is None else "joints.csv"
+        raise MountPitchError(
+            f"{where}: the session's thigh_T_camera is the identity and it has no {missing} to "
+            "estimate the camera's mount pitch from; set pipeline.mount_pitch_deg"
+        )
+    from graph_slam.strides.mount import estimate_mount_pitch
+
+    return estimate_mount_pitch(
+        streams.imu_t_s,
+        streams.gyro_rad_s,
+        streams.accel_m_s2,
+        streams.joints_t_s,
+        np.column_stack([streams.knee_rad, streams.ankle_rad]),
+        streams.events.foot_strikes_s,
+        streams.events.toe_offs_s,
+        camera_T_imu,
+        config,
+        where=where,
+    )
 
 
 def imu_up_in_model(model, camera_T_imu: np.ndarray, up_in_imu: np.ndarray) -> np.ndarray:
