@@ -25,10 +25,11 @@ class ConfigModel(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
 
 
-def _format_validation_error(err: ValidationError, source: str) -> str:
+def format_validation_error(err: ValidationError, source: str, prefix: str = "") -> str:
+    """pydantic's errors as one line: ``source: field 'prefix.a.b': message; ...``."""
     parts = []
     for item in err.errors():
-        field = ".".join(str(p) for p in item["loc"]) or "<root>"
+        field = prefix + ".".join(str(p) for p in item["loc"]) or "<root>"
         parts.append(f"field '{field}': {item['msg']}")
     return f"{source}: " + "; ".join(parts)
 
@@ -42,7 +43,7 @@ def config_from_dict(cls: type[C], data: dict[str, Any] | None, source: str = "<
     try:
         return cls.model_validate(data)
     except ValidationError as err:
-        raise ConfigError(_format_validation_error(err, source)) from None
+        raise ConfigError(format_validation_error(err, source)) from None
 
 
 def load_config(cls: type[C], path: str | Path | None) -> C:
@@ -52,18 +53,23 @@ def load_config(cls: type[C], path: str | Path | None) -> C:
     """
     if path is None:
         return cls()
+    return config_from_dict(cls, read_yaml(path), source=str(path))
+
+
+def read_yaml(path: str | Path, what: str = "config file") -> Any:
+    """The document in the YAML file ``path`` (``yaml.safe_load``); a :class:`ConfigError`
+    naming the file when it cannot be read (``cannot read <what>``), is not UTF-8 or not YAML."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as err:
-        raise ConfigError(f"{path}: cannot read config file ({err.strerror})") from None
+        raise ConfigError(f"{path}: cannot read {what} ({err.strerror})") from None
     except UnicodeDecodeError as err:
         raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
     try:
-        data = yaml.safe_load(text)
+        return yaml.safe_load(text)
     except yaml.YAMLError as err:
         raise ConfigError(f"{path}: {yaml_error_text(err)}") from None
-    return config_from_dict(cls, data, source=str(path))
 
 
 def yaml_error_text(err: Exception) -> str:

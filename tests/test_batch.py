@@ -17,9 +17,12 @@ pytest.importorskip("distributed")
 pytest.importorskip("evo")
 
 from graph_slam.batch import ClusterOptions, load_spec, run_batch
+from graph_slam.batch.pool import timing
+from graph_slam.batch.run import STUDY_MARKER, _outcome, check_study_folder
 from graph_slam.batch.spec import TEST_HOOKS_ENV
-from graph_slam.batch.tasks import plan_tasks
+from graph_slam.batch.tasks import Task, plan_tasks
 from graph_slam.errors import BatchError, ConfigError
+from graph_slam.session.atomic import MARKER_NAME
 
 ROOT = Path(__file__).resolve().parents[1]
 # The cheapest scoring run: the baseline with one ICP level, coarse map clouds (test_compare).
@@ -32,6 +35,15 @@ FAST = {
         },
         "terrain": {"pixel_step": 2},
     }
+}
+
+
+# Generous Dask timeouts: the cluster shares two loaded cores with other work, and a worker's
+# event loop may stall for seconds while its task holds the GIL (the workers inherit these).
+PATIENT_DASK = {
+    "distributed.comm.timeouts.connect": "300s",
+    "distributed.comm.timeouts.tcp": "300s",
+    "distributed.scheduler.worker-ttl": "30 minutes",
 }
 
 
@@ -59,7 +71,10 @@ def study(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.setenv(TEST_HOOKS_ENV, "1")
     spec = _spec(base, sessions=["s/*"], test_kill_worker=["s-crash"])
-    result = run_batch(spec, base / "out", ClusterOptions(workers=2, threads_per_worker=1))
+    import dask
+
+    with dask.config.set(PATIENT_DASK):
+        result = run_batch(spec, base / "out", ClusterOptions(workers=2, threads_per_worker=1))
     mp.undo()
     return base, spec, result
 
@@ -135,9 +150,13 @@ def test_resume_skips_finished_tasks_and_reruns_a_changed_config(study) -> None:
     again = run_batch(same, out)
     assert {s["this_run"] for s in again.states.values()} == {"skipped"}
     assert again.ok and again.cluster == "" and done_a.stat().st_mtime_ns == stamp
+    assert (out / STUDY_MARKER).is_file()
     # A changed setting re-runs the task (new hash); the other session's task is left alone.
     changed = _spec(base, "changed.yaml", sessions=["s/a"], config={**FAST, "match_margin_m": 0.06})
-    rerun = run_batch(changed, out, ClusterOptions(workers=1))
+    import dask
+
+    with dask.config.set(PATIENT_DASK):
+        rerun = run_batch(changed, out, ClusterOptions(workers=1))
     state = rerun.states["s-a__icp__default"]
     assert (
         state["this_run"] == "done"
@@ -226,4 +245,82 @@ def test_dask_is_imported_only_by_the_batch_package_and_lazily() -> None:
                     offenders.append(str(path.relative_to(ROOT)))
     assert offenders == []
     code = "import sys, graph_slam.batch, graph_slam.cli; assert 'distributed' not in sys.modules"
-    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=600)
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {
+        p.relative_to(folder).as_posix(): p.read_bytes() for p in folder.rglob("*") if p.is_file()
+    }
+
+
+@pytest.mark.parametrize("marked", [True, False], ids=["another-command", "a-user-folder"])
+def test_out_that_batch_did_not_write_is_refused_and_left_untouched(
+    study, tmp_path, capsys, marked
+) -> None:
+    from graph_slam.cli import main
+
+    base, _, _ = study
+    out = tmp_path / "report"  # e.g. a compare report: report.md, plots/, the marker
+    (out / "plots").mkdir(parents=True)
+    (out / "report.md").write_text("# compare\n")
+    (out / "plots" / "error.png").write_bytes(b"png")
+    if marked:
+        (out / MARKER_NAME).write_text("written by graph-slam\n")
+    before = _snapshot(out)
+    spec = _spec(tmp_path, sessions=[str(base / "s" / "a")])
+    why = "another graph-slam command's output" if marked else "files graph-slam did not write"
+    with pytest.raises(BatchError, match=f"{_escape(str(out))}: not a batch study folder .*{why}"):
+        run_batch(spec, out)
+    with pytest.raises(SystemExit) as exit_:
+        main(["batch", str(spec), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and "not a batch study folder" in err and "Traceback" not in err
+    assert _snapshot(out) == before
+
+
+def test_a_batch_folder_new_empty_interrupted_or_older_is_accepted(tmp_path) -> None:
+    assert check_study_folder(tmp_path / "new") == tmp_path / "new"
+    (tmp_path / "empty").mkdir()
+    check_study_folder(tmp_path / "empty")
+    interrupted = tmp_path / "interrupted"  # stopped before its first study.json
+    (interrupted / "tasks").mkdir(parents=True)
+    (interrupted / STUDY_MARKER).write_text("")
+    (interrupted / MARKER_NAME).write_text("")
+    check_study_folder(interrupted)
+    older = tmp_path / "older"  # written before the marker existed
+    older.mkdir()
+    (older / MARKER_NAME).write_text("")
+    (older / "study.json").write_text(json.dumps({"schema": "graph_slam.study"}))
+    check_study_folder(older)
+    (older / "study.json").write_text(json.dumps({"schema": "graph_slam.metrics"}))
+    with pytest.raises(BatchError, match="not a batch study folder"):
+        check_study_folder(older)
+
+
+class _CancelledFuture:
+    """What distributed hands back for a cancelled task: ``exception()`` raises."""
+
+    status = "cancelled"
+
+    def exception(self):
+        from concurrent.futures import CancelledError
+
+        raise CancelledError("graph-slam-x")
+
+
+def test_a_cancelled_task_is_recorded_as_failed(tmp_path) -> None:
+    task = Task("x", "s", "s", "icp", "default", {}, "h", str(tmp_path / "x"))
+    state = _outcome(task, _CancelledFuture(), retries=1)
+    assert state["status"] == "failed" and state["error"].startswith("cancelled:")
+    assert json.loads((tmp_path / "x" / "task.json").read_text())["status"] == "failed"
+
+
+def test_pooled_timing_leaves_out_tasks_without_timed_frames() -> None:
+    zero = {"n": 0, "mean_s": 0.0, "max_s": 0.0, "median_s": 0.0}
+    assert timing([zero, zero, None]) is None
+    one = {"n": 3, "mean_s": 0.02, "max_s": 0.05, "median_s": 0.01}
+    two = {"n": 1, "mean_s": 0.06, "max_s": 0.06, "median_s": 0.06}
+    pooled = timing([zero, one, two])
+    assert pooled["n"] == 4 and pooled["mean_s"] == pytest.approx(0.03, abs=1e-15)
+    assert pooled["task_median_min_s"] == 0.01 and pooled["max_s"] == 0.06

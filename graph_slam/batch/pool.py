@@ -114,8 +114,11 @@ def pooled_boxes(maps: Sequence[dict[str, Any]]) -> tuple[dict[str, Any], dict[s
 
 
 def timing(tasks: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
-    """Per-frame time over tasks' ``timing`` entries: frame-weighted mean, max, median range."""
-    stats = [t for t in tasks if t]
+    """Per-frame time over tasks' ``timing`` entries: frame-weighted mean, max, median range.
+
+    A task that timed no frame (``n`` 0) has no figures to pool and is left out; None when
+    no task timed a frame."""
+    stats = [t for t in tasks if t and t.get("n")]
     if not stats:
         return None
     n = sum(t["n"] for t in stats)

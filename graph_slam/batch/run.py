@@ -2,18 +2,21 @@
 
 Its steps:
 
-1. load and check the spec (:func:`~graph_slam.batch.spec.load_spec`) and the output folder —
-   every bad input stops here, before a worker starts;
+1. load and check the spec (:func:`~graph_slam.batch.spec.load_spec`) and the output folder
+   (:func:`check_study_folder`: new, empty, or a study batch wrote) — every bad input stops
+   here, before a worker starts;
 2. plan the tasks and their input hashes; a task whose folder holds ``done`` with the same hash
    is skipped (a re-run after Ctrl-C resumes);
-3. submit the rest to the cluster, one Dask task each, and record every outcome as it comes
-   (done, a typed error, a bug's traceback after ``retries``, ``KilledWorker`` after as many
-   worker deaths);
+3. submit the rest to the cluster, one Dask task each and no more at once than the cluster
+   has threads (so a worker that dies takes only its own running tasks with it), and record
+   every outcome as it comes (done, a typed error, a bug's traceback after ``retries``,
+   ``KilledWorker`` after as many worker deaths, a cancelled task);
 4. write the pooled report (:mod:`graph_slam.batch.pool`) over every finished task.
 """
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -32,6 +35,10 @@ from graph_slam.batch.tasks import (
     read_state,
     write_state,
 )
+from graph_slam.errors import BatchError
+
+STUDY_MARKER = ".graph-slam-batch"
+"""Written into a study folder when a batch starts: a re-run may resume only such a folder."""
 
 TaskCallback = Callable[[Task, dict[str, Any], int, int], None]
 """Called as ``(task, state, finished so far, to run)`` when a task ends."""
@@ -77,14 +84,15 @@ def run_batch(
     """Run the study ``spec_path`` into ``out`` (created, or resumed when batch wrote it)."""
     from graph_slam.batch.cluster import require_dask
     from graph_slam.batch.pool_report import write_pooled_report
-    from graph_slam.session.atomic import check_output, mark_folder
+    from graph_slam.session.atomic import mark_folder
 
     t0 = time.perf_counter()
     options = options or ClusterOptions()
     require_dask()
     resolved = load_spec(spec_path)
-    out = check_output(out, overwrite=True)
+    out = check_study_folder(out)
     mark_folder(out)
+    (out / STUDY_MARKER).write_text("a graph-slam batch study; a re-run resumes it\n")
     tasks = plan_tasks(resolved, out)
     states: dict[str, dict[str, Any]] = {}
     pending = []
@@ -101,6 +109,39 @@ def run_batch(
     return result
 
 
+def is_study_folder(path: Path) -> bool:
+    """True for a folder a batch wrote: its marker, or (older studies) its ``study.json``."""
+    from graph_slam.batch.pool_report import STUDY_SCHEMA
+
+    if (path / STUDY_MARKER).is_file():
+        return True
+    try:
+        study = json.loads((path / "study.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(study, dict) and study.get("schema") == STUDY_SCHEMA
+
+
+def check_study_folder(out: str | Path) -> Path:
+    """The study folder ``out``, before any work: missing, empty, or a study a batch wrote
+    (resumed); any other folder is refused with :class:`BatchError` and left untouched."""
+    from graph_slam.session.atomic import check_output, written_by_us
+
+    out = Path(out)
+    if out.is_dir() and not out.is_symlink() and any(out.iterdir()) and not is_study_folder(out):
+        why = (
+            "it holds another graph-slam command's output (compare, run, demo, ...)"
+            if written_by_us(out)
+            else "it holds files graph-slam did not write"
+        )
+        raise BatchError(
+            f"{out}: not a batch study folder ({why}; no {STUDY_MARKER} or batch study.json); "
+            "a batch writes into a new or empty folder or resumes its own study, choose another "
+            "--out"
+        )
+    return check_output(out, overwrite=True)
+
+
 def _run_pending(
     resolved: ResolvedSpec,
     pending: list[Task],
@@ -109,7 +150,13 @@ def _run_pending(
     on_task: TaskCallback | None,
     on_cluster: ClusterCallback | None,
 ) -> str:
-    """Step 3: submit, then record each outcome as it arrives (in the order they finish)."""
+    """Step 3: submit, then record each outcome as it arrives (in the order they finish).
+
+    Tasks are submitted only while the cluster has a free thread: Dask would otherwise hand a
+    worker several tasks at once (its queuing applies only to large groups), and a worker that
+    dies counts a death against every task it holds, so a crashing task could use up the
+    retries of the tasks queued beside it.
+    """
     from distributed import as_completed
 
     from graph_slam.batch.cluster import open_client
@@ -125,28 +172,51 @@ def _run_pending(
     ) as (client, info):
         if on_cluster is not None:
             on_cluster(info)
-        by_key = {}
-        for task in pending:
-            future = client.submit(
-                execute_task, task, key=f"graph-slam-{task.id}", retries=retries, pure=False
-            )
-            by_key[future.key] = (task, future)
-        for n, future in enumerate(as_completed([f for _, f in by_key.values()]), start=1):
-            task = by_key[future.key][0]
+        queue = list(pending)
+        by_key: dict[str, Task] = {}
+        running = as_completed()
+
+        def submit_while_threads_free() -> None:
+            threads = max(1, sum(client.nthreads().values()))
+            while queue and running.count() < threads:
+                task = queue.pop(0)
+                future = client.submit(
+                    execute_task, task, key=f"graph-slam-{task.id}", retries=retries, pure=False
+                )
+                by_key[future.key] = task
+                running.add(future)
+
+        submit_while_threads_free()
+        for n, future in enumerate(running, start=1):
+            task = by_key[future.key]
             state = _outcome(task, future, retries)
             states[task.id] = {**state, "this_run": state["status"]}
             if on_task is not None:
                 on_task(task, state, n, len(pending))
+            submit_while_threads_free()
         return info.description
 
 
 def _outcome(task: Task, future, retries: int) -> dict[str, Any]:
-    """The task's state: what the worker wrote, or the exception Dask gave back."""
+    """The task's state: what the worker wrote, or the exception Dask gave back (a cancelled
+    task is recorded as failed: its ``exception()`` raises rather than returns)."""
+    import asyncio
+    import concurrent.futures
     import traceback
 
     if future.status == "finished":
         return future.result()
-    err = future.exception()
+    cancelled = (concurrent.futures.CancelledError, asyncio.CancelledError)
+    try:
+        err = None if future.status == "cancelled" else future.exception()
+    except cancelled:
+        err = None
+    if err is None or isinstance(err, cancelled):
+        reason = (
+            "cancelled: Dask cancelled the task before it finished (the scheduler lost it or "
+            "it was cancelled); run the batch again to resume"
+        )
+        return write_state(task, FAILED, error=reason)
     name = type(err).__name__
     if name == "KilledWorker":
         reason = (

@@ -16,10 +16,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
 from pydantic import Field, ValidationError
 
-from graph_slam.config import ConfigModel, yaml_error_text
+from graph_slam.config import ConfigModel, config_from_dict, format_validation_error, read_yaml
 from graph_slam.errors import ConfigError, GraphSlamError
 from graph_slam.report.compare import CompareConfig
 from graph_slam.variants import VARIANTS, Variant
@@ -93,23 +92,7 @@ class ResolvedSpec:
 def load_spec(path: str | Path) -> ResolvedSpec:
     """Read and check the spec (``yaml.safe_load``); every error names the file and field."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise ConfigError(f"{path}: cannot read the batch spec ({err.strerror})") from None
-    except UnicodeDecodeError as err:
-        raise ConfigError(f"{path}: not UTF-8 text (byte {err.start})") from None
-    except yaml.YAMLError as err:
-        raise ConfigError(f"{path}: {yaml_error_text(err)}") from None
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: the top level must be a mapping (sessions:, variants:, ...)")
-    try:
-        spec = BatchSpec.model_validate(data)
-    except ValidationError as err:
-        fields = "; ".join(
-            f"field '{'.'.join(map(str, e['loc']))}': {e['msg']}" for e in err.errors()
-        )
-        raise ConfigError(f"{path}: {fields}") from None
+    spec = config_from_dict(BatchSpec, read_yaml(path, "the batch spec"), source=str(path))
     if spec.test_kill_worker and os.environ.get(TEST_HOOKS_ENV) != "1":
         raise ConfigError(
             f"{path}: field 'test_kill_worker' is a test-only switch that kills workers; it is "
@@ -168,11 +151,9 @@ def _configuration(path: Path, spec: BatchSpec, name: str, override: dict) -> Co
     try:
         return CompareConfig.model_validate(merged)
     except ValidationError as err:
-        fields = "; ".join(
-            f"field 'configurations.{name}.{'.'.join(map(str, e['loc']))}': {e['msg']}"
-            for e in err.errors()
-        )
-        raise ConfigError(f"{path}: {fields}") from None
+        raise ConfigError(
+            format_validation_error(err, str(path), prefix=f"configurations.{name}.")
+        ) from None
     except GraphSlamError as err:
         raise ConfigError(f"{path}: configuration {name!r}: {err}") from None
 
