@@ -160,6 +160,8 @@ class BagSpec:
     compressed_color: str | None = None  # ros layout: png | jpeg on <ns>/color/image_raw/compressed
     compressed_depth: bool = False  # ros layout: 16UC1 compressedDepth png
     corrupt_color_message: int | None = None  # cut this compressed colour message in half
+    odd_size_color_message: int | None = None  # this compressed colour message 2 rows shorter
+    depth_distortion: tuple[float, ...] = ()  # plumb_bob k1 k2 p1 p2 k3 in the depth camera_info
 
 
 @dataclass
@@ -272,6 +274,8 @@ def write_bag(path: Path, spec: BagSpec) -> BagTruth:
             if spec.compressed_color:
                 payload = _encode(rgb, spec.compressed_color)
                 n_color = len(truth.color_ns)
+                if n_color == spec.odd_size_color_message:
+                    payload = _encode(np.ascontiguousarray(rgb[:-2]), spec.compressed_color)
                 if n_color == spec.corrupt_color_message:
                     payload = payload[: len(payload) // 2]
                 add(cns, "color", Compressed.__msgtype__, Compressed(header=header(cns, color_frame),
@@ -295,7 +299,9 @@ def write_bag(path: Path, spec: BagSpec) -> BagTruth:
         binning_x=0, binning_y=0,
         roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
     )  # fmt: skip
-    mats = {"d": np.zeros(5), "k": k_mat, "r": np.eye(3).ravel(), "p": np.zeros(12)}
+    d_depth = np.zeros(5)
+    d_depth[: len(spec.depth_distortion)] = spec.depth_distortion
+    mats = {"d": d_depth, "k": k_mat, "r": np.eye(3).ravel(), "p": np.zeros(12)}
     cam.update({(key if spec.ros2 else key.upper()): v for key, v in mats.items()})
     add(T0_NS, "info", Info.__msgtype__, Info(**cam))
     if unaligned:

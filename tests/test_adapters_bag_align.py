@@ -29,7 +29,7 @@ from bagfactory import (
     write_bag,
 )
 
-from graph_slam.config import config_from_dict
+from graph_slam.config import config_from_dict, load_config
 from graph_slam.errors import CompressedImageError, ConversionError
 from graph_slam.session import open_session
 from graph_slam.session.adapters import ConvertConfig, convert
@@ -120,6 +120,38 @@ def test_colour_without_extrinsics_is_dropped_and_counted(tmp_path: Path) -> Non
     assert result.report.calibration["camera_T_imu"]["source"] == "default"
 
 
+def test_resolved_config_repeats_colour_registration_with_depth_distortion(
+    tmp_path: Path,
+) -> None:
+    """conversion.yaml keeps the depth camera's distortion (by not freezing pinhole intrinsics):
+    converting again from it registers colour exactly as the first run did."""
+    bag = tmp_path / "dist.bag"
+    write_bag(bag, BagSpec(layout="ros", color_mode="unaligned", extrinsics=True,
+                           depth_distortion=(0.08, -0.03, 0.002, -0.001, 0.0)))  # fmt: skip
+    first = convert(bag, tmp_path / "a")
+    resolved = load_config(ConvertConfig, tmp_path / "a" / "conversion.yaml")
+    assert resolved.bag.intrinsics is None
+    assert resolved.bag.camera_info_topic.endswith("/depth/camera_info")
+    again = convert(bag, tmp_path / "b", resolved)
+    intr = dict(width_px=W, height_px=H, fx_px=FX, fy_px=FY, cx_px=CX, cy_px=CY)
+    pinhole = config_from_dict(ConvertConfig, {"bag": {"intrinsics": intr}})
+    undistorted = convert(bag, tmp_path / "c", pinhole)
+    differs = 0
+    for a, b, c in zip(open_session(first.path), open_session(again.path),
+                       open_session(undistorted.path), strict=True):  # fmt: skip
+        np.testing.assert_array_equal(a.color_rgb, b.color_rgb)
+        differs += int((a.color_rgb != c.color_rgb).any(-1).sum())
+    assert differs > 0  # the pinhole model (the old conversion.yaml) registers differently
+
+
+def test_colour_registration_counts_are_in_the_manifest(tmp_path: Path) -> None:
+    result = convert(_bag(tmp_path, "sdk"), tmp_path / "s")
+    (note,) = [n for n in result.report.stream("frames").notes if "colour registered" in n]
+    assert "depth pixel(s) with a reading project outside" in note
+    notes = open_session(result.path).manifest.provenance.notes
+    assert f"frames: {note}" in notes
+
+
 # --------------------------------------------------------------------------- compressed
 @pytest.mark.parametrize("kind", ["png", "jpeg"])
 def test_compressed_colour_and_depth_round_trip(kind: str, tmp_path: Path) -> None:
@@ -142,6 +174,18 @@ def test_corrupt_compressed_message_is_an_error_naming_topic_and_index(tmp_path:
     write_bag(bag, BagSpec(layout="ros", compressed_color="png", corrupt_color_message=2))
     with pytest.raises(
         CompressedImageError, match=r"color/image_raw/compressed, message 2 .*corrupt or truncated"
+    ):
+        convert(bag, tmp_path / "s")
+    assert not (tmp_path / "s").exists()
+
+
+def test_compressed_colour_of_another_size_is_an_error_naming_topic_and_index(
+    tmp_path: Path,
+) -> None:
+    bag = tmp_path / "odd.bag"
+    write_bag(bag, BagSpec(layout="ros", compressed_color="png", odd_size_color_message=2))
+    with pytest.raises(
+        ConversionError, match=r"color/image_raw/compressed, message 2: .*\(22, 32, 3\)"
     ):
         convert(bag, tmp_path / "s")
     assert not (tmp_path / "s").exists()

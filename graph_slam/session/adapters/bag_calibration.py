@@ -30,7 +30,6 @@ from graph_slam.session.adapters.align import CameraModel
 from graph_slam.session.records import CameraIntrinsics
 
 TRANSFORM = "geometry_msgs/msg/Transform"
-TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 IMU_INTRINSIC = "realsense_msgs/msg/ImuIntrinsic"
 #: ``/device_D/sensor_S/<Stream>_<i>/tf/<group>``
 SDK_TF = re.compile(r"^(/device_\d+/sensor_\d+/[A-Za-z]+_\d+)/tf/(\d+)$")
@@ -224,7 +223,8 @@ class BagCalibration:
     notes: list[str] = field(default_factory=list)
 
 
-def _entry(ext: Extrinsic) -> dict[str, Any]:
+def extrinsic_entry(ext: Extrinsic) -> dict[str, Any]:
+    """An extrinsic for the conversion report: its source and the 4×4 value."""
     return {"source": ext.source, "value": np.round(ext.pose, 12).tolist()}
 
 
@@ -263,12 +263,12 @@ def resolve_bag_calibration(
     elif choice.color is not None:
         out.color_T_depth = lookup("color", "depth")
     if out.color_T_depth is not None:
-        out.entries["color_T_depth"] = _entry(out.color_T_depth)
+        out.entries["color_T_depth"] = extrinsic_entry(out.color_T_depth)
     imu_ext: dict[str, Extrinsic] = {}
     for role in ("imu", "gyro", "accel"):
         if getattr(choice, role) is not None and (ext := lookup("depth", role)) is not None:
             imu_ext[role] = ext
-            out.entries[f"camera_T_{role}"] = _entry(ext)
+            out.entries[f"camera_T_{role}"] = extrinsic_entry(ext)
     out.camera_T_imu = imu_ext.get("imu") or imu_ext.get("gyro") or imu_ext.get("accel")
     if "gyro" in imu_ext and "accel" in imu_ext:
         rot = imu_ext["gyro"].pose[:3, :3].T @ imu_ext["accel"].pose[:3, :3]

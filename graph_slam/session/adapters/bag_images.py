@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from graph_slam.errors import CompressedImageError, ConversionError
+from graph_slam.session.adapters.bag_topics import COMPRESSED
 
 DEPTH_ENCODINGS = ("16UC1", "mono16", "32FC1")
 COLOR_ENCODINGS = ("rgb8", "bgr8")
@@ -71,7 +72,6 @@ def check_format(
 
 
 # --------------------------------------------------------------------------- compressed images
-COMPRESSED = "sensor_msgs/msg/CompressedImage"
 #: compressed_depth_image_transport's ConfigHeader: int32 format, float32 depthParam[2]
 COMPRESSED_DEPTH_HEADER_BYTES = 12
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

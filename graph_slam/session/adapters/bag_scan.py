@@ -13,14 +13,13 @@ import numpy as np
 from graph_slam.errors import ConversionError, MissingStreamError
 from graph_slam.session.adapters.bag_images import (
     COLOR_ENCODINGS,
-    COMPRESSED,
     DEPTH_ENCODINGS,
     check_format,
     compressed_array,
     image_array,
 )
 from graph_slam.session.adapters.bag_reader import Bag
-from graph_slam.session.adapters.bag_topics import TopicChoice
+from graph_slam.session.adapters.bag_topics import COMPRESSED, TopicChoice
 from graph_slam.session.adapters.config import BagConfig
 
 DEPTH_CHECK_FRAMES = 5

@@ -195,6 +195,38 @@ def resolve_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> TopicCho
     ``topics`` maps each topic in the bag to its message type. A missing or mistyped topic is a
     :class:`MissingStreamError` / :class:`ConversionError` listing the topics found.
     """
+    explicit = _explicit_topics(topics, cfg)
+    preset = _preset(topics, cfg)
+    depth = cfg.depth_topic or _depth_topic(topics, cfg, preset)
+    related = preset.related(depth, topics) if preset is not None else {}
+    choice: dict[str, Any] = {"depth": depth}
+    for role in (
+        "color",
+        "camera_info",
+        "joint_states",
+        "gait_events",
+        "depth_units",
+        "color_info",
+        "tf_static",
+    ):
+        choice[role] = explicit.get(role) or related.get(role)
+    notes = _imu_topics(choice, cfg, related)
+    _check_types(choice, topics)
+    registered = (
+        cfg.color_registered_to_depth
+        if cfg.color_registered_to_depth is not None
+        else bool(related.get("color_registered", False))
+    )
+    return TopicChoice(
+        preset=preset.name if preset is not None else "none",
+        color_registered=registered,
+        notes=tuple(notes),
+        **choice,
+    )
+
+
+def _explicit_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> dict[str, str | None]:
+    """role → topic given in ``cfg``; each must be in the bag."""
     explicit = {
         "depth": cfg.depth_topic,
         "color": cfg.color_topic,
@@ -211,46 +243,49 @@ def resolve_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> TopicCho
             raise MissingStreamError(
                 f"bag.{role}_topic = {topic!r} is not in the bag; topics found: {listing(topics)}"
             )
-    if cfg.preset == "auto":
+    return explicit
+
+
+def _preset(
+    topics: Mapping[str, str | None], cfg: BagConfig
+) -> RealsenseSdkPreset | RealsenseRosPreset | None:
+    """``bag.preset``; ``auto``: the preset that knows ``bag.depth_topic``, else the first
+    that recognises a depth topic in the bag."""
+    if cfg.preset == "none":
+        return None
+    if cfg.preset != "auto":
+        return PRESETS[cfg.preset]
+    preset = next((p for p in PRESETS.values() if p.depth_candidates(topics)), None)
+    if cfg.depth_topic is not None:
         preset = next(
-            (p for p in PRESETS.values() if p.depth_candidates(topics)), None
-        )  # first preset that recognises a depth topic
-        if cfg.depth_topic is not None:
-            preset = next(
-                (p for p in PRESETS.values() if cfg.depth_topic in p.depth_candidates(topics)),
-                preset,
-            )
-    elif cfg.preset == "none":
-        preset = None
-    else:
-        preset = PRESETS[cfg.preset]
-    depth = cfg.depth_topic
-    if depth is None:
-        candidates = preset.depth_candidates(topics) if preset is not None else []
-        if len(candidates) > 1:
-            raise ConversionError(
-                f"several depth topics: {candidates}; choose one with bag.depth_topic"
-            )
-        if not candidates:
-            how = f"preset {preset.name!r}" if preset else f"preset {cfg.preset!r}"
-            raise MissingStreamError(
-                f"no depth topic found ({how}); set bag.depth_topic or another bag.preset. "
-                f"Topics found: {listing(topics)}"
-            )
-        depth = candidates[0]
-    related = preset.related(depth, topics) if preset is not None else {}
-    choice: dict[str, Any] = {"depth": depth}
-    for role in (
-        "color",
-        "camera_info",
-        "joint_states",
-        "gait_events",
-        "depth_units",
-        "color_info",
-        "tf_static",
-    ):
-        choice[role] = explicit.get(role) or related.get(role)
-    notes: list[str] = []
+            (p for p in PRESETS.values() if cfg.depth_topic in p.depth_candidates(topics)),
+            preset,
+        )
+    return preset
+
+
+def _depth_topic(
+    topics: Mapping[str, str | None],
+    cfg: BagConfig,
+    preset: RealsenseSdkPreset | RealsenseRosPreset | None,
+) -> str:
+    """The preset's one depth topic; none or several is an error saying what to set."""
+    candidates = preset.depth_candidates(topics) if preset is not None else []
+    if len(candidates) > 1:
+        raise ConversionError(
+            f"several depth topics: {candidates}; choose one with bag.depth_topic"
+        )
+    if not candidates:
+        how = f"preset {preset.name!r}" if preset else f"preset {cfg.preset!r}"
+        raise MissingStreamError(
+            f"no depth topic found ({how}); set bag.depth_topic or another bag.preset. "
+            f"Topics found: {listing(topics)}"
+        )
+    return candidates[0]
+
+
+def _imu_topics(choice: dict[str, Any], cfg: BagConfig, related: Mapping[str, Any]) -> list[str]:
+    """Set ``choice``'s imu, or accel and gyro: the config's, else the preset's; notes."""
     if cfg.imu_topic:
         choice["imu"] = cfg.imu_topic
     elif cfg.accel_topic:
@@ -260,10 +295,13 @@ def resolve_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> TopicCho
     elif related.get("accel") and related.get("gyro"):
         choice["accel"], choice["gyro"] = related["accel"], related["gyro"]
     elif related.get("accel") or related.get("gyro"):
-        notes.append(
-            f"only one of accel/gyro found ({related.get('accel') or related.get('gyro')}): "
-            "no IMU stream"
-        )
+        found = related.get("accel") or related.get("gyro")
+        return [f"only one of accel/gyro found ({found}): no IMU stream"]
+    return []
+
+
+def _check_types(choice: Mapping[str, str | None], topics: Mapping[str, str | None]) -> None:
+    """Every chosen topic must carry a message type its role can read."""
     for role, topic in choice.items():
         if topic is None:
             continue
@@ -273,14 +311,3 @@ def resolve_topics(topics: Mapping[str, str | None], cfg: BagConfig) -> TopicCho
                 f"topic {topic} ({role}) has message type {msgtype}; expected one of "
                 f"{sorted(ROLE_TYPES[role])}"
             )
-    registered = (
-        cfg.color_registered_to_depth
-        if cfg.color_registered_to_depth is not None
-        else bool(related.get("color_registered", False))
-    )
-    return TopicChoice(
-        preset=preset.name if preset is not None else "none",
-        color_registered=registered,
-        notes=tuple(notes),
-        **choice,
-    )

@@ -204,6 +204,17 @@ def _report_calibration_sources(recording: Recording, calibration: Calibration, 
             entries[name] = {"source": "default", "value": value}
 
 
+def _provenance(recording: Recording, source: str) -> Provenance:
+    """The manifest's provenance: the report's notes, then each stream's (named)."""
+    report = recording.report
+    notes = list(report.notes) + [f"{s.stream}: {n}" for s in report.streams for n in s.notes]
+    return Provenance(
+        generator=f"graph_slam.session.adapters ({report.adapter})",
+        source=source,
+        notes="; ".join(notes) or None,
+    )
+
+
 def write_recording(
     recording: Recording,
     path: Path,
@@ -228,11 +239,7 @@ def write_recording(
         camera_profile=camera_profile or recording.camera_profile,
         imu_profile=recording.imu_profile,
         calibration=recording.calibration,
-        provenance=Provenance(
-            generator=f"graph_slam.session.adapters ({recording.report.adapter})",
-            source=source,
-            notes="; ".join(recording.report.notes) or None,
-        ),
+        provenance=_provenance(recording, source),
     )
     with writer:
         n = recording.n_frames
@@ -250,6 +257,9 @@ def write_recording(
                 progress(written, n)
         if written != n:
             raise ConversionError(f"{source}: {written} frames read, {n} expected")
+        # Again after the frames: reading them adds notes (e.g. a bag's colour-registration
+        # counts), and the manifest is written last, on close.
+        writer.provenance = _provenance(recording, source)
         if recording.imu is not None and len(recording.imu):
             writer.write_imu(recording.imu)
         if recording.joints is not None and len(recording.joints):

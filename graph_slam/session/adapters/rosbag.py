@@ -11,43 +11,38 @@ all counted in the report.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from graph_slam.errors import BagError, ConversionError, MissingStreamError
-from graph_slam.session.adapters.align import CameraModel, align_color_to_depth, pixel_rays
+from graph_slam.errors import ConversionError, MissingStreamError
+from graph_slam.session.adapters.align import CameraModel
 from graph_slam.session.adapters.bag_calibration import (
-    Extrinsic,
+    BagCalibration,
     camera_model_from_info,
+    extrinsic_entry,
     imu_intrinsics_entries,
     intrinsics_of,
     resolve_bag_calibration,
     sdk_imu_intrinsic_topics,
     sdk_tf_topics,
 )
-from graph_slam.session.adapters.bag_images import decode_image, image_array
+from graph_slam.session.adapters.bag_frames import (
+    FrameSource,
+    color_plan,
+    frame_reader,
+    pair_frames,
+)
+from graph_slam.session.adapters.bag_images import image_array
 from graph_slam.session.adapters.bag_reader import Bag, bag_path
-from graph_slam.session.adapters.bag_scan import first_pass
+from graph_slam.session.adapters.bag_scan import Collected, first_pass
+from graph_slam.session.adapters.bag_streams import imu_series, joints_events, zero_stamps
 from graph_slam.session.adapters.bag_topics import TopicChoice, listing, resolve_topics
-from graph_slam.session.adapters.base import ConversionReport, Recording, StreamReport
-from graph_slam.session.adapters.config import BagConfig, ConvertConfig, IntrinsicsConfig
-from graph_slam.session.adapters.timing import (
-    associate,
-    check_depth_units,
-    merge_accel_gyro,
-    order_stamps,
-)
-from graph_slam.session.records import (
-    Calibration,
-    GaitEvents,
-    ImuSeries,
-    JointSeries,
-    RgbdFrame,
-)
+from graph_slam.session.adapters.base import ConversionReport, Recording
+from graph_slam.session.adapters.config import ConvertConfig
+from graph_slam.session.adapters.timing import check_depth_units
+from graph_slam.session.records import Calibration
 
 __all__ = ["RosbagAdapter", "bag_path", "image_array", "resolve_topics"]
 
@@ -58,35 +53,14 @@ DEFAULT_DEPTH_UNIT_M = 1e-3
 FLOAT_DEPTH_SESSION_UNIT_M = 2e-4
 
 
-def _zero_stamps(values: list[int] | np.ndarray, topic: str, cfg: BagConfig) -> None:
-    zeros = int(np.count_nonzero(np.asarray(values, dtype=np.int64) == 0))
-    if zeros and cfg.stamps == "header":
-        raise ConversionError(
-            f"topic {topic}: {zeros} message(s) have header.stamp = 0; set bag.stamps: bag to "
-            "use the recording time instead"
-        )
+@dataclass(frozen=True)
+class _Scan:
+    """The first pass: topics in the bag, the topics chosen, what was gathered."""
 
-
-def _ordered(
-    items: list[tuple], width: int, stream: str, source: str
-) -> tuple[np.ndarray, np.ndarray, StreamReport]:
-    """``items`` = (stamp ns, ``width`` values) tuples → (int64 stamps, N×width values) with
-    finite values, in stamp order, duplicate stamps dropped; the report counts both."""
-    stamps = np.asarray([it[0] for it in items], dtype=np.int64)
-    values = np.asarray([it[1:] for it in items], dtype=np.float64).reshape(-1, width)
-    finite = np.isfinite(values).all(axis=1)
-    order = order_stamps(stamps[finite])
-    kept = np.flatnonzero(finite)[order.keep]
-    report = StreamReport(
-        stream,
-        source,
-        int(stamps.size),
-        int(kept.size),
-        {"NaN or inf": int((~finite).sum()), "duplicate stamp": order.duplicates},
-    )
-    if order.reordered:
-        report.notes.append(f"{order.reordered} message(s) out of stamp order, sorted")
-    return stamps[kept], values[kept], report
+    topics: dict[str, str | None]
+    choice: TopicChoice
+    got: Collected
+    is_ros2: bool
 
 
 class RosbagAdapter:
@@ -108,81 +82,81 @@ class RosbagAdapter:
         path = Path(path)
         cfg = config.bag
         report = ConversionReport(adapter=self.name, source=str(path))
-        with Bag(path) as bag:
-            topics, counts, is_ros2 = bag.topics(), bag.counts(), bag.is_ros2
-            choice = resolve_topics(topics, cfg)
-            if choice.camera_info is None and cfg.intrinsics is None:
-                raise MissingStreamError(
-                    f"{path}: no camera_info topic for {choice.depth}; set bag.camera_info_topic "
-                    f"or bag.intrinsics. Topics found: {listing(topics)}"
-                )
-            extra = sdk_tf_topics(topics) + tuple(
-                sdk_imu_intrinsic_topics(
-                    topics, {"accel": choice.accel, "gyro": choice.gyro}
-                ).values()
-            )
-            got = first_pass(bag, choice, cfg, counts, topics, extra)
-        report.notes.append(
-            f"ROS {'2' if is_ros2 else '1'} bag; topics chosen by preset {choice.preset}"
-        )
-        report.notes.extend(choice.notes)
-        for role, values in (("depth", got.depth_ns), ("color", got.color_ns)):
-            topic = getattr(choice, role)
-            if topic is not None:
-                _zero_stamps(values, topic, cfg)
+        scan = _scan(path, config, report)
+        choice, got = scan.choice, scan.got
         depth_model, unit_m, session_unit, encoding = _camera(
-            path, choice, got, cfg, config, report, is_ros2
+            path, choice, got, cfg, config, report, scan.is_ros2
         )
-        intrinsics = intrinsics_of(depth_model)
-        calib = resolve_bag_calibration(
-            choice, got.frame_ids, got.extra, got.tf_static, got.color_info, is_ros2,
-            cfg.color_T_depth,
-        )  # fmt: skip
-        report.calibration.update(calib.entries)
-        report.calibration.update(imu_intrinsics_entries(got.extra, choice))
-        report.notes.extend(calib.notes)
-        if any(k.endswith("_intrinsics") for k in report.calibration):
-            report.notes.append("IMU intrinsics recorded in the bag are reported, not applied")
-        align = _color_plan(path, choice, got, cfg, calib, depth_model, report)
-        depth_kept, color_pos, frames_report = _pair_frames(choice, got, config, align, report)
+        calib = _calibration(scan, config, report)
+        plan = color_plan(path, choice, got, cfg, calib, depth_model, report)
+        depth_kept, color_pos, frames_report = pair_frames(choice, got, config, plan, report)
         frame_t = np.asarray(got.depth_ns, dtype=np.int64)[depth_kept] * 1e-9
-        imu = _imu_series(got, choice, cfg, report, calib.gyro_R_accel)
-        joints, events = _joints_events(got, choice, cfg, report)
+        imu = imu_series(got, choice, cfg, report, calib.gyro_R_accel)
+        joints, events = joints_events(got, choice, cfg, report)
         calibration = Calibration()
         if calib.camera_T_imu is not None:
             calibration = Calibration(camera_T_imu=calib.camera_T_imu.pose)
-            report.calibration["camera_T_imu"] = _extrinsic_entry(calib.camera_T_imu)
-        resolved = _resolved_config(config, self.name, choice, encoding, unit_m, intrinsics)
-        frames = _frame_reader(
-            path,
-            choice,
-            topics,
-            depth_kept,
-            color_pos,
-            frame_t,
-            unit_m,
-            frames_report,
-            align,
-        )
+            report.calibration["camera_T_imu"] = extrinsic_entry(calib.camera_T_imu)
+        source = FrameSource(
+            path, choice, scan.topics, depth_kept, color_pos, frame_t, unit_m,
+            got.depth_format, got.color_format, plan,
+        )  # fmt: skip
+        profile = choice.preset if choice.preset != "none" else "rosbag"
         return Recording(
             name=path.stem if path.is_file() else path.name,
             report=report,
-            resolved=resolved,
-            intrinsics=intrinsics,
+            resolved=_resolved_config(config, self.name, choice, encoding, unit_m),
+            intrinsics=intrinsics_of(depth_model),
             depth_unit_m=session_unit,
             frame_times_s=frame_t,
-            frames=frames,
+            frames=frame_reader(source, frames_report),
             imu=imu,
             joints=joints,
             events=events,
             calibration=calibration,
-            camera_profile=choice.preset if choice.preset != "none" else "rosbag",
-            imu_profile=choice.preset if choice.preset != "none" else "rosbag",
+            camera_profile=profile,
+            imu_profile=profile,
         )
 
 
-def _extrinsic_entry(ext: Extrinsic) -> dict[str, Any]:
-    return {"source": ext.source, "value": np.round(ext.pose, 12).tolist()}
+def _scan(path: Path, config: ConvertConfig, report: ConversionReport) -> _Scan:
+    """Choose the topics and read the bag once (bag_scan.first_pass); zero stamps refused."""
+    cfg = config.bag
+    with Bag(path) as bag:
+        topics, counts, is_ros2 = bag.topics(), bag.counts(), bag.is_ros2
+        choice = resolve_topics(topics, cfg)
+        if choice.camera_info is None and cfg.intrinsics is None:
+            raise MissingStreamError(
+                f"{path}: no camera_info topic for {choice.depth}; set bag.camera_info_topic "
+                f"or bag.intrinsics. Topics found: {listing(topics)}"
+            )
+        imu_topics = sdk_imu_intrinsic_topics(topics, {"accel": choice.accel, "gyro": choice.gyro})
+        extra = sdk_tf_topics(topics) + tuple(imu_topics.values())
+        got = first_pass(bag, choice, cfg, counts, topics, extra)
+    report.notes.append(
+        f"ROS {'2' if is_ros2 else '1'} bag; topics chosen by preset {choice.preset}"
+    )
+    report.notes.extend(choice.notes)
+    for role, values in (("depth", got.depth_ns), ("color", got.color_ns)):
+        topic = getattr(choice, role)
+        if topic is not None:
+            zero_stamps(values, topic, cfg)
+    return _Scan(dict(topics), choice, got, is_ros2)
+
+
+def _calibration(scan: _Scan, config: ConvertConfig, report: ConversionReport) -> BagCalibration:
+    """The bag's cameras and extrinsics (config's bag.color_T_depth wins), into the report."""
+    got = scan.got
+    calib = resolve_bag_calibration(
+        scan.choice, got.frame_ids, got.extra, got.tf_static, got.color_info, scan.is_ros2,
+        config.bag.color_T_depth,
+    )  # fmt: skip
+    report.calibration.update(calib.entries)
+    report.calibration.update(imu_intrinsics_entries(got.extra, scan.choice))
+    report.notes.extend(calib.notes)
+    if any(k.endswith("_intrinsics") for k in report.calibration):
+        report.notes.append("IMU intrinsics recorded in the bag are reported, not applied")
+    return calib
 
 
 def _camera(path, choice, got, cfg, config, report, is_ros2):
@@ -238,173 +212,12 @@ def _camera(path, choice, got, cfg, config, report, is_ros2):
     return depth_model, unit_m, session_unit, encoding
 
 
-@dataclass(frozen=True)
-class ColorPlan:
-    """How colour is written: as recorded (registered) or registered to depth here."""
-
-    use: bool
-    depth_model: CameraModel | None = None
-    color_model: CameraModel | None = None
-    color_T_depth: np.ndarray | None = None
-
-    @property
-    def align(self) -> bool:
-        return self.use and self.color_T_depth is not None
-
-
-def _color_plan(path, choice, got, cfg, calib, depth_model, report) -> ColorPlan:
-    """Use colour as recorded when it is registered to depth; else register it when the bag
-    (or the config) has the colour camera and the depth→colour extrinsics; else drop it."""
-    if choice.color is None:
-        return ColorPlan(False)
-    width, height = got.depth_format[1:]
-    if choice.color_registered:
-        if got.color_format is not None and got.color_format[1:] != (width, height):
-            raise ConversionError(
-                f"{path}: colour on {choice.color} is {got.color_format[1]}×"
-                f"{got.color_format[2]}, depth is {width}×{height}; registered colour "
-                "must have the depth's size"
-            )
-        return ColorPlan(True)
-    missing = []
-    if not cfg.align_color:
-        missing.append("bag.align_color is false")
-    if calib.color_model is None:
-        missing.append("no colour camera_info (bag.color_info_topic)")
-    if calib.color_T_depth is None:
-        missing.append("no depth→colour extrinsics in the bag (bag.color_T_depth)")
-    if missing:
-        reason = "not registered to depth: " + "; ".join(missing)
-        report.add(
-            StreamReport("color", choice.color, len(got.color_ns), 0, {reason: len(got.color_ns)})
-        )
-        return ColorPlan(False)
-    if got.color_format is not None and got.color_format[1:] != (
-        calib.color_model.width_px,
-        calib.color_model.height_px,
-    ):
-        raise ConversionError(
-            f"{path}: colour on {choice.color} is {got.color_format[1]}×{got.color_format[2]} "
-            f"but {choice.color_info} says {calib.color_model.width_px}×"
-            f"{calib.color_model.height_px}"
-        )
-    report.notes.append(
-        f"colour registered to depth here ({calib.color_model.distortion_model} colour camera, "
-        f"color_T_depth from {calib.color_T_depth.source})"
-    )
-    return ColorPlan(True, depth_model, calib.color_model, calib.color_T_depth.pose)
-
-
-def _pair_frames(choice, got, config, plan: ColorPlan, report):
-    """Depth frames in stamp order, each paired with a colour image when colour is used."""
-    depth_ns = np.asarray(got.depth_ns, dtype=np.int64)
-    d_order = order_stamps(depth_ns)
-    depth_kept = d_order.keep  # message positions, in stamp order
-    frames_dropped = {"duplicate stamp": d_order.duplicates}
-    color_pos = None
-    if plan.use:
-        color_ns = np.asarray(got.color_ns, dtype=np.int64)
-        c_order = order_stamps(color_ns)
-        max_dt = config.association.max_color_dt_s
-        ns0 = int(depth_ns.min())
-        i_d, i_c = associate(
-            (depth_ns[depth_kept] - ns0) * 1e-9,
-            (color_ns[c_order.keep] - ns0) * 1e-9,
-            max_dt,
-        )
-        frames_dropped[f"no colour image within {max_dt} s"] = depth_kept.size - i_d.size
-        depth_kept = depth_kept[i_d]
-        color_pos = c_order.keep[i_c]
-        report.add(
-            StreamReport(
-                "color",
-                choice.color,
-                color_ns.size,
-                color_pos.size,
-                {
-                    "duplicate stamp": c_order.duplicates,
-                    f"no depth frame within {max_dt} s": c_order.keep.size - color_pos.size,
-                },
-            )
-        )
-    frames_report = report.add(
-        StreamReport("frames", choice.depth, depth_ns.size, depth_kept.size, frames_dropped)
-    )
-    return depth_kept, color_pos, frames_report
-
-
-def _imu_series(got, choice, cfg, report, gyro_R_accel) -> ImuSeries | None:
-    """The IMU: a combined topic, or accel interpolated at the gyro stamps (or the reverse)."""
-    imu = None
-    if choice.imu is not None:
-        ns, values, imu_report = _ordered(got.imu, 6, "imu", choice.imu)
-        report.add(imu_report)
-        _zero_stamps(ns, choice.imu, cfg)
-        imu = ImuSeries(ns * 1e-9, values[:, 0:3], values[:, 3:6]) if ns.size else None
-    elif choice.accel is not None and choice.gyro is not None:
-        g_ns, gyro, g_report = _ordered(got.gyro, 3, "gyro", choice.gyro)
-        a_ns, accel, a_report = _ordered(got.accel, 3, "accel", choice.accel)
-        if gyro_R_accel is not None:  # accel samples into the gyro (IMU) frame
-            accel = accel @ gyro_R_accel.T
-        _zero_stamps(g_ns, choice.gyro, cfg)
-        _zero_stamps(a_ns, choice.accel, cfg)
-        # Interpolate on times relative to the first stamp: exact weights (absolute float
-        # seconds near 1.7e9 s resolve only 0.24 µs).
-        ns0 = int(min(g_ns[0] if g_ns.size else 0, a_ns[0] if a_ns.size else 0))
-        imu_rel, merge = merge_accel_gyro(
-            (g_ns - ns0) * 1e-9,
-            gyro,
-            (a_ns - ns0) * 1e-9,
-            accel,
-            time_base=cfg.imu.time_base,
-            max_gap_s=cfg.imu.max_gap_s,
-        )
-        imu = ImuSeries(imu_rel.t_s + ns0 * 1e-9, imu_rel.gyro_rad_s, imu_rel.accel_m_s2)
-        base, other = (g_report, a_report) if cfg.imu.time_base == "gyro" else (a_report, g_report)
-        base.used = merge.base_used
-        base.dropped.update(
-            {
-                "before the other stream starts": merge.base_dropped_start,
-                "after the other stream ends": merge.base_dropped_end,
-                f"other stream gap > {cfg.imu.max_gap_s} s": merge.base_dropped_gap,
-            }
-        )
-        other.used = merge.other_used
-        other.dropped.update(
-            {
-                "before the first kept base sample": merge.other_unused_start,
-                "after the last kept base sample": merge.other_unused_end,
-            }
-        )
-        other.notes.append(f"interpolated linearly at the {cfg.imu.time_base} stamps")
-        report.add(g_report)
-        report.add(a_report)
-        report.notes.append(
-            f"IMU: {len(imu)} samples on the {cfg.imu.time_base} time base "
-            f"({choice.gyro} + {choice.accel})"
-        )
-        if imu is not None and len(imu) == 0:
-            imu = None
-    return imu
-
-
-def _joints_events(got, choice, cfg, report):
-    joints = None
-    if choice.joint_states is not None:
-        ns, values, j_report = _ordered(got.joints, 2, "joints", choice.joint_states)
-        report.add(j_report)
-        _zero_stamps(ns, choice.joint_states, cfg)
-        if ns.size:
-            joints = JointSeries(ns * 1e-9, values[:, 0], values[:, 1])
-    events = None
-    if choice.gait_events is not None:
-        events, e_report = _map_events(got.events, cfg, choice.gait_events)
-        report.add(e_report)
-    return joints, events
-
-
-def _resolved_config(config, name, choice, encoding, unit_m, intrinsics) -> ConvertConfig:
-    """The config as used: topics chosen, unit and intrinsics (repeats the conversion)."""
+def _resolved_config(
+    config: ConvertConfig, name: str, choice: TopicChoice, encoding: str, unit_m: float
+) -> ConvertConfig:
+    """The config as used: topics chosen and depth unit (repeats the conversion). Intrinsics
+    from camera_info are not written (the topic is): a pinhole ``bag.intrinsics`` would drop
+    the depth camera's distortion and register colour differently on a re-run."""
     cfg = config.bag
     return config.model_copy(
         update={
@@ -423,131 +236,10 @@ def _resolved_config(config, name, choice, encoding, unit_m, intrinsics) -> Conv
                     "gait_events_topic": choice.gait_events,
                     "depth_unit_m": None if encoding == "32FC1" else unit_m,
                     "color_registered_to_depth": choice.color_registered,
-                    "intrinsics": IntrinsicsConfig(
-                        width_px=intrinsics.width_px,
-                        height_px=intrinsics.height_px,
-                        fx_px=intrinsics.fx_px,
-                        fy_px=intrinsics.fy_px,
-                        cx_px=intrinsics.cx_px,
-                        cy_px=intrinsics.cy_px,
-                    ),
+                    # Intrinsics stay as given: from camera_info they are read again with
+                    # the distortion, which bag.intrinsics (pinhole) cannot hold.
+                    "intrinsics": cfg.intrinsics,
                 }
             ),
         }
     )
-
-
-def _map_events(
-    items: list[tuple[int, str]], cfg: BagConfig, topic: str
-) -> tuple[GaitEvents, StreamReport]:
-    dropped: dict[str, int] = {}
-    times: list[int] = []
-    kinds: list[str] = []
-    for bag_ns, value in items:
-        if value in cfg.gait_event_values:
-            times.append(bag_ns)
-            kinds.append(cfg.gait_event_values[value])
-        else:
-            key = f"unmapped value {value!r}"
-            dropped[key] = dropped.get(key, 0) + 1
-    order = order_stamps(np.asarray(times, dtype=np.int64))
-    dropped["duplicate stamp"] = order.duplicates
-    report = StreamReport("events", topic, len(items), order.keep.size, dropped)
-    report.notes.append("stamped with the bag's receive time (std_msgs carry no header)")
-    t_s = np.asarray(times, dtype=np.int64)[order.keep] * 1e-9
-    events = GaitEvents(
-        t_s, tuple(kinds[i] for i in order.keep), (cfg.gait_events_source,) * order.keep.size
-    )
-    return events, report
-
-
-def _frame_reader(
-    path: Path,
-    choice: TopicChoice,
-    msgtypes: Mapping[str, str | None],
-    depth_pos: np.ndarray,
-    color_pos: np.ndarray | None,
-    frame_t: np.ndarray,
-    unit_m: float,
-    frames_report: StreamReport,
-    plan: ColorPlan,
-):
-    """A callable yielding the frames in stamp order (second pass over the bag)."""
-    frame_of_depth = {int(p): k for k, p in enumerate(depth_pos)}
-    frame_of_color = {} if color_pos is None else {int(p): k for k, p in enumerate(color_pos)}
-    n_frames = int(depth_pos.size)
-    rays = pixel_rays(plan.depth_model) if plan.align else None
-
-    def frames() -> Iterator[RgbdFrame]:
-        depth_ready: dict[int, np.ndarray] = {}
-        color_ready: dict[int, np.ndarray] = {}
-        next_frame = 0
-        topics = {choice.depth}
-        if color_pos is not None and choice.color is not None:
-            topics.add(choice.color)
-        position = dict.fromkeys(topics, -1)
-        counts = {"non_finite": 0, "no_depth": 0, "outside": 0}
-        with Bag(path) as bag:
-            for topic, _, msg in bag.messages(topics):
-                position[topic] += 1
-                pos = position[topic]
-                if topic == choice.depth and pos in frame_of_depth:
-                    raw = decode_image(msg, msgtypes.get(topic), topic, pos, "depth")
-                    depth_ready[frame_of_depth[pos]] = _depth_m(raw, unit_m, counts)
-                if topic == choice.color and pos in frame_of_color:
-                    color_ready[frame_of_color[pos]] = decode_image(
-                        msg, msgtypes.get(topic), topic, pos, "color"
-                    )
-                while (
-                    next_frame < n_frames
-                    and next_frame in depth_ready
-                    and (color_pos is None or next_frame in color_ready)
-                ):
-                    depth_m = depth_ready.pop(next_frame)
-                    color = color_ready.pop(next_frame, None)
-                    if plan.align and color is not None:
-                        aligned = align_color_to_depth(
-                            depth_m, color, plan.depth_model, plan.color_model,
-                            plan.color_T_depth, rays,
-                        )  # fmt: skip
-                        counts["no_depth"] += aligned.no_depth
-                        counts["outside"] += aligned.outside
-                        color = aligned.color_rgb
-                    yield RgbdFrame(
-                        t_s=float(frame_t[next_frame]),
-                        depth_m=depth_m,
-                        color_rgb=color,
-                        index=next_frame,
-                    )
-                    next_frame += 1
-        _frame_notes(frames_report, counts, plan)
-        if next_frame != n_frames:
-            raise BagError(
-                f"{path}: the second pass found {next_frame} of {n_frames} frames; the bag "
-                "changed or is damaged while converting"
-            )
-
-    return frames
-
-
-def _depth_m(raw: np.ndarray, unit_m: float, counts: dict[str, int]) -> np.ndarray:
-    scale = np.float32(unit_m)
-    if raw.dtype == np.float32:
-        bad = ~np.isfinite(raw) | (raw < 0)
-        counts["non_finite"] += int(bad.sum())
-        return np.where(bad, 0.0, raw).astype(np.float32) * scale
-    return raw.astype(np.float32) * scale
-
-
-def _frame_notes(frames_report: StreamReport, counts: dict[str, int], plan: ColorPlan) -> None:
-    if counts["non_finite"]:
-        frames_report.notes.append(
-            f"{counts['non_finite']} depth pixel(s) NaN, inf or negative written as 0 "
-            "(no reading, REP 118)"
-        )
-    if plan.align:
-        frames_report.notes.append(
-            f"colour registered to depth: {counts['outside']} depth pixel(s) with a reading "
-            f"project outside the colour image (written black); {counts['no_depth']} without "
-            "a reading get no colour (black)"
-        )
