@@ -1,0 +1,119 @@
+"""What the online terrain map knew at every frame, recorded while a variant runs.
+
+``compare`` hands a :class:`TerrainTrace` to ``run_session`` (its ``on_frame``) for every
+variant. Per frame it keeps the time, the stride and the whole obstacles of the frame's
+elevation grid (``FrameOutput.terrain``; the pipelines' results do not keep the grids) — what
+the deadline (:mod:`graph_slam.evaluation.terrain_deadline`) needs — and, every
+``grid_step``-th frame when asked, a small snapshot of the grid (heights and σ as float32, its
+obstacles) for the rerun recording. The obstacles are computed once per frame
+(``TerrainView.obstacle_map``: the floor fit and the box search on the grid).
+
+:func:`stride_deadlines` turns one variant's trace into the deadline of each scored stride.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graph_slam.evaluation.terrain_deadline import StrideDeadlines, obstacle_deadlines
+from graph_slam.strides.reference import gait_cycle_percent
+
+
+@dataclass(frozen=True, eq=False)
+class GridSnapshot:
+    """One frame's elevation grid, reduced to what a view draws (stride frame, metres)."""
+
+    stride_index: int
+    t_s: float
+    origin_xy_m: np.ndarray
+    cell_m: float
+    height_m: np.ndarray
+    """(nx, ny) float32, NaN where unknown."""
+    sigma_m: np.ndarray
+    obstacles: tuple
+    """The grid's boxes (:class:`~graph_slam.terrain.grid_obstacles.GridObstacle`)."""
+    floor_T_stride: np.ndarray | None = None
+
+
+@dataclass
+class TerrainTrace:
+    """Per frame, the online grid's whole obstacles; every ``grid_step``-th frame a snapshot
+    (``grid_step`` 0: none). Call it with each ``FrameOutput``. ``every_frame`` False: only
+    the snapshots (a recording without the deadline: no per-frame box search)."""
+
+    grid_step: int = 0
+    every_frame: bool = True
+    t_s: list[float] = field(default_factory=list)
+    stride_index: list[int] = field(default_factory=list)
+    obstacles: list[tuple] = field(default_factory=list)
+    """The grid's complete obstacles after each frame (empty: no grid, no floor, none)."""
+    snapshots: dict[int, GridSnapshot] = field(default_factory=dict)
+
+    def __call__(self, out) -> None:
+        view = out.terrain
+        snap = view is not None and self.grid_step and out.frame_index % self.grid_step == 0
+        omap = None if view is None or not (snap or self.every_frame) else view.obstacle_map
+        self.t_s.append(float(out.t_s))
+        self.stride_index.append(int(out.stride_index))
+        self.obstacles.append(() if omap is None else omap.complete)
+        if snap:
+            self.snapshots[int(out.frame_index)] = GridSnapshot(
+                view.stride_index,
+                float(out.t_s),
+                np.asarray(view.origin_xy_m, float),
+                float(view.cell_m),
+                view.height_m.astype(np.float32),
+                view.sigma_m.astype(np.float32),
+                () if omap is None else omap.obstacles,
+                None if omap is None else omap.floor.floor_T_stride(),
+            )
+
+
+def stride_deadlines(
+    trace: TerrainTrace, stride, ref, index: int, speed: str, number: int
+) -> StrideDeadlines:
+    """The deadline of one scored stride: ``stride`` the variant's
+    :class:`~graph_slam.pipelines.StrideOutput` (its ``smoothed_grid`` is the final map: the
+    graph's re-fused from the smoothed poses, the baseline's online grid at its last frame),
+    ``ref`` its :class:`~graph_slam.strides.reference.StrideReference` (frames, toe-off, the
+    foot strikes that bound the gait cycle)."""
+    idx = [int(i) for i in ref.frame_indices]
+    grid = None if stride is None else stride.smoothed_grid
+    omap = None if grid is None else grid.obstacle_map
+    final = () if omap is None else omap.complete
+    deadlines = obstacle_deadlines(
+        [trace.t_s[i] for i in idx],
+        [trace.obstacles[i] for i in idx],
+        final,
+        ref.toe_off_s,
+        stride_index=index,
+    )
+    known = np.array([d.known_t_s for d in deadlines], dtype=float)
+    pct = gait_cycle_percent(known, ref.t_strike_s, ref.t_next_strike_s) if known.size else known
+    return StrideDeadlines(
+        index,
+        speed,
+        number,
+        ref.toe_off_pct,
+        deadlines,
+        [float(p) if math.isfinite(p) else math.nan for p in np.atleast_1d(pct)],
+    )
+
+
+def log_grids(logger, trace: TerrainTrace, frame_indices, stride: int, t0_s: float,
+              world_T_stride) -> int:  # fmt: skip
+    """Log the trace's grid snapshots of the given frames on the ``stride`` timeline (session
+    time shifted by ``t0_s``) under the stride's transform; how many were logged."""
+    n = 0
+    for i in frame_indices:
+        snap = trace.snapshots.get(int(i))
+        if snap is None:
+            continue
+        logger.set_time(stride, t0_s + snap.t_s)
+        logger.log_stride(world_T_stride)
+        logger.log_grid(snap)
+        n += 1
+    return n
