@@ -49,7 +49,7 @@ class _Grid:
 
 def _trace(grid_step=0) -> TerrainTrace:
     """Frames at 0.0 .. 0.5 s; box known (within 1 cm / 2 cm) from frame 3 (0.3 s) on."""
-    trace = TerrainTrace(grid_step)
+    trace = TerrainTrace(grid_step, whole_boxes=lambda view: view.obstacle_map.complete)
     online = [[], [Box(1.05, 0.19, (1.1, -0.28))], [Box(1.0, 0.175, (1.1, -0.28))],
               [Box(1.019, 0.181, (1.1, -0.28))], [FINAL], [FINAL]]  # fmt: skip
     for k, boxes in enumerate(online):

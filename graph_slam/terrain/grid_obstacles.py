@@ -86,9 +86,13 @@ def _edges(h: np.ndarray, mask: np.ndarray, height: float, axis: int) -> tuple:
     return first + 1 - f0, last + f1
 
 
-def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstacleMap:
+def grid_obstacles(
+    view, config: GridObstacleConfig | None = None, *, complete_only: bool = False
+) -> GridObstacleMap:
     """The floor and the boxes of a :class:`~graph_slam.terrain.online.TerrainView` (see the
-    module docstring). Raises :class:`~graph_slam.errors.MappingError` without a floor."""
+    module docstring). Raises :class:`~graph_slam.errors.MappingError` without a floor.
+    ``complete_only``: leave out the boxes not seen whole before measuring them (the same
+    whole boxes, in less time: most components of a grid touch its unobserved border)."""
     from scipy import ndimage
 
     cfg = config or GridObstacleConfig()
@@ -100,7 +104,6 @@ def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstac
     above = np.full(view.shape, np.nan)
     n = floor.normal
     above[known] = (pts @ n + floor.offset_m) / n[2]  # vertical height over the plane
-    sigma = view.sigma_m
     occupied = known & (above >= cfg.min_height_m)
     labels, count = ndimage.label(occupied, structure=np.ones((3, 3), bool))
     closed = ndimage.binary_closing(known, structure=np.ones((3, 3), bool))
@@ -109,12 +112,11 @@ def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstac
     beyond = np.isin(free, border[border > 0]) | ~np.pad(
         np.ones((view.shape[0] - 2, view.shape[1] - 2), bool), 1
     )
-    cell = view.cell_m
     sizes = np.bincount(labels.ravel(), minlength=count + 1)
     big = [k for k in range(1, count + 1) if sizes[k] >= cfg.min_cells]
-    found = []
     boxes = ndimage.find_objects(labels)
     pad = cfg.margin_cells
+    found = []
     for k in big:
         # the component's bounding box grown by the margin (clipped at the grid): everything
         # below happens in that window (the dilation cannot leave it)
@@ -122,24 +124,8 @@ def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstac
         i0, j0 = max(sx.start - pad, 0), max(sy.start - pad, 0)
         win = (slice(i0, sx.stop + pad), slice(j0, sy.stop + pad))
         mask = labels[win] == k
-        n_cells = int(sizes[k])
-        hk = above[win][mask]
-        top = hk >= cfg.top_fraction * np.quantile(hk, 0.9)
-        height = float(np.median(hk[top]))
-        h_sigma = float(np.median(sigma[win][mask][top]))
-        h = np.where(mask, above[win], 0.0)
-        near_x, far_x = _edges(h, mask, height, 0)
-        near_y, far_y = _edges(h, mask, height, 1)
-        x0, y0 = view.origin_xy_m
-        lead = x0 + (i0 + float(np.median(near_x))) * cell
-        trail = x0 + (i0 + float(np.median(far_x))) * cell
-        right = y0 + (j0 + float(np.median(near_y))) * cell
-        left = y0 + (j0 + float(np.median(far_y))) * cell
-        edge_sigma = float(
-            np.sqrt((h_sigma / max(height, 1e-6) * cell) ** 2 + cell**2 / 12 / max(len(near_x), 1))
-        )
         grown = ndimage.binary_dilation(mask, np.ones((3, 3), bool), iterations=pad)
-        fill = n_cells / ((sx.stop - sx.start) * (sy.stop - sy.start))
+        fill = int(sizes[k]) / ((sx.stop - sx.start) * (sy.stop - sy.start))
         reason = None
         if (grown & beyond[win]).any():
             reason = "edge_of_map"
@@ -147,22 +133,47 @@ def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstac
             reason = "adjacent"
         elif fill < cfg.min_fill_fraction:
             reason = "top_incomplete"
-        found.append(
-            GridObstacle(
-                leading_edge_x_m=lead,
-                leading_edge_sigma_m=edge_sigma,
-                distance_m=lead - view.toe_x_m,
-                height_m=height,
-                height_sigma_m=h_sigma,
-                depth_m=trail - lead,
-                depth_sigma_m=float(np.sqrt(2) * edge_sigma),
-                width_m=left - right,
-                width_sigma_m=float(np.sqrt(2) * edge_sigma),
-                center_xy_m=np.array([(lead + trail) / 2, (left + right) / 2]),
-                n_cells=n_cells,
-                complete=reason is None,
-                skip_reason=reason,
-            )
-        )
+        if reason is not None and complete_only:
+            continue
+        found.append(_measure(view, cfg, above[win], mask, (i0, j0), int(sizes[k]), reason))
     found.sort(key=lambda o: o.leading_edge_x_m)
     return GridObstacleMap(floor, tuple(found))
+
+
+def _measure(view, cfg, above, mask, corner, n_cells: int, reason) -> GridObstacle:
+    """One component's box (steps 2-4 of the module docstring); ``above``: heights over the
+    floor in the component's window, ``mask`` the component there, ``corner`` the window's
+    first cell (i, j)."""
+    cell = view.cell_m
+    i0, j0 = corner
+    win = (slice(i0, i0 + mask.shape[0]), slice(j0, j0 + mask.shape[1]))
+    hk = above[mask]
+    top = hk >= cfg.top_fraction * np.quantile(hk, 0.9)
+    height = float(np.median(hk[top]))
+    h_sigma = float(np.median(view.sigma_m[win][mask][top]))
+    h = np.where(mask, above, 0.0)
+    near_x, far_x = _edges(h, mask, height, 0)
+    near_y, far_y = _edges(h, mask, height, 1)
+    x0, y0 = view.origin_xy_m
+    lead = x0 + (i0 + float(np.median(near_x))) * cell
+    trail = x0 + (i0 + float(np.median(far_x))) * cell
+    right = y0 + (j0 + float(np.median(near_y))) * cell
+    left = y0 + (j0 + float(np.median(far_y))) * cell
+    edge_sigma = float(
+        np.sqrt((h_sigma / max(height, 1e-6) * cell) ** 2 + cell**2 / 12 / max(len(near_x), 1))
+    )
+    return GridObstacle(
+        leading_edge_x_m=lead,
+        leading_edge_sigma_m=edge_sigma,
+        distance_m=lead - view.toe_x_m,
+        height_m=height,
+        height_sigma_m=h_sigma,
+        depth_m=trail - lead,
+        depth_sigma_m=float(np.sqrt(2) * edge_sigma),
+        width_m=left - right,
+        width_sigma_m=float(np.sqrt(2) * edge_sigma),
+        center_xy_m=np.array([(lead + trail) / 2, (left + right) / 2]),
+        n_cells=n_cells,
+        complete=reason is None,
+        skip_reason=reason,
+    )
