@@ -12,6 +12,7 @@ from graph_slam.terrain.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     depth_range_at,
+    depth_range_image,
 )
 
 # a camera looking straight down from 1 m: a point's ray is the stride -z axis (ray_z = -1),
@@ -56,6 +57,13 @@ def test_depth_range_of_a_pixel_neighbourhood():
     v = np.array([0, 0, 0, 0, 3, 2, 2])
     u = np.array([0, 2, 3, 7, 5, 8, 4])
     np.testing.assert_allclose(depth_range_at(depth, v, u), [0, 0, 0.6, 0, 0.6, 0, 0.6])
+    # the whole-image form agrees at every pixel and every step
+    for step in (1, 2, 3):
+        vv, uu = np.mgrid[0:6:step, 0:10:step]
+        np.testing.assert_allclose(
+            depth_range_image(depth, step),
+            depth_range_at(depth, vv.ravel(), uu.ravel()).reshape(vv.shape),
+        )
 
 
 def test_edge_term_is_honest_for_flying_pixels():

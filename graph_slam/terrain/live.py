@@ -31,7 +31,7 @@ from graph_slam.terrain.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     TerrainView,
-    depth_range_at,
+    depth_range_image,
     fallback_covariance,
 )
 from kinematics.conversions import adjoint_rot_first
@@ -127,7 +127,9 @@ class LiveTerrain:
         )
         ranges = None
         if self.cfg.depth_noise.edge_factor > 0:
-            ranges = depth_range_at(frame.depth_m, *pixels)
+            v_px, u_px = pixels
+            step = self.cfg.pixel_step
+            ranges = depth_range_image(frame.depth_m, step)[v_px // step, u_px // step]
         view = self.map.update(
             points, stride_T_camera, self._covariance(covariance), float(frame.t_s), ranges
         )

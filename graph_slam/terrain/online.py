@@ -83,7 +83,7 @@ _EDGE_OFFSETS = ((0, 1), (0, -1), (0, 2), (0, -2), (1, 0), (-1, 0), (2, 0), (-2,
 def depth_range_at(depth_m: np.ndarray, v_px: np.ndarray, u_px: np.ndarray) -> np.ndarray:
     """Per pixel (v, u) of the full-resolution depth image: the range (max − min) of the valid
     (> 0, finite) depths at the pixel and at ±1, ±2 pixels along u and v (0: no valid
-    neighbour). Eight gathers per pixel: cheap enough for every frame."""
+    neighbour)."""
     depth = np.asarray(depth_m)
     h, w = depth.shape
     z0 = depth[v_px, u_px].astype(np.float64)
@@ -95,6 +95,24 @@ def depth_range_at(depth_m: np.ndarray, v_px: np.ndarray, u_px: np.ndarray) -> n
         lo = np.where(ok, np.minimum(lo, z), lo)
         hi = np.where(ok, np.maximum(hi, z), hi)
     return hi - lo
+
+
+def depth_range_image(depth_m: np.ndarray, step: int) -> np.ndarray:
+    """:func:`depth_range_at` for every ``step``-th pixel in v and u at once (the
+    ``depth_m[::step, ::step]`` grid): strided views of the image padded with invalid depth,
+    no gathers. Invalid depth (0 or NaN) is never a neighbour."""
+    depth = np.asarray(depth_m, dtype=np.float32)
+    h, w = depth.shape
+    pad = np.pad(depth, 2)
+    lo = depth[::step, ::step].copy()
+    hi = lo.copy()
+    nv, nu = lo.shape
+    for dv, du in _EDGE_OFFSETS:
+        z = pad[2 + dv : 2 + dv + h : step, 2 + du : 2 + du + w : step][:nv, :nu]
+        ok = z > 0
+        np.minimum(lo, z, out=lo, where=ok)
+        np.maximum(hi, z, out=hi, where=ok)
+    return (hi - lo).astype(np.float64)
 
 
 class OnlineTerrainConfig(ConfigModel):
