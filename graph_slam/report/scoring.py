@@ -238,4 +238,5 @@ def score_deadlines(run: SessionRun) -> dict:
             for k, ref in enumerate(run.references)
         ]
         for v, trace in run.traces.items()
+        if trace.every_frame
     }
