@@ -7,12 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from graph_slam.terrain.depth_edges import depth_range_at, depth_range_image
 from graph_slam.terrain.online import (
     DepthNoiseModel,
     OnlineElevationMap,
     OnlineTerrainConfig,
-    depth_range_at,
-    depth_range_image,
 )
 
 # a camera looking straight down from 1 m: a point's ray is the stride -z axis (ray_z = -1),

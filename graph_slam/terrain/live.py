@@ -27,11 +27,11 @@ import numpy as np
 
 from graph_slam.terrain.builder import map_cloud, map_pixels
 from graph_slam.terrain.carry import carry_map
+from graph_slam.terrain.depth_edges import depth_range_image
 from graph_slam.terrain.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     TerrainView,
-    depth_range_image,
     fallback_covariance,
 )
 from kinematics.conversions import adjoint_rot_first

@@ -11,7 +11,8 @@ online ``stride_T_camera``; its height ``z`` gets two variances:
 
 * depth noise, independent between points: the sensor's range σ(z_c) = ``sigma_at_1m_m`` ·
   z_c^``exponent`` + ``sigma_floor_m`` along the pixel's ray ``p_c / z_c``, projected on the
-  stride z axis: ``σ_d² = (R[2] · p_c / z_c)² σ(z_c)²``;
+  stride z axis: ``σ_d² = (R[2] · p_c / z_c)² (σ(z_c)² + σ_e²)``, with the depth-edge term
+  ``σ_e²`` of a possible flying pixel (:class:`DepthNoiseModel`);
 * pose, common to the frame: the camera's marginal covariance Σ (6×6, camera local, rotation
   first, ``T exp(ξ)``) pushed through the point's Jacobian, z row only:
   ``J = [p_c × R[2], R[2]]`` (from ``δp = R(-[p_c]× δθ + δt)``), ``σ_p² = J Σ Jᵀ``.
@@ -54,7 +55,7 @@ class DepthNoiseModel(ConfigModel):
     may be a *flying pixel*, a mixture of both surfaces anywhere between them along its ray;
     its range variance gets ``edge_factor · R² / 3`` (the second moment of an error uniform on
     [0, R]). R is the range of the valid depths at the pixel and at ±1, ±2 pixels along u and
-    v of the full-resolution image (:func:`depth_range_at`)."""
+    v of the full-resolution image (:mod:`graph_slam.terrain.depth_edges`)."""
 
     sigma_at_1m_m: float = Field(0.0019, ge=0)
     exponent: float = Field(2.0, ge=0, le=3)
@@ -75,44 +76,6 @@ class DepthNoiseModel(ConfigModel):
         """Range variance of a pixel at a depth edge (0 below the threshold)."""
         r = np.asarray(range_m, dtype=np.float64)
         return np.where(r > self.edge_threshold_m, self.edge_factor * r**2 / 3.0, 0.0)
-
-
-_EDGE_OFFSETS = ((0, 1), (0, -1), (0, 2), (0, -2), (1, 0), (-1, 0), (2, 0), (-2, 0))
-
-
-def depth_range_at(depth_m: np.ndarray, v_px: np.ndarray, u_px: np.ndarray) -> np.ndarray:
-    """Per pixel (v, u) of the full-resolution depth image: the range (max − min) of the valid
-    (> 0, finite) depths at the pixel and at ±1, ±2 pixels along u and v (0: no valid
-    neighbour)."""
-    depth = np.asarray(depth_m)
-    h, w = depth.shape
-    z0 = depth[v_px, u_px].astype(np.float64)
-    lo, hi = z0.copy(), z0.copy()
-    for dv, du in _EDGE_OFFSETS:
-        vv, uu = np.clip(v_px + dv, 0, h - 1), np.clip(u_px + du, 0, w - 1)
-        z = depth[vv, uu].astype(np.float64)
-        ok = (z > 0) & np.isfinite(z)
-        lo = np.where(ok, np.minimum(lo, z), lo)
-        hi = np.where(ok, np.maximum(hi, z), hi)
-    return hi - lo
-
-
-def depth_range_image(depth_m: np.ndarray, step: int) -> np.ndarray:
-    """:func:`depth_range_at` for every ``step``-th pixel in v and u at once (the
-    ``depth_m[::step, ::step]`` grid): strided views of the image padded with invalid depth,
-    no gathers. Invalid depth (0 or NaN) is never a neighbour."""
-    depth = np.asarray(depth_m, dtype=np.float32)
-    h, w = depth.shape
-    pad = np.pad(depth, 2)
-    lo = depth[::step, ::step].copy()
-    hi = lo.copy()
-    nv, nu = lo.shape
-    for dv, du in _EDGE_OFFSETS:
-        z = pad[2 + dv : 2 + dv + h : step, 2 + du : 2 + du + w : step][:nv, :nu]
-        ok = z > 0
-        np.minimum(lo, z, out=lo, where=ok)
-        np.maximum(hi, z, out=hi, where=ok)
-    return (hi - lo).astype(np.float64)
 
 
 class OnlineTerrainConfig(ConfigModel):
@@ -212,7 +175,8 @@ def point_terms(
     depth_range_m: np.ndarray | None = None,
 ) -> PointTerms:
     """One frame's points in the stride frame with their depth and pose variances;
-    ``depth_range_m`` (per point, :func:`depth_range_at`; None: no edge term) adds the
+    ``depth_range_m`` (per point, :mod:`graph_slam.terrain.depth_edges`; None: no edge term)
+    adds the
     depth-edge variance along the ray."""
     pts = np.asarray(points_camera_m, dtype=np.float64)
     rotation, t = stride_T_camera[:3, :3], stride_T_camera[:3, 3]
