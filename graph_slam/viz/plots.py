@@ -218,6 +218,7 @@ def plot_obstacle_known_vs_phase(
         for variant, pcts in known_pct[speed].items():
             p = np.asarray(pcts, dtype=float)
             if p.size == 0:
+                ax.plot([], [], label=f"{variant} (n=0: no box whole in its final maps)")
                 continue
             known = np.where(np.isfinite(p), p, np.inf)
             frac = (known[None, :] <= phase[:, None]).mean(axis=1)
