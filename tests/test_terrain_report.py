@@ -47,9 +47,11 @@ class _Grid:
         self.sigma_m = np.full((3, 2), 0.001)
 
 
-def _trace(grid_step=0) -> TerrainTrace:
+def _trace(grid_step=0, interval_s=0.0) -> TerrainTrace:
     """Frames at 0.0 .. 0.5 s; box known (within 1 cm / 2 cm) from frame 3 (0.3 s) on."""
-    trace = TerrainTrace(grid_step, whole_boxes=lambda view: view.obstacle_map.complete)
+    trace = TerrainTrace(
+        grid_step, interval_s=interval_s, whole_boxes=lambda view: view.obstacle_map.complete
+    )
     online = [[], [Box(1.05, 0.19, (1.1, -0.28))], [Box(1.0, 0.175, (1.1, -0.28))],
               [Box(1.019, 0.181, (1.1, -0.28))], [FINAL], [FINAL]]  # fmt: skip
     for k, boxes in enumerate(online):
@@ -70,6 +72,12 @@ def test_stride_deadline_from_the_trace_known_answer():
     assert sd.known_pct == [pytest.approx(30.0)]
     row = sd.to_dict()
     assert row["index"] == 7 and row["obstacles"][0]["known_pct"] == pytest.approx(30.0)
+    # searched at most every 0.15 s: frames 0, 2, 4; the box is known at the first of them
+    # that knows it (0.4 s), the others are not searched
+    sparse = _trace(interval_s=0.15)
+    assert [o is None for o in sparse.obstacles] == [False, True, False, True, False, True]
+    (late,) = stride_deadlines(sparse, stride, ref, 7, "Slow", 2).deadlines
+    assert late.known_t_s == pytest.approx(0.4)
     # a stride without a final grid has nothing to score
     assert stride_deadlines(trace, None, ref, 7, "Slow", 2).deadlines == []
 

@@ -1,8 +1,8 @@
-"""What the online terrain map knew at every frame, recorded while a variant runs.
+"""What the online terrain map knew, frame by frame, recorded while a variant runs.
 
 ``compare`` hands a :class:`TerrainTrace` to ``run_session`` (its ``on_frame``) for every
-variant. Per frame it keeps the time, the stride and the whole obstacles of the frame's
-elevation grid (``FrameOutput.terrain``; the pipelines' results do not keep the grids) — what
+variant. Per frame it keeps the time, the stride and (every ``interval_s``) the whole
+obstacles of the frame's elevation grid (``FrameOutput.terrain``; the pipelines' results do not keep the grids) — what
 the deadline (:mod:`graph_slam.evaluation.terrain_deadline`) needs — and, every
 ``grid_step``-th frame when asked, a small snapshot of the grid (heights and σ as float32, its
 obstacles) for the rerun recording. The whole boxes are the ones ``TerrainView.obstacle_map``
@@ -50,12 +50,17 @@ class TerrainTrace:
 
     grid_step: int = 0
     every_frame: bool = True
+    interval_s: float = 0.0
+    """Search a frame's whole boxes only when this long has passed since the last searched
+    frame of its stride (0: every frame); the others record None (not searched)."""
     whole_boxes: Callable[[Any], tuple] | None = None
     """A view's whole boxes (None: :func:`complete_boxes`)."""
     t_s: list[float] = field(default_factory=list)
     stride_index: list[int] = field(default_factory=list)
-    obstacles: list[tuple] = field(default_factory=list)
-    """The grid's complete obstacles after each frame (empty: no grid, no floor, none)."""
+    obstacles: list[tuple | None] = field(default_factory=list)
+    """The grid's complete obstacles after each frame (empty: no grid, no floor, none; None:
+    not searched, ``interval_s``)."""
+    _last: tuple[int, float] = field(default=(-(10**9), -math.inf), init=False, repr=False)
     snapshots: dict[int, GridSnapshot] = field(default_factory=dict)
 
     def __call__(self, out) -> None:
@@ -76,10 +81,16 @@ class TerrainTrace:
                 () if omap is None else omap.obstacles,
                 None if omap is None else omap.floor.floor_T_stride(),
             )
-        elif view is not None and self.every_frame:
+        elif view is not None and self.every_frame and self._due(out):
             self.obstacles.append((self.whole_boxes or complete_boxes)(view))
         else:
-            self.obstacles.append(())
+            self.obstacles.append(() if view is None else None)
+        if self.obstacles[-1] is not None:
+            self._last = (int(out.stride_index), float(out.t_s))
+
+    def _due(self, out) -> bool:
+        stride, t = self._last
+        return int(out.stride_index) != stride or float(out.t_s) - t >= self.interval_s - 1e-9
 
 
 def complete_boxes(view) -> tuple:
@@ -101,8 +112,9 @@ def stride_deadlines(
     :class:`~graph_slam.pipelines.StrideOutput` (its ``smoothed_grid`` is the final map: the
     graph's re-fused from the smoothed poses, the baseline's online grid at its last frame),
     ``ref`` its :class:`~graph_slam.strides.reference.StrideReference` (frames, toe-off, the
-    foot strikes that bound the gait cycle)."""
-    idx = [int(i) for i in ref.frame_indices]
+    foot strikes that bound the gait cycle). Frames the trace did not search are left out: the
+    time known is that of the first searched frame that knew the obstacle."""
+    idx = [int(i) for i in ref.frame_indices if trace.obstacles[int(i)] is not None]
     grid = None if stride is None else stride.smoothed_grid
     omap = None if grid is None else grid.obstacle_map
     final = () if omap is None else omap.complete
