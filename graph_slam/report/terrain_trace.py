@@ -1,14 +1,14 @@
 """What the online terrain map knew, frame by frame, recorded while a variant runs.
 
 ``compare`` hands a :class:`TerrainTrace` to ``run_session`` (its ``on_frame``) for every
-variant. Per frame it keeps the time, the stride and (every ``interval_s``) the whole
-obstacles of the frame's elevation grid (``FrameOutput.terrain``; the pipelines' results do not keep the grids) — what
-the deadline (:mod:`graph_slam.evaluation.terrain_deadline`) needs — and, every
-``grid_step``-th frame when asked, a small snapshot of the grid (heights and σ as float32, its
-obstacles) for the rerun recording. The whole boxes are the ones ``TerrainView.obstacle_map``
-gives a controller, searched once per frame without measuring the boxes seen in part
-(``grid_obstacles(complete_only=True)``: 10–20 ms a frame on this 2-core machine, most of it
-the floor fit).
+variant. Per frame it keeps the time, the stride and, at most every ``interval_s``, the whole
+obstacles of the frame's elevation grid (``FrameOutput.terrain``; the pipelines' results do
+not keep the grids): what the deadline (:mod:`graph_slam.evaluation.terrain_deadline`)
+needs. Every ``grid_step``-th frame, when asked, it also keeps a small snapshot of the grid
+(heights and σ as float32, its boxes) for the rerun recording. The whole boxes are the ones
+``TerrainView.obstacle_map`` gives a controller, searched without measuring the boxes seen
+in part (``grid_obstacles(complete_only=True)``: 10–30 ms a search on this 2-core machine,
+most of it the floor fit).
 
 :func:`stride_deadlines` turns one variant's trace into the deadline of each scored stride.
 """
