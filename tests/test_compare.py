@@ -88,6 +88,29 @@ def test_compare_writes_every_promised_file(report_dir) -> None:
     assert {"trajectory", "error", "map", "elevation", "obstacles"} <= plots
 
 
+def test_compare_reports_the_deadline_and_the_live_grid(report_dir) -> None:
+    """The deadline section in report.md and metrics.json (schema 3) for the baseline and the
+    graph variant, the gait-phase plot, and the main variant's live grid in the recording."""
+    from graph_slam.evaluation import read_metrics_json
+
+    out, run = report_dir
+    assert run.returncode == 0, run.stderr
+    doc = read_metrics_json(out / "metrics.json")
+    assert doc["schema_version"] == 3
+    deadlines = doc["terrain_deadlines"]
+    assert set(deadlines) == {"icp", "imu+kin"}
+    for section in deadlines.values():
+        assert len(section["strides"]) == 1
+        assert section["all"]["n"] == sum(len(s["obstacles"]) for s in section["strides"])
+    assert "## Obstacles known before toe-off" in (out / "report.md").read_text()
+    assert "| imu+kin | all | 1 |" in (out / "report.md").read_text()
+    assert (out / "plots" / "obstacle_known_gait_phase.png").is_file()
+    from rerun.chunk import RrdReader
+
+    paths = set(RrdReader(out / "recording.rrd").store().schema().entity_paths())
+    assert {"/world/stride/terrain/height", "/world/stride/terrain/sigma"} <= paths, paths
+
+
 def test_ground_truth_tum_matches_the_session(report_dir, tiny_session: Path) -> None:
     """The reference trajectory starts each stride at the heel: camera ~0.9 m above the floor."""
     from graph_slam.session.io import read_tum

@@ -253,3 +253,15 @@ def test_grid_obstacles_find_a_box_on_a_floor():
     assert abs(ob.leading_edge_x_m - 0.8) <= view.cell_m
     assert abs(ob.height_m - 0.1) < 1e-3
     assert abs(ob.width_m - 0.3) <= 2 * view.cell_m
+    # the whole-boxes-only search gives the same box
+    (whole,) = grid_obstacles(view, complete_only=True).obstacles
+    assert ob.complete and whole.leading_edge_x_m == ob.leading_edge_x_m
+    assert whole.height_m == ob.height_m
+    # half the box off the grid's side: seen in part, left out by the whole-boxes search
+    part = pts.copy()
+    part[:, 1] += 0.45
+    view = OnlineElevationMap(OnlineTerrainConfig(), 0).update(
+        (part - pose[:3, 3]) @ pose[:3, :3], pose, np.eye(6) * 1e-8, 0.0
+    )
+    assert [o.complete for o in grid_obstacles(view).obstacles] == [False]
+    assert grid_obstacles(view, complete_only=True).obstacles == ()

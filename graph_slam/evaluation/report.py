@@ -1,10 +1,10 @@
 """The numbers of an evaluation, per variant and stride, and their ``metrics.json`` form.
 
-Schema (``schema_version`` 2; every length in metres, every time in seconds; NaN is written as
+Schema (``schema_version`` 3; every length in metres, every time in seconds; NaN is written as
 ``null``; documented in docs/evaluation.md)::
 
     {
-      "schema": "graph_slam.metrics", "schema_version": 2,
+      "schema": "graph_slam.metrics", "schema_version": 3,
       "session": str,
       "variants": {
         "<variant>": {
@@ -40,17 +40,33 @@ Schema (``schema_version`` 2; every length in metres, every time in seconds; NaN
                         "leading_edge_x_m": null | float, "yaw_rad": null | float}]}
           ]
         }
+      },
+      "terrain_deadlines": {
+        "<variant>": {
+          "all": {"n", "n_known", "n_before_toe_off", "fraction_before_toe_off",
+                  "lead_s_median", "lead_s_min"},
+          "by_speed": {"<speed>": {...as "all"}},
+          "strides": [
+            {"index": int, "speed": str, "number": int, "toe_off_pct": float,
+             "obstacles": [{"stride_index", "obstacle_index", "final_leading_edge_x_m",
+                            "final_height_m", "known_t_s", "toe_off_s", "lead_s",
+                            "known_pct"}]}
+          ]
+        }
       }
     }
 
 Version 1 (before the completeness filter) had no ``maps`` and measured every box, whole or
-not; :func:`read_metrics_json` reads both.
+not; version 2 had no ``terrain_deadlines`` (when the online map knew each obstacle of a
+stride's final map, relative to toe-off: :mod:`graph_slam.evaluation.terrain_deadline`);
+:func:`read_metrics_json` reads all three.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,12 +77,13 @@ from graph_slam.errors import EvaluationError
 from graph_slam.evaluation.boxes import DimensionStats, StrideObstacles, count_outcomes
 from graph_slam.evaluation.counts import FrameCounts
 from graph_slam.evaluation.tables import StrideRow, VariantStride
+from graph_slam.evaluation.terrain_deadline import StrideDeadlines, deadline_summary
 from graph_slam.evaluation.timing import TimingStats
 from graph_slam.evaluation.trajectory import StrideTrajectoryMetrics
 
 SCHEMA = "graph_slam.metrics"
-SCHEMA_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+SCHEMA_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,13 +215,19 @@ def metrics_document(
     session: str,
     variants: dict[str, VariantEvaluation],
     maps: dict[str, MapEvaluation] | None = None,
+    deadlines: dict[str, Sequence[StrideDeadlines]] | None = None,
 ) -> dict[str, Any]:
+    """``metrics.json``'s content (the schema above); ``deadlines``: per variant, its strides'
+    :class:`~graph_slam.evaluation.terrain_deadline.StrideDeadlines`."""
     return {
         "schema": SCHEMA,
         "schema_version": SCHEMA_VERSION,
         "session": session,
         "variants": {name: v.to_dict() for name, v in variants.items()},
         "maps": {name: m.to_dict() for name, m in (maps or {}).items()},
+        "terrain_deadlines": {
+            str(name): deadline_summary(strides) for name, strides in (deadlines or {}).items()
+        },
     }
 
 
@@ -247,4 +270,8 @@ def read_metrics_json(path: str | Path) -> dict[str, Any]:
         )
     if document["schema_version"] >= 2 and not isinstance(document.get("maps"), dict):
         raise EvaluationError(f"{path}: field 'maps' must be a mapping of map source to boxes")
+    if document["schema_version"] >= 3 and not isinstance(document.get("terrain_deadlines"), dict):
+        raise EvaluationError(
+            f"{path}: field 'terrain_deadlines' must be a mapping of variant to deadlines"
+        )
     return document

@@ -100,6 +100,31 @@ def obstacle_deadlines(
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class StrideDeadlines:
+    """One scored stride's obstacles (those its final map measures whole) and when the online
+    map knew each; ``known_pct``: that moment in % of the gait cycle (NaN: never)."""
+
+    index: int
+    speed: str
+    number: int
+    toe_off_pct: float
+    deadlines: list[ObstacleDeadline]
+    known_pct: list[float]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "index": self.index,
+            "speed": self.speed,
+            "number": self.number,
+            "toe_off_pct": self.toe_off_pct,
+            "obstacles": [
+                {**d.to_dict(), "known_pct": p}
+                for d, p in zip(self.deadlines, self.known_pct, strict=True)
+            ],
+        }
+
+
 def summarise_deadlines(deadlines: Sequence[ObstacleDeadline]) -> dict[str, Any]:
     """Counts and the lead before toe-off: ``n`` obstacles, ``n_known`` (ever in the stride),
     ``n_before_toe_off``, ``fraction_before_toe_off`` (of ``n``; NaN when none), median and
@@ -115,4 +140,18 @@ def summarise_deadlines(deadlines: Sequence[ObstacleDeadline]) -> dict[str, Any]
         "fraction_before_toe_off": before / n if n else float("nan"),
         "lead_s_median": float(np.median(leads)) if leads.size else float("nan"),
         "lead_s_min": float(leads.min()) if leads.size else float("nan"),
+    }
+
+
+def deadline_summary(strides: Sequence[StrideDeadlines]) -> dict[str, Any]:
+    """One variant's deadlines over its strides: every obstacle together (``all``) and per
+    walking speed (``by_speed``), :func:`summarise_deadlines` each, plus the strides."""
+    speeds = sorted({s.speed for s in strides})
+    return {
+        "all": summarise_deadlines([d for s in strides for d in s.deadlines]),
+        "by_speed": {
+            sp: summarise_deadlines([d for s in strides if s.speed == sp for d in s.deadlines])
+            for sp in speeds
+        },
+        "strides": [s.to_dict() for s in strides],
     }

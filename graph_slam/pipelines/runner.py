@@ -11,7 +11,7 @@ import numpy as np
 from graph_slam.errors import SessionError
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import Pipeline
-from graph_slam.pipelines.results import PipelineResults
+from graph_slam.pipelines.results import FrameOutput, PipelineResults
 from graph_slam.strides.kinematics import session_leg_model
 from graph_slam.strides.streams import session_streams
 
@@ -74,6 +74,7 @@ def run_session(
     session,
     config: PipelineConfig | None = None,
     progress: ProgressCallback | None = None,
+    on_frame: Callable[[FrameOutput], None] | None = None,
 ) -> PipelineResults:
     """Run one variant over a session (a :class:`graph_slam.session.Session` or its folder).
 
@@ -83,6 +84,10 @@ def run_session(
     for every frame, announce the foot strikes (``events.csv``, source ``event_source``) that
     happened since the previous frame, then the frame with its foot-loaded state (between a
     foot strike and the next toe-off); finish.
+
+    ``on_frame``: called with every frame's :class:`FrameOutput` as ``add_frame`` returned it
+    (with its ``terrain`` view, which ``PipelineResults.frames`` do not keep): a report's way to
+    record what the online map knew at each frame.
     """
     config = config or PipelineConfig()
     session, streams, pipe, mount = open_pipeline_mount(session, config)
@@ -97,7 +102,9 @@ def run_session(
     for i, frame in enumerate(session.iter_frames(0, n)):
         for t_strike in (t for known, t in strikes if t_prev < known <= frame.t_s):
             pipe.foot_strike(t_strike)
-        pipe.add_frame(frame, streams.foot_loaded(frame.t_s))
+        out = pipe.add_frame(frame, streams.foot_loaded(frame.t_s))
+        if on_frame is not None:
+            on_frame(out)
         t_prev = frame.t_s
         if progress is not None:
             progress(i + 1, n)

@@ -56,6 +56,45 @@ def _strides_cut_by(cfg) -> str:
     return f"events.csv source {source!r}"
 
 
+def _fmt_s(x: float) -> str:
+    return f"{x:.2f}" if np.isfinite(x) else "–"
+
+
+def deadline_section(deadlines: dict) -> list[str]:
+    """Per variant and walking speed: the obstacles each stride's final map measured whole,
+    how many the online map knew (height ±1 cm, leading edge ±2 cm of the final values), how
+    many before toe-off, and the lead before toe-off (docs/terrain.md)."""
+    from graph_slam.evaluation.terrain_deadline import deadline_summary
+
+    lines = [
+        "## Obstacles known before toe-off (the deadline)",
+        "",
+        "Per stride, every obstacle its final map measures whole (the graph's grid re-fused "
+        "from the smoothed poses; the baseline's online grid at its last frame): the first "
+        "frame at which the online elevation grid had its height within 1 cm and its leading "
+        "edge within 2 cm of the final values. Lead = toe-off − that time (positive: known "
+        "before the swing must be planned).",
+        "",
+    ]
+    if not any(deadlines.values()):
+        return [*lines, "No scored stride (or the online terrain map is off).", ""]
+    lines += [
+        "| variant | speed | strides | obstacles | known | before toe-off | lead median (s) "
+        "| lead min (s) |",
+        "| :-- | :-- | --: | --: | --: | --: | --: | --: |",
+    ]
+    for name, strides in deadlines.items():
+        summary = deadline_summary(strides)
+        for speed, d in [*summary["by_speed"].items(), ("all", summary["all"])]:
+            n_strides = sum(1 for s in strides if speed in ("all", s.speed))
+            lines.append(
+                f"| {name} | {speed} | {n_strides} | {d['n']} | {d['n_known']} | "
+                f"{d['n_before_toe_off']} | {_fmt_s(d['lead_s_median'])} | "
+                f"{_fmt_s(d['lead_s_min'])} |"
+            )
+    return [*lines, ""]
+
+
 def report_markdown(report, cfg) -> str:
     """``report.md``: what was run, Tables 4.2 and 4.1, the box counts, plots and files."""
     out = report.out
@@ -111,6 +150,7 @@ def report_markdown(report, cfg) -> str:
         lines += [f"### {name}", "", table]
         if name in report.box_counts:
             lines += [report.box_counts[name]]
+    lines += deadline_section(report.deadlines)
     lines += ["## Plots", ""]
     lines += [f"![{p.stem}]({p.as_posix()})" for p in pngs]
     lines += [

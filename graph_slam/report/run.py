@@ -55,6 +55,12 @@ class RunSettings(ConfigModel):
     rrd_image_step: int = Field(
         2, ge=1, le=8, description="subsample the .rrd's depth/colour images by this factor"
     )
+    rrd_grid_step: int = Field(
+        9,
+        ge=1,
+        description="log every n-th frame's live elevation grid (height, σ) and its boxes to "
+        "the .rrd (9: 10 Hz at 90 Hz)",
+    )
 
 
 class RunConfig(RunSettings):
@@ -116,14 +122,20 @@ def count_progress(progress: ProgressCallback | None, total: int) -> ProgressCal
     return tick
 
 
-def run_variants(session, variants, pipeline: PipelineConfig, tick) -> dict:
-    """Step 1: every variant's :class:`~graph_slam.pipelines.PipelineResults` on ``session``."""
+def run_variants(
+    session, variants, pipeline: PipelineConfig, tick, traces: dict | None = None
+) -> dict:
+    """Step 1: every variant's :class:`~graph_slam.pipelines.PipelineResults` on ``session``.
+
+    ``traces``: variant -> a per-frame callback (``run_session``'s ``on_frame``; a
+    :class:`~graph_slam.report.terrain_trace.TerrainTrace`) for the variants that have one."""
     from graph_slam.pipelines import run_session
 
     results = {}
     for v in variants:
         pcfg = PipelineConfig.model_validate({**pipeline.model_dump(), "variant": v})
-        results[Variant(v)] = run_session(session, pcfg, progress=tick)
+        on_frame = None if traces is None else traces.get(Variant(v))
+        results[Variant(v)] = run_session(session, pcfg, progress=tick, on_frame=on_frame)
     return results
 
 
@@ -193,14 +205,21 @@ def _write_run(tmp: Path, opened, cfg: RunConfig, reference, progress, warnings)
     logger = views.make_logger(tmp / "recording.rrd" if cfg.rrd else None)
     sessions: dict[str, dict] = {}
     t_offset = 0.0
+    main = Variant(cfg.variants[-1])
     for session in opened:
-        results = run_variants(session, cfg.variants, cfg.pipeline, tick)
+        trace = None
+        if cfg.rrd and cfg.pipeline.terrain.online.enabled:
+            from graph_slam.report.terrain_trace import TerrainTrace
+
+            trace = TerrainTrace(cfg.rrd_grid_step, every_frame=False)
+        traces = None if trace is None else {main: trace}
+        results = run_variants(session, cfg.variants, cfg.pipeline, tick, traces)
         warnings += rejected_samples(session, results)
         for variant, res in results.items():
             files += write_variant(tmp / session.name / variant.tag, res, cfg)
         sessions[session.name] = summarise_session(session, results, reference)
         if cfg.rrd:
-            views.log_run(session, results, cfg, logger, t_offset)
+            views.log_run(session, results, cfg, logger, t_offset, trace)
         t_offset += float(session.frame_times_s[-1]) + 1.0 if session.n_frames else 0.0
     logger.close()
     files += [tmp / "recording.rrd"] if cfg.rrd else []

@@ -34,10 +34,19 @@ class SessionRun:
     first_stride: int
     maps: list[dict] = field(default_factory=list)
     """Per reference stride: ``{MapSource: StrideMap}`` (:func:`stride_maps`)."""
+    traces: dict = field(default_factory=dict)
+    """Per variant: what its online terrain map knew at every frame
+    (:class:`~graph_slam.report.terrain_trace.TerrainTrace`)."""
 
     @classmethod
     def build(
-        cls, session, label: str, results, pipeline: PipelineConfig, first_stride: int
+        cls,
+        session,
+        label: str,
+        results,
+        pipeline: PipelineConfig,
+        first_stride: int,
+        traces: dict | None = None,
     ) -> SessionRun:
         from graph_slam.strides.kinematics import session_leg_model
         from graph_slam.strides.reference import stride_references
@@ -51,7 +60,7 @@ class SessionRun:
                 session, pipeline.mount_pitch_deg, pipeline.mount_estimate, streams=streams
             )
             refs = stride_references(session, first.t_s, first.strides, streams.events, leg)
-        run = cls(session, label, results, refs, first_stride)
+        run = cls(session, label, results, refs, first_stride, traces=dict(traces or {}))
         run.check_same_strides()
         return run
 
@@ -216,3 +225,20 @@ def score_maps(
             assessed = assess_stride(smap.obstacles, truth_boxes, margin_m, smap.obstacle_error)
             out[source].append(MapStride(run.global_index(k), run.label, k + 1, assessed))
     return out
+
+
+def score_deadlines(run: SessionRun) -> dict:
+    """Per variant with a trace and complete stride: when its online map knew each obstacle
+    of the stride's final map (:func:`graph_slam.report.terrain_trace.stride_deadlines`)."""
+    from graph_slam.report.terrain_trace import stride_deadlines
+
+    return {
+        v: [
+            stride_deadlines(
+                trace, run.stride_of(v, ref), ref, run.global_index(k), run.label, k + 1
+            )
+            for k, ref in enumerate(run.references)
+        ]
+        for v, trace in run.traces.items()
+        if trace.every_frame
+    }

@@ -9,6 +9,7 @@ import numpy as np
 
 from graph_slam.evaluation.boxes import collect_measurements, truth_boxes_in_stride
 from graph_slam.report.keys import MapSource
+from graph_slam.report.terrain_trace import log_grids
 from graph_slam.terrain.builder import scaled_intrinsics
 from graph_slam.viz.rerun_logger import MAP
 
@@ -67,6 +68,10 @@ def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]
         title = f"{run.label} stride {k + 1} ({run.session.name})"
         if cfg.rrd:
             _log_frames(run.session, ref, primary, cfg, logger, t0_s, run.global_index(k))
+            trace = run.traces.get(primary.variant)
+            if trace is not None:
+                log_grids(logger, trace, ref.frame_indices, run.global_index(k), t0_s,
+                          ref.world_T_stride)  # fmt: skip
         truth_boxes = truth_boxes_in_stride(scene, ref.world_T_stride) if scene is not None else []
         for source, smap in run.maps[k].items():
             fused = smap.fused
@@ -121,15 +126,19 @@ def _log_frames(session, stride_, primary, cfg, logger, t0_s: float, stride: int
         )
 
 
-def log_run(session, results: dict, cfg, logger, t0_s: float) -> None:
+def log_run(session, results: dict, cfg, logger, t0_s: float, trace=None) -> None:
     """``run``'s recording of one session: per stride of the main (last) variant, its frames'
-    images, its smoothed map and obstacles, and every variant's smoothed positions in it."""
+    images, its live elevation grids (``trace``: the main variant's
+    :class:`~graph_slam.report.terrain_trace.TerrainTrace`), its smoothed map and obstacles,
+    and every variant's smoothed positions in it."""
     primary = results[list(results)[-1]]
     for s in primary.strides:
         idx = [int(i) for i in s.frame_indices]
         if not idx:
             continue
         _log_frames(session, s, primary, cfg, logger, t0_s, s.index)
+        if trace is not None:
+            log_grids(logger, trace, idx, s.index, t0_s, s.world_T_stride)
         logger.set_time(s.index, t0_s + float(primary.frames[idx[-1]].t_s))
         logger.log_stride(s.world_T_stride)
         smap = None if s.terrain is None else s.terrain.smoothed or s.terrain.online
@@ -184,6 +193,7 @@ def write_plots(out: Path, study) -> list[Path]:
                 out / "plots" / "error_gait_cycle.png", curves, toe_pct
             )
         )
+    files += _deadline_plot(out, study.deadlines)
     for source, strides in study.maps.items():
         measured = collect_measurements([s.obstacles for s in strides])
         if measured:
@@ -195,6 +205,30 @@ def write_plots(out: Path, study) -> list[Path]:
                 )
             )
     return files
+
+
+def _deadline_plot(out: Path, deadlines: dict) -> list[Path]:
+    """``plots/obstacle_known_gait_phase.png``: per speed and variant, the fraction of the
+    strides' whole obstacles the online map knew by each % of the gait cycle."""
+    from graph_slam.viz import plots
+
+    known: dict[str, dict[str, list[float]]] = {}
+    toe: dict[str, list[float]] = {}
+    for variant, strides in deadlines.items():
+        for s in strides:
+            known.setdefault(s.speed, {}).setdefault(str(variant), []).extend(s.known_pct)
+            toe.setdefault(s.speed, []).append(s.toe_off_pct)
+    if not known:
+        return []  # no scored stride
+    toe_pct = {
+        sp: float(np.nanmean(t)) if np.isfinite(t).any() else float("nan")
+        for sp, t in ((sp, np.asarray(v, dtype=float)) for sp, v in toe.items())
+    }
+    return [
+        plots.plot_obstacle_known_vs_phase(
+            out / "plots" / "obstacle_known_gait_phase.png", known, toe_pct
+        )
+    ]
 
 
 def write_report_md(path: Path, report, cfg) -> Path:

@@ -82,13 +82,20 @@ def scaled_intrinsics(intrinsics, step: int):
     )
 
 
-def map_cloud(frame, intrinsics, step: int, min_m: float, max_m: float):
-    """The frame's map cloud (camera frame): every ``step``-th pixel with depth in
-    ``(min_m, max_m)``; colours uint8 (None for a depth-only frame)."""
+def map_pixels(frame, step: int, min_m: float, max_m: float):
+    """Full-resolution (v, u) of every ``step``-th pixel with depth in ``(min_m, max_m)``."""
     depth = frame.depth_m[::step, ::step]
     v, u = np.nonzero((depth > min_m) & (depth < max_m))
-    z = depth[v, u].astype(np.float64)
-    u_px, v_px = u * step, v * step
+    return v * step, u * step
+
+
+def map_cloud(frame, intrinsics, step: int, min_m: float, max_m: float, pixels=None):
+    """The frame's map cloud (camera frame): every ``step``-th pixel with depth in
+    ``(min_m, max_m)`` (``pixels``: those of :func:`map_pixels`, when already found); colours
+    uint8 (None for a depth-only frame)."""
+    v_px, u_px = pixels if pixels is not None else map_pixels(frame, step, min_m, max_m)
+    z = frame.depth_m[v_px, u_px].astype(np.float64)
+    v, u = v_px // step, u_px // step
     pts = np.column_stack(
         [
             (u_px - intrinsics.cx_px) * z / intrinsics.fx_px,

@@ -76,23 +76,23 @@ class GridObstacleMap:
 def _edges(h: np.ndarray, mask: np.ndarray, height: float, axis: int) -> tuple:
     """Per line along ``axis`` of the component: the near and far edge in cell units (the
     near edge of cell 0 is 0)."""
-    near, far = [], []
     m = mask if axis == 0 else mask.T
     hh = h if axis == 0 else h.T
-    for line in range(m.shape[1]):
-        idx = np.flatnonzero(m[:, line])
-        if idx.size == 0:
-            continue
-        f0 = float(np.clip(hh[idx[0], line] / height, 0, 1))
-        f1 = float(np.clip(hh[idx[-1], line] / height, 0, 1))
-        near.append(idx[0] + 1 - f0)
-        far.append(idx[-1] + f1)
-    return np.array(near), np.array(far)
+    lines = np.flatnonzero(m.any(axis=0))
+    first = np.argmax(m[:, lines], axis=0)
+    last = m.shape[0] - 1 - np.argmax(m[::-1, lines], axis=0)
+    f0 = np.clip(hh[first, lines] / height, 0, 1)
+    f1 = np.clip(hh[last, lines] / height, 0, 1)
+    return first + 1 - f0, last + f1
 
 
-def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstacleMap:
+def grid_obstacles(
+    view, config: GridObstacleConfig | None = None, *, complete_only: bool = False
+) -> GridObstacleMap:
     """The floor and the boxes of a :class:`~graph_slam.terrain.online.TerrainView` (see the
-    module docstring). Raises :class:`~graph_slam.errors.MappingError` without a floor."""
+    module docstring). Raises :class:`~graph_slam.errors.MappingError` without a floor.
+    ``complete_only``: leave out the boxes not seen whole before measuring them (the same
+    whole boxes, in less time: most components of a grid touch its unobserved border)."""
     from scipy import ndimage
 
     cfg = config or GridObstacleConfig()
@@ -104,7 +104,6 @@ def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstac
     above = np.full(view.shape, np.nan)
     n = floor.normal
     above[known] = (pts @ n + floor.offset_m) / n[2]  # vertical height over the plane
-    sigma = view.sigma_m
     occupied = known & (above >= cfg.min_height_m)
     labels, count = ndimage.label(occupied, structure=np.ones((3, 3), bool))
     closed = ndimage.binary_closing(known, structure=np.ones((3, 3), bool))
@@ -113,54 +112,68 @@ def grid_obstacles(view, config: GridObstacleConfig | None = None) -> GridObstac
     beyond = np.isin(free, border[border > 0]) | ~np.pad(
         np.ones((view.shape[0] - 2, view.shape[1] - 2), bool), 1
     )
-    cell = view.cell_m
     sizes = np.bincount(labels.ravel(), minlength=count + 1)
     big = [k for k in range(1, count + 1) if sizes[k] >= cfg.min_cells]
+    boxes = ndimage.find_objects(labels)
+    pad = cfg.margin_cells
     found = []
     for k in big:
-        mask = labels == k
-        n_cells = int(sizes[k])
-        hk = above[mask]
-        top = hk >= cfg.top_fraction * np.quantile(hk, 0.9)
-        height = float(np.median(hk[top]))
-        h_sigma = float(np.median(sigma[mask][top]))
-        h = np.where(mask, above, 0.0)
-        near_x, far_x = _edges(h, mask, height, 0)
-        near_y, far_y = _edges(h, mask, height, 1)
-        x0, y0 = view.origin_xy_m
-        lead = x0 + float(np.median(near_x)) * cell
-        trail = x0 + float(np.median(far_x)) * cell
-        right = y0 + float(np.median(near_y)) * cell
-        left = y0 + float(np.median(far_y)) * cell
-        edge_sigma = float(
-            np.sqrt((h_sigma / max(height, 1e-6) * cell) ** 2 + cell**2 / 12 / max(len(near_x), 1))
-        )
-        grown = ndimage.binary_dilation(mask, np.ones((3, 3), bool), iterations=cfg.margin_cells)
-        ii, jj = np.nonzero(mask)
-        fill = n_cells / ((np.ptp(ii) + 1) * (np.ptp(jj) + 1))
+        # the component's bounding box grown by the margin (clipped at the grid): everything
+        # below happens in that window (the dilation cannot leave it)
+        sx, sy = boxes[k - 1]
+        i0, j0 = max(sx.start - pad, 0), max(sy.start - pad, 0)
+        win = (slice(i0, sx.stop + pad), slice(j0, sy.stop + pad))
+        mask = labels[win] == k
+        grown = ndimage.binary_dilation(mask, np.ones((3, 3), bool), iterations=pad)
+        fill = int(sizes[k]) / ((sx.stop - sx.start) * (sy.stop - sy.start))
         reason = None
-        if (grown & beyond).any():
+        if (grown & beyond[win]).any():
             reason = "edge_of_map"
-        elif np.intersect1d(np.unique(labels[grown]), [b for b in big if b != k]).size:
+        elif np.intersect1d(np.unique(labels[win][grown]), [b for b in big if b != k]).size:
             reason = "adjacent"
         elif fill < cfg.min_fill_fraction:
             reason = "top_incomplete"
-        found.append(
-            GridObstacle(
-                leading_edge_x_m=lead,
-                leading_edge_sigma_m=edge_sigma,
-                distance_m=lead - view.toe_x_m,
-                height_m=height,
-                height_sigma_m=h_sigma,
-                depth_m=trail - lead,
-                depth_sigma_m=float(np.sqrt(2) * edge_sigma),
-                width_m=left - right,
-                width_sigma_m=float(np.sqrt(2) * edge_sigma),
-                center_xy_m=np.array([(lead + trail) / 2, (left + right) / 2]),
-                n_cells=n_cells,
-                complete=reason is None,
-                skip_reason=reason,
-            )
-        )
+        if reason is not None and complete_only:
+            continue
+        found.append(_measure(view, cfg, above[win], mask, (i0, j0), int(sizes[k]), reason))
     found.sort(key=lambda o: o.leading_edge_x_m)
     return GridObstacleMap(floor, tuple(found))
+
+
+def _measure(view, cfg, above, mask, corner, n_cells: int, reason) -> GridObstacle:
+    """One component's box (steps 2-4 of the module docstring); ``above``: heights over the
+    floor in the component's window, ``mask`` the component there, ``corner`` the window's
+    first cell (i, j)."""
+    cell = view.cell_m
+    i0, j0 = corner
+    win = (slice(i0, i0 + mask.shape[0]), slice(j0, j0 + mask.shape[1]))
+    hk = above[mask]
+    top = hk >= cfg.top_fraction * np.quantile(hk, 0.9)
+    height = float(np.median(hk[top]))
+    h_sigma = float(np.median(view.sigma_m[win][mask][top]))
+    h = np.where(mask, above, 0.0)
+    near_x, far_x = _edges(h, mask, height, 0)
+    near_y, far_y = _edges(h, mask, height, 1)
+    x0, y0 = view.origin_xy_m
+    lead = x0 + (i0 + float(np.median(near_x))) * cell
+    trail = x0 + (i0 + float(np.median(far_x))) * cell
+    right = y0 + (j0 + float(np.median(near_y))) * cell
+    left = y0 + (j0 + float(np.median(far_y))) * cell
+    edge_sigma = float(
+        np.sqrt((h_sigma / max(height, 1e-6) * cell) ** 2 + cell**2 / 12 / max(len(near_x), 1))
+    )
+    return GridObstacle(
+        leading_edge_x_m=lead,
+        leading_edge_sigma_m=edge_sigma,
+        distance_m=lead - view.toe_x_m,
+        height_m=height,
+        height_sigma_m=h_sigma,
+        depth_m=trail - lead,
+        depth_sigma_m=float(np.sqrt(2) * edge_sigma),
+        width_m=left - right,
+        width_sigma_m=float(np.sqrt(2) * edge_sigma),
+        center_xy_m=np.array([(lead + trail) / 2, (left + right) / 2]),
+        n_cells=n_cells,
+        complete=reason is None,
+        skip_reason=reason,
+    )

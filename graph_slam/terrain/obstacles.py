@@ -243,12 +243,7 @@ def fit_floor(points_m: np.ndarray, config: ObstacleConfig | None = None) -> Flo
             "fit_floor: no near-horizontal plane found (is the cloud in the stride frame?)"
         )
     normals, offsets = normals[ok], offsets[ok]
-    inliers = np.array(
-        [
-            (np.abs(sample @ n + d) < cfg.floor_distance_m).sum()
-            for n, d in zip(normals, offsets, strict=True)
-        ]
-    )
+    inliers = (np.abs(sample @ normals.T + offsets) < cfg.floor_distance_m).sum(axis=0)
     # The plane with most inliers, unless a parallel plane below it is nearly as well supported
     # (a large box top can outnumber the floor); heights compared at the best plane's centroid.
     top = int(np.argmax(inliers))

@@ -11,7 +11,8 @@ online ``stride_T_camera``; its height ``z`` gets two variances:
 
 * depth noise, independent between points: the sensor's range σ(z_c) = ``sigma_at_1m_m`` ·
   z_c^``exponent`` + ``sigma_floor_m`` along the pixel's ray ``p_c / z_c``, projected on the
-  stride z axis: ``σ_d² = (R[2] · p_c / z_c)² σ(z_c)²``;
+  stride z axis: ``σ_d² = (R[2] · p_c / z_c)² (σ(z_c)² + σ_e²)``, with the depth-edge term
+  ``σ_e²`` of a possible flying pixel (:class:`DepthNoiseModel`);
 * pose, common to the frame: the camera's marginal covariance Σ (6×6, camera local, rotation
   first, ``T exp(ξ)``) pushed through the point's Jacobian, z row only:
   ``J = [p_c × R[2], R[2]]`` (from ``δp = R(-[p_c]× δθ + δt)``), ``σ_p² = J Σ Jᵀ``.
@@ -48,14 +49,33 @@ from graph_slam.errors import MappingError
 
 class DepthNoiseModel(ConfigModel):
     """Range noise of the depth camera: σ(z) = sigma_at_1m_m · z^exponent + sigma_floor_m
-    (the sensor profile's ``noise`` block; defaults: the D455 of models/sensors/d455.yaml)."""
+    (the sensor profile's ``noise`` block; defaults: the D455 of models/sensors/d455.yaml),
+    plus the depth-edge term: a pixel whose neighbourhood spans a depth range R above
+    ``edge_threshold_m`` (a depth discontinuity: a box's outline against the floor behind it)
+    may be a *flying pixel*, a mixture of both surfaces anywhere between them along its ray;
+    its range variance gets ``edge_factor · R² / 3`` (the second moment of an error uniform on
+    [0, R]). R is the range of the valid depths at the pixel and at ±1, ±2 pixels along u and
+    v of the full-resolution image (:mod:`graph_slam.terrain.depth_edges`)."""
 
     sigma_at_1m_m: float = Field(0.0019, ge=0)
     exponent: float = Field(2.0, ge=0, le=3)
     sigma_floor_m: float = Field(0.0003, ge=0)
+    edge_threshold_m: float = Field(
+        0.03, gt=0, description="a neighbourhood depth range above this marks a depth edge"
+    )
+    edge_factor: float = Field(
+        1.0,
+        ge=0,
+        description="scale of the depth-edge variance R²/3 (0: no edge term, the model before)",
+    )
 
     def sigma_m(self, z_m: np.ndarray) -> np.ndarray:
         return self.sigma_at_1m_m * np.power(z_m, self.exponent) + self.sigma_floor_m
+
+    def edge_variance_m2(self, range_m: np.ndarray) -> np.ndarray:
+        """Range variance of a pixel at a depth edge (0 below the threshold)."""
+        r = np.asarray(range_m, dtype=np.float64)
+        return np.where(r > self.edge_threshold_m, self.edge_factor * r**2 / 3.0, 0.0)
 
 
 class OnlineTerrainConfig(ConfigModel):
@@ -148,9 +168,16 @@ def cell_index(cfg: OnlineTerrainConfig, xy_m: np.ndarray) -> tuple[np.ndarray, 
 
 
 def point_terms(
-    cfg: OnlineTerrainConfig, points_camera_m: np.ndarray, stride_T_camera: np.ndarray, cov
+    cfg: OnlineTerrainConfig,
+    points_camera_m: np.ndarray,
+    stride_T_camera: np.ndarray,
+    cov,
+    depth_range_m: np.ndarray | None = None,
 ) -> PointTerms:
-    """One frame's points in the stride frame with their depth and pose variances."""
+    """One frame's points in the stride frame with their depth and pose variances;
+    ``depth_range_m`` (per point, :mod:`graph_slam.terrain.depth_edges`; None: no edge term)
+    adds the
+    depth-edge variance along the ray."""
     pts = np.asarray(points_camera_m, dtype=np.float64)
     rotation, t = stride_T_camera[:3, :3], stride_T_camera[:3, 3]
     p = pts @ rotation.T + t
@@ -158,7 +185,11 @@ def point_terms(
     pts, p, flat = pts[inside], p[inside], flat[inside]
     z_c = pts[:, 2]
     ray_z = (pts @ rotation[2]) / z_c
-    var_depth = (ray_z * cfg.depth_noise.sigma_m(z_c)) ** 2
+    noise = cfg.depth_noise
+    var_range = noise.sigma_m(z_c) ** 2
+    if depth_range_m is not None and noise.edge_factor > 0:
+        var_range = var_range + noise.edge_variance_m2(np.asarray(depth_range_m)[inside])
+    var_depth = ray_z**2 * var_range
     var_pose = z_variance(pts, rotation, cov) if cov is not None else np.zeros(len(pts))
     return PointTerms(flat, p[:, 2], var_depth, var_pose)
 
@@ -314,19 +345,34 @@ class OnlineElevationMap:
         self.prior = prior if prior is not None else CellSums.empty(nx * ny)
         self.sums = self.prior
         self.t_s = float("nan")
-        self.clouds: list[tuple[float, np.ndarray]] = []
+        self.clouds: list[tuple[float, np.ndarray, np.ndarray | None]] = []
+        """Per fused frame: its time, camera-frame points (float32) and depth ranges."""
 
-    def update(self, points_camera_m, stride_T_camera, covariance, t_s: float) -> TerrainView:
+    def update(
+        self,
+        points_camera_m,
+        stride_T_camera,
+        covariance,
+        t_s: float,
+        depth_range_m: np.ndarray | None = None,
+    ) -> TerrainView:
         """Fuse one frame's camera-frame points placed by its ``stride_T_camera`` (4×4) with
-        its 6×6 pose covariance (None: depth noise only)."""
+        its 6×6 pose covariance (None: depth noise only) and, per point, the depth range of
+        its pixel's neighbourhood (None: no depth-edge term)."""
         pose = np.asarray(stride_T_camera, dtype=np.float64)
         if pose.shape != (4, 4) or not np.isfinite(pose).all():
             raise MappingError(f"online terrain: stride_T_camera must be a finite 4×4, got {pose}")
-        terms = point_terms(self.cfg, points_camera_m, pose, covariance)
+        if depth_range_m is not None and len(depth_range_m) != len(points_camera_m):
+            raise MappingError(
+                f"online terrain: {len(depth_range_m)} depth ranges for "
+                f"{len(points_camera_m)} points"
+            )
+        terms = point_terms(self.cfg, points_camera_m, pose, covariance, depth_range_m)
         self.sums = self.sums.plus(terms, t_s)
         self.t_s = float(t_s)
         if self.cfg.keep_clouds:
-            self.clouds.append((float(t_s), np.asarray(points_camera_m, np.float32)))
+            ranges = None if depth_range_m is None else np.asarray(depth_range_m, np.float32)
+            self.clouds.append((float(t_s), np.asarray(points_camera_m, np.float32), ranges))
         return self.view()
 
     def view(self) -> TerrainView:
@@ -358,6 +404,7 @@ class OnlineElevationMap:
             covs,
             [self.clouds[i][0] for i in keep],
             self.prior,
+            [self.clouds[i][2] for i in keep],
         )
         t = self.clouds[-1][0] if self.clouds else float("nan")
         return TerrainView(
@@ -378,6 +425,7 @@ def fuse_frames(
     covariances: Sequence[np.ndarray | None],
     t_s: Sequence[float],
     prior: CellSums | None = None,
+    depth_ranges_m: Sequence[np.ndarray | None] | None = None,
 ) -> CellSums:
     """The batch fusion: every frame's points in one pass (equal to the frame-by-frame
     updates of :class:`OnlineElevationMap`, to rounding)."""
@@ -385,9 +433,10 @@ def fuse_frames(
     base = prior if prior is not None else CellSums.empty(nx * ny)
     if not len(clouds_camera_m):
         return base
+    ranges = depth_ranges_m if depth_ranges_m is not None else [None] * len(clouds_camera_m)
     terms = [
-        point_terms(cfg, c, np.asarray(p, np.float64), cov)
-        for c, p, cov in zip(clouds_camera_m, stride_T_camera, covariances, strict=True)
+        point_terms(cfg, c, np.asarray(p, np.float64), cov, r)
+        for c, p, cov, r in zip(clouds_camera_m, stride_T_camera, covariances, ranges, strict=True)
     ]
     times = np.concatenate([np.full(len(t.flat), tt) for t, tt in zip(terms, t_s, strict=True)])
     return base.plus(PointTerms.concat(terms), times)

@@ -10,6 +10,9 @@ Every function draws one figure, writes it to ``path`` and returns the path:
 - :func:`plot_map_top_view`: the fused map from above, coloured, with obstacle outlines.
 - :func:`plot_elevation`: the elevation grid's height (and its standard deviation).
 - :func:`plot_obstacle_boxes`: measured against true (depth, width, height) per box.
+- :func:`plot_obstacle_known_vs_phase`: per walking speed, the fraction of the obstacles
+  (whole in the strides' final maps) the online map knew by each % of the gait cycle, one line
+  per variant, toe-off marked.
 """
 
 from __future__ import annotations
@@ -194,4 +197,42 @@ def plot_obstacle_boxes(
         ax.set_ylabel("mm")
         ax.grid(alpha=0.3)
     fig.suptitle("obstacle dimensions: measured (dots) vs ground truth (lines)")
+    return _save(fig, path)
+
+
+def plot_obstacle_known_vs_phase(
+    path: str | Path,
+    known_pct: Mapping[str, Mapping[str, Sequence[float]]],
+    toe_off_pct: Mapping[str, float] | None = None,
+    title: str = "obstacle known vs gait phase",
+) -> Path:
+    """``known_pct[speed][variant]``: per obstacle, the gait-cycle % at which the online map
+    first knew it (NaN: never; it still counts in the fraction's denominator);
+    ``toe_off_pct[speed]``: the mean toe-off, drawn as a dashed line. One panel per speed."""
+    speeds = list(known_pct)
+    fig, axes = _figure(max(1, len(speeds)), width_in=4.5, height_in=3.8)
+    phase = np.linspace(0.0, 100.0, 201)
+    for ax, speed in zip(axes, speeds, strict=False):
+        if not any(len(p) for p in known_pct[speed].values()):
+            ax.text(50, 0.5, "no obstacle measured whole", ha="center", va="center")
+        for variant, pcts in known_pct[speed].items():
+            p = np.asarray(pcts, dtype=float)
+            if p.size == 0:
+                ax.plot([], [], label=f"{variant} (n=0: no box whole in its final maps)")
+                continue
+            known = np.where(np.isfinite(p), p, np.inf)
+            frac = (known[None, :] <= phase[:, None]).mean(axis=1)
+            ax.step(phase, frac, where="post", label=f"{variant} (n={p.size})")
+        toe = None if toe_off_pct is None else toe_off_pct.get(speed)
+        if toe is not None and np.isfinite(toe):
+            ax.axvline(toe, color="k", ls="--", lw=1, label=f"toe-off ({toe:.0f} %)")
+        ax.set_xlim(0, 100)
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("gait cycle (%; 0 = foot strike)")
+        ax.set_ylabel("fraction of obstacles known")
+        ax.set_title(f"{speed}")
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize="small", loc="lower right")
+    fig.suptitle(title)
     return _save(fig, path)

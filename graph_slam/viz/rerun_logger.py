@@ -6,7 +6,8 @@ imported lazily; no viewer needed; open it with ``rerun FILE.rrd``).
 
 Entity tree (constants below): ``world`` (z up) → ``world/stride`` (``world_T_stride``) →
 ``world/stride/camera`` (``stride_T_camera``) → ``world/stride/camera/image`` (pinhole, depth,
-colour). Clouds, maps, trajectories and obstacles live under ``world/stride``. Two timelines:
+colour). Clouds, maps, trajectories and obstacles live under ``world/stride``; the live elevation
+grid (``log_grid``: heights, σ layer, its boxes) under ``world/stride/terrain``. Two timelines:
 ``stride`` (stride index, a sequence) and ``time`` (session time, seconds).
 """
 
@@ -33,6 +34,14 @@ MAP = "world/stride/map"
 TRAJECTORY = "world/stride/trajectory"
 """Trajectories are logged at ``TRAJECTORY/<name>`` (``truth``, a variant's name)."""
 OBSTACLES = "world/stride/obstacles"
+TERRAIN_HEIGHT = "world/stride/terrain/height"
+"""The live elevation grid's known cells at their heights, coloured by height."""
+TERRAIN_SIGMA = "world/stride/terrain/sigma"
+"""The same cells coloured by their height σ (the variance layer: 0 → 2 cm, clipped)."""
+TERRAIN_OBSTACLES = "world/stride/terrain/obstacles"
+"""The live grid's boxes (red: whole, magenta: seen in part)."""
+SIGMA_COLOUR_MAX_M = 0.02
+HEIGHT_COLOUR_SPAN_M = 0.25
 
 TIMELINE_STRIDE = "stride"
 TIMELINE_TIME = "time"
@@ -63,6 +72,8 @@ class Logger(Protocol):
         self, obstacles: Sequence[Obstacle], floor_T_stride: np.ndarray | None = None
     ) -> None: ...
 
+    def log_grid(self, snapshot) -> None: ...
+
     def close(self) -> None: ...
 
 
@@ -87,8 +98,56 @@ class NullLogger:
     def log_obstacles(self, obstacles, floor_T_stride=None) -> None:
         pass
 
+    def log_grid(self, snapshot) -> None:
+        pass
+
     def close(self) -> None:
         pass
+
+
+def _colours(values: np.ndarray, lo: float, hi: float, cmap: str) -> np.ndarray:
+    """RGB uint8 of ``values`` through a matplotlib colour map over [lo, hi] (clipped)."""
+    from matplotlib import colormaps
+
+    t = np.clip((np.asarray(values, float) - lo) / max(hi - lo, 1e-9), 0.0, 1.0)
+    return (colormaps[cmap](t)[:, :3] * 255).astype(np.uint8)
+
+
+def grid_layers(snapshot) -> dict[str, np.ndarray]:
+    """What :meth:`RerunLogger.log_grid` draws of a grid snapshot (heights ``height_m`` and
+    ``sigma_m`` (nx, ny), ``origin_xy_m``, ``cell_m``): the known cells' centres at their
+    heights (N×3), coloured by height (viridis from the 5th percentile over
+    ``HEIGHT_COLOUR_SPAN_M``) and by σ (magma, 0 to ``SIGMA_COLOUR_MAX_M``)."""
+    h = np.asarray(snapshot.height_m, float)
+    sigma = np.asarray(snapshot.sigma_m, float)
+    i, j = np.nonzero(np.isfinite(h))
+    cell = float(snapshot.cell_m)
+    x = snapshot.origin_xy_m[0] + (i + 0.5) * cell
+    y = snapshot.origin_xy_m[1] + (j + 0.5) * cell
+    z = h[i, j]
+    lo = float(np.percentile(z, 5)) if z.size else 0.0
+    return {
+        "points_m": np.column_stack([x, y, z]).astype(np.float32),
+        "height_rgb": _colours(z, lo, lo + HEIGHT_COLOUR_SPAN_M, "viridis"),
+        "sigma_rgb": _colours(sigma[i, j], 0.0, SIGMA_COLOUR_MAX_M, "magma"),
+    }
+
+
+def grid_boxes(obstacles, floor_T_stride: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and sizes (stride frame, N×3 each) of a grid's boxes
+    (:class:`~graph_slam.terrain.grid_obstacles.GridObstacle`: axis-aligned, height above the
+    floor plane), standing on the floor plane (``floor_T_stride``; None: on z = 0)."""
+    centers, sizes = [], []
+    for o in obstacles:
+        x, y = map(float, o.center_xy_m)
+        z_floor = 0.0
+        if floor_T_stride is not None:
+            stride_T_floor = np.linalg.inv(np.asarray(floor_T_stride, float))
+            n, p0 = stride_T_floor[:3, 2], stride_T_floor[:3, 3]  # the floor's normal, a point
+            z_floor = float(p0[2] - (n[0] * (x - p0[0]) + n[1] * (y - p0[1])) / n[2])
+        centers.append([x, y, z_floor + o.height_m / 2])
+        sizes.append([o.depth_m, o.width_m, o.height_m])
+    return np.array(centers).reshape(-1, 3), np.array(sizes).reshape(-1, 3)
 
 
 def _transform(rr, a_T_b: np.ndarray):
@@ -186,6 +245,37 @@ class RerunLogger:
                 labels=[
                     f"{o.depth_m * 1000:.0f}×{o.width_m * 1000:.0f}×{o.height_m * 1000:.0f} mm"
                     + ("" if o.complete else f" (part: {o.skip_reason})")
+                    for o in obstacles
+                ],
+            ),
+        )
+
+    def log_grid(self, snapshot) -> None:
+        """The live elevation grid at one frame (a
+        :class:`~graph_slam.report.terrain_trace.GridSnapshot`: stride frame): the known cells
+        coloured by height (``TERRAIN_HEIGHT``), the same coloured by σ (``TERRAIN_SIGMA``),
+        the grid's boxes (``TERRAIN_OBSTACLES``; cleared when there are none)."""
+        rr = self._rr
+        layers = grid_layers(snapshot)
+        radius = 0.5 * float(snapshot.cell_m)
+        for entity, colours in ((TERRAIN_HEIGHT, "height_rgb"), (TERRAIN_SIGMA, "sigma_rgb")):
+            self._rec.log(
+                entity, rr.Points3D(layers["points_m"], colors=layers[colours], radii=radius)
+            )
+        obstacles = tuple(snapshot.obstacles)
+        if not obstacles:
+            self._rec.log(TERRAIN_OBSTACLES, rr.Clear(recursive=False))
+            return
+        centers, sizes = grid_boxes(obstacles, snapshot.floor_T_stride)
+        self._rec.log(
+            TERRAIN_OBSTACLES,
+            rr.Boxes3D(
+                centers=centers,
+                sizes=sizes,
+                colors=[(230, 40, 40) if o.complete else (200, 0, 200) for o in obstacles],
+                labels=[
+                    f"h {o.height_m * 1000:.0f}±{o.height_sigma_m * 1000:.0f} mm, "
+                    f"{o.distance_m:.2f} m ahead"
                     for o in obstacles
                 ],
             ),
