@@ -91,3 +91,20 @@ def test_edge_term_is_honest_for_flying_pixels():
     assert normalised[0.0] > 50
     # below the threshold a pixel is not at an edge
     assert DepthNoiseModel().edge_variance_m2(np.array([0.02, 0.06]))[0] == 0.0
+
+
+@pytest.mark.parametrize("shape", [(240, 424), (7, 9), (5, 3)])
+def test_depth_range_image_agrees_at_the_borders_on_random_depth(shape):
+    """The strided-view form equals the per-pixel gather at every step, borders, holes and
+    NaN included (seeded random depth)."""
+    rng = np.random.default_rng(11)
+    depth = rng.uniform(0.5, 3.0, shape).astype(np.float32)
+    depth[rng.random(shape) < 0.1] = 0.0
+    depth[1, 1] = np.nan
+    for step in (1, 2, 3, 4):
+        vv, uu = np.mgrid[0 : shape[0] : step, 0 : shape[1] : step]
+        np.testing.assert_allclose(
+            depth_range_image(depth, step),
+            depth_range_at(depth, vv.ravel(), uu.ravel()).reshape(vv.shape),
+            atol=1e-6,
+        )

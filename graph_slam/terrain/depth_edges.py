@@ -31,19 +31,31 @@ def depth_range_at(depth_m: np.ndarray, v_px: np.ndarray, u_px: np.ndarray) -> n
     return hi - lo
 
 
+def _span(n: int, step: int, offset: int) -> tuple[int, int]:
+    """Grid indices ``[i0, i1)`` of the ``step``-grid whose neighbour ``i·step + offset`` lies
+    inside ``[0, n)``."""
+    count = -(-n // step)
+    i0 = max(0, -(offset // step))  # ceil(-offset / step)
+    i1 = min(count, (n - 1 - offset) // step + 1)
+    return i0, max(i0, i1)
+
+
 def depth_range_image(depth_m: np.ndarray, step: int) -> np.ndarray:
     """:func:`depth_range_at` for every ``step``-th pixel in v and u at once (the
-    ``depth_m[::step, ::step]`` grid): strided views of the image padded with invalid depth,
-    no gathers. Invalid depth (0 or NaN) is never a neighbour."""
+    ``depth_m[::step, ::step]`` grid): each neighbour is a strided view of the image (no copy
+    of it: the padded copy was a third of the grid update's time at 424×240); a neighbour
+    outside the image or with invalid depth (0 or NaN) is never counted."""
     depth = np.asarray(depth_m, dtype=np.float32)
     h, w = depth.shape
-    pad = np.pad(depth, 2)
     lo = depth[::step, ::step].copy()
     hi = lo.copy()
-    nv, nu = lo.shape
     for dv, du in _EDGE_OFFSETS:
-        z = pad[2 + dv : 2 + dv + h : step, 2 + du : 2 + du + w : step][:nv, :nu]
+        (a0, a1), (b0, b1) = _span(h, step, dv), _span(w, step, du)
+        if a1 <= a0 or b1 <= b0:
+            continue
+        z = depth[a0 * step + dv : (a1 - 1) * step + dv + 1 : step,
+                  b0 * step + du : (b1 - 1) * step + du + 1 : step]  # fmt: skip
         ok = z > 0
-        np.minimum(lo, z, out=lo, where=ok)
-        np.maximum(hi, z, out=hi, where=ok)
+        np.minimum(lo[a0:a1, b0:b1], z, out=lo[a0:a1, b0:b1], where=ok)
+        np.maximum(hi[a0:a1, b0:b1], z, out=hi[a0:a1, b0:b1], where=ok)
     return (hi - lo).astype(np.float64)
