@@ -57,3 +57,25 @@ def test_controller_readouts_are_the_same_interleaved_or_all_at_once(session_pat
     phases = {r.phase.split()[0] for r in online}
     assert {"none", "stance"} <= phases
     assert any(r.has_pose for r in online)
+
+
+def test_realtime_final_grid_is_the_online_one_and_old_grids_are_released(session_path):
+    """The real-time preset keeps no clouds: a stride's final grid is its online grid (the
+    report's deadlines need one); ``keep_stride_grids`` releases all but the latest."""
+    from graph_slam.pipelines import PipelineConfig, run_session
+    from graph_slam.pipelines.config import with_preset
+
+    data = with_preset({"variant": "icp+imu+kin"}, "realtime")
+    res = run_session(session_path, PipelineConfig.model_validate(data))
+    assert len(res.strides) >= 2
+    for s in res.strides:
+        assert s.online_grid is not None and s.smoothed_grid is s.online_grid
+    data["terrain"]["online"]["keep_stride_grids"] = 1
+    kept = run_session(session_path, PipelineConfig.model_validate(data))
+    assert [s.online_grid is not None for s in kept.strides] == [False] * (
+        len(kept.strides) - 1
+    ) + [True]
+    assert all(s.smoothed_grid is None for s in kept.strides[:-1])
+    np.testing.assert_array_equal(
+        kept.strides[-1].online_grid.height_m, res.strides[-1].online_grid.height_m
+    )

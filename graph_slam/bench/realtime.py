@@ -127,7 +127,7 @@ def run_row(
 ) -> RealtimeRow:
     """Replay one row on one session and score what it processed (in this process).
     ``minutes``: the session looped to that length (:class:`~graph_slam.session.looped.
-    LoopedSession`: memory over a long run)."""
+    LoopedSession`: memory over a long run, with ``terrain.online.keep_stride_grids: 2``)."""
     from graph_slam.bench.accuracy import score
     from graph_slam.pipelines.replay import replay_session
     from graph_slam.session import open_session
@@ -138,6 +138,10 @@ def run_row(
     session = open_session(session_path)
     if minutes is not None:
         session = LoopedSession(session, minutes, cfg.event_source)
+        # a long run as a controller runs it: only the latest strides' grids kept
+        data = cfg.model_dump(mode="json")
+        data["terrain"]["online"]["keep_stride_grids"] = 2
+        cfg = PipelineConfig.model_validate(data)
     t0 = time.perf_counter()
     res = replay_session(session, cfg, pace=pace)  # type: ignore[arg-type]
     wall = time.perf_counter() - t0

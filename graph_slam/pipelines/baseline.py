@@ -233,6 +233,7 @@ class ThesisBaseline:
                 smoothed_grid=grid,  # the baseline's smoothed poses are its online ones
             )
         )
+        self.results.release_grids(self.live_terrain.cfg.keep_stride_grids)
         self._stride = None
         self._map = None
 

@@ -336,11 +336,8 @@ class GraphPipeline:
                 s.smoothed_stride_T_camera,
                 smoothed_later=deferred,
             )
-            smoothed_grid = None
-            if not deferred:
-                smoothed_grid = self.live_terrain.refuse(
-                    s.index, s.frame_indices, s.smoothed_stride_T_camera, s.smoothed_covariances
-                )
+            online_grid = self.live_terrain.close(s.index)
+            smoothed_grid = None if deferred else self._final_grid(s, online_grid)
             self.results.strides.append(
                 StrideOutput(
                     index=s.index,
@@ -352,10 +349,21 @@ class GraphPipeline:
                     flags=s.flags,
                     terrain=terrain,
                     summary=s,
-                    online_grid=self.live_terrain.close(s.index),
+                    online_grid=online_grid,
                     smoothed_grid=smoothed_grid,
                 )
             )
+        self.results.release_grids(self.live_terrain.cfg.keep_stride_grids)
+
+    def _final_grid(self, s, online_grid):
+        """The stride's grid re-fused from its smoothed poses; without kept clouds
+        (``terrain.online.keep_clouds: false``) its online grid at its last frame."""
+        grid = self.live_terrain.refuse(
+            s.index, s.frame_indices, s.smoothed_stride_T_camera, s.smoothed_covariances
+        )
+        if grid is None and not self.live_terrain.cfg.keep_clouds:
+            return online_grid
+        return grid
 
     def _smooth_deferred(self, keep: int = 0) -> None:
         """The batch smoothing of strides closed in real time (``backend.defer_smoothing``),
@@ -366,9 +374,7 @@ class GraphPipeline:
             out.flags = s.flags
             if out.terrain is not None:
                 out.terrain = self.terrain.fuse_smoothed(out.terrain, s.smoothed_stride_T_camera)
-            out.smoothed_grid = self.live_terrain.refuse(
-                s.index, s.frame_indices, s.smoothed_stride_T_camera, s.smoothed_covariances
-            )
+            out.smoothed_grid = self._final_grid(s, out.online_grid)
 
     def finish(self) -> PipelineResults:
         if self._pending_strike is not None:  # a strike after the last frame

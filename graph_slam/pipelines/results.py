@@ -84,7 +84,8 @@ class StrideOutput:
     online_grid: TerrainView | None = None
     """The per-frame elevation grid as it stood at the stride's last frame."""
     smoothed_grid: TerrainView | None = None
-    """The same grid re-fused from the smoothed poses (the baseline: its online grid)."""
+    """The stride's final grid: re-fused from the smoothed poses; the online grid when no
+    clouds were kept for it (``terrain.online.keep_clouds: false``) and for the baseline."""
 
 
 @dataclass(eq=False)
@@ -104,6 +105,14 @@ class PipelineResults:
     @property
     def t_s(self) -> np.ndarray:
         return np.array([f.t_s for f in self.frames])
+
+    def release_grids(self, keep: int | None) -> None:
+        """Drop the elevation grids of all but the ``keep`` latest strides (None: keep all;
+        ``terrain.online.keep_stride_grids``): a long run's memory stays flat."""
+        if keep is None:
+            return
+        for stride in self.strides[: max(0, len(self.strides) - keep)]:
+            stride.online_grid = stride.smoothed_grid = None
 
     @property
     def stride_index(self) -> np.ndarray:

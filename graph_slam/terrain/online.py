@@ -105,7 +105,18 @@ class OnlineTerrainConfig(ConfigModel):
     toe_x_m: float = Field(
         0.2, description="toe's x in the stride frame (heel at 0): obstacle distances are from it"
     )
-    keep_clouds: bool = Field(True, description="keep the stride's clouds for the re-fusion")
+    keep_clouds: bool = Field(
+        True,
+        description="keep the stride's clouds for the re-fusion from the smoothed poses; "
+        "false: the stride's final grid is its online one (the real-time preset)",
+    )
+    keep_stride_grids: int | None = Field(
+        None,
+        ge=1,
+        description="the results keep the grids (StrideOutput.online_grid, smoothed_grid) "
+        "of at most this many of the latest strides, older ones released (a controller "
+        "running for hours: ~0.4 MB a stride); None: every stride's (evaluation)",
+    )
 
     @model_validator(mode="after")
     def _ranges(self) -> OnlineTerrainConfig:
