@@ -70,7 +70,8 @@ def deadline_section(deadlines: dict) -> list[str]:
         "## Obstacles known before toe-off (the deadline)",
         "",
         "Per stride, every obstacle its final map measures whole (the graph's grid re-fused "
-        "from the smoothed poses; the baseline's online grid at its last frame): the first "
+        "from the smoothed poses, or its online grid at its last frame when it keeps no clouds "
+        "for that, as the real-time preset; the baseline's online grid): the first "
         "frame at which the online elevation grid had its height within 1 cm and its leading "
         "edge within 2 cm of the final values. Lead = toe-off − that time (positive: known "
         "before the swing must be planned).",
