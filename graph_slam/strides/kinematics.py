@@ -121,7 +121,6 @@ def session_leg_model(
     :func:`estimate_mount_pitch` on the session's streams (``streams``: those of
     :func:`~graph_slam.strides.streams.session_streams`, read with ``event_source`` when
     None). The winner is logged."""
-    from graph_slam.strides.kinematics import leg_model_for
     from kinematics.leg_model import LegModel
     from kinematics.leg_params import LegParams
 
