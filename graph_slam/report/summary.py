@@ -14,14 +14,17 @@ from graph_slam.variants import Variant
 
 
 def _stats_ms(seconds) -> dict:
-    a = np.asarray(seconds, dtype=float) * 1e3
-    if a.size == 0:
+    """:func:`graph_slam.evaluation.timing.timing_stats` in milliseconds (None when empty)."""
+    from graph_slam.evaluation.timing import timing_stats
+
+    if np.asarray(seconds).size == 0:
         return {"n": 0, "median_ms": None, "p95_ms": None, "max_ms": None}
+    t = timing_stats(np.asarray(seconds, dtype=float))
     return {
-        "n": int(a.size),
-        "median_ms": _num(np.median(a)),
-        "p95_ms": _num(np.percentile(a, 95)),
-        "max_ms": _num(a.max()),
+        "n": t.n,
+        "median_ms": _num(t.median_s * 1e3),
+        "p95_ms": _num(t.p95_s * 1e3),
+        "max_ms": _num(t.max_s * 1e3),
     }
 
 
