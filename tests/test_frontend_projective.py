@@ -29,7 +29,6 @@ from graph_slam.errors import RegistrationError, RegistrationFailure
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig, realtime_registration
 from graph_slam.frontend.projective import (
     DepthFrame,
-    _rows,
     associate,
     organized_normals,
     organized_points,
@@ -41,6 +40,7 @@ from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import RgbdFrame
 from graph_slam.session.synthetic import render_frame
 from tests.numerics import numerical_hessian
+from tests.projective_reference import rows_reference as _rows
 
 #: The preset's 2 cm voxels; at 128×96 (≈ 1 pixel per cm at 0.6 m) normals from every pixel
 #: and a voxel kept with one pixel normal; tight convergence.

@@ -213,14 +213,22 @@ def _analyse(rows: _Rows, config, significance: bool = True) -> _Analysis:
         values, vectors, center, length, config.degeneracy_threshold, significant, share,
         config.degeneracy_min_share,
     )  # fmt: skip
-    strong = values >= config.degeneracy_threshold  # the step: as before the significance test
-    step_n = -vectors[:, strong] @ ((vectors[:, strong].T @ grad_n) / values[strong])
+    step_n = restricted_step(values, vectors, grad_n, config.degeneracy_threshold)
     return _Analysis(
         degeneracy=report,
         step_origin=to_unit @ step_n,
         step_m=float(np.linalg.norm(step_n[3:])),
         step_rad=float(np.linalg.norm(step_n[:3]) / length),
     )
+
+
+def restricted_step(
+    values: np.ndarray, vectors: np.ndarray, grad_n: np.ndarray, threshold: float
+) -> np.ndarray:
+    """The Gauss-Newton step in unit coordinates restricted to the eigen-directions whose
+    eigenvalue reaches ``threshold`` (the step before the significance test)."""
+    strong = values >= threshold
+    return -vectors[:, strong] @ ((vectors[:, strong].T @ grad_n) / values[strong])
 
 
 def _information(
