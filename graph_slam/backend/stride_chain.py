@@ -226,7 +226,9 @@ class StrideChain:
         return flags
 
     def _new_graph(self, t_s: float, p: StartPriors, flags: list[str]) -> None:
-        g = StrideGraph(self.cfg.isam2_relinearize_threshold)
+        g = StrideGraph(
+            self.cfg.isam2_relinearize_threshold, self.cfg.isam2_accel_bias_relinearize_threshold
+        )
         tagged = [
             ("prior", factors.pose_prior(0, p.stride_T_imu, p.cov_pose)),
             ("prior", factors.velocity_prior(0, p.velocity_m_s, p.cov_velocity)),

@@ -49,9 +49,22 @@ def _finite_state(values: gtsam.Values, k: int) -> bool:
 class StrideGraph:
     """Factors and estimates of one stride; keys ``X(k)``, ``V(k)``, ``B(k)``, ``k`` from 0."""
 
-    def __init__(self, relinearize_threshold: float = 0.01, extra_updates: int = 1):
+    def __init__(
+        self,
+        relinearize_threshold: float = 0.01,
+        accel_bias_threshold: float | None = None,
+        extra_updates: int = 1,
+    ):
         params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(relinearize_threshold)
+        if accel_bias_threshold is None:
+            params.setRelinearizeThreshold(relinearize_threshold)
+        else:  # per variable type; the bias vector is (accelerometer, gyroscope)
+            thresholds = gtsam.ISAM2ThresholdMap()
+            thresholds.insert(("x", np.full(6, relinearize_threshold)))
+            thresholds.insert(("v", np.full(3, relinearize_threshold)))
+            bias = [accel_bias_threshold] * 3 + [relinearize_threshold] * 3
+            thresholds.insert(("b", np.array(bias)))
+            params.setRelinearizeThreshold(thresholds)
         params.relinearizeSkip = 1
         # QR, not Cholesky: the bias random walk between consecutive frames is ~1e10 times
         # more informative than the bias prior, and GTSAM's Cholesky calls that system
