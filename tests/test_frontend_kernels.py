@@ -2,7 +2,8 @@
 numpy formulation they replaced (tests/projective_reference.py).
 
 The kernels do the same arithmetic in the same order, so the prepared frame equals the numpy
-one to rounding (measured: bit-identical on these frames; bound 1e-12), the rows of one
+one to rounding, its voxels in another order (measured: bit-identical on these frames; bound
+1e-12), the rows of one
 iteration likewise, and the inner iterations' Gauss-Newton step (one-pass sums, then the same
 unit-free eigen-analysis) equals ``_analyse``'s to 1e-9 relative. The frames are the
 synthetic box course of test_frontend_projective (seeded), with and without colour, with
@@ -32,6 +33,14 @@ from tests.projective_reference import (
 FIELDS = ("points_m", "normals", "intensity", "gradients", "pixel_voxel", "pixel_points_m")
 
 
+def _match_rows(ours: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """``order`` with ``ours[order] == ref`` (rows of distinct voxel means)."""
+    a, b = np.lexsort(ours.T[::-1]), np.lexsort(ref.T[::-1])
+    order = np.empty(len(ref), np.int64)
+    order[b] = a
+    return order
+
+
 @pytest.mark.parametrize("color", [True, False], ids=["rgbd", "depth"])
 @pytest.mark.parametrize("normal_step,min_normals", [(1, 1), (2, 2)])
 def test_prepared_frame_equals_the_numpy_formulation(color, normal_step, min_normals) -> None:
@@ -44,13 +53,18 @@ def test_prepared_frame_equals_the_numpy_formulation(color, normal_step, min_nor
     ours = prepare_depth(frame, K, config, None, grid_T_cloud)
     ref = prepare_depth_reference(frame, K, config, None, grid_T_cloud)
     assert len(ours) > 200
-    for name in FIELDS:
+    # the same voxels in another order (the numpy path sorts them by key): match by row
+    order = _match_rows(ours.points_m, ref.points_m)
+    for name in FIELDS[:4]:
         a, b = getattr(ours, name), getattr(ref, name)
         if b is None:
             assert a is None, name
             continue
         assert a.shape == b.shape, name
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(a[order], b, rtol=0, atol=1e-12, err_msg=name)
+    ref_to_ours = np.append(order, -1)  # -1 (no voxel) stays -1
+    np.testing.assert_array_equal(ours.pixel_voxel, ref_to_ours[ref.pixel_voxel])
+    np.testing.assert_array_equal(ours.pixel_points_m, ref.pixel_points_m)
     assert ours.camera == ref.camera
 
 

@@ -6,7 +6,8 @@ organised back-projection, the per-pixel normals and intensity gradients from ne
 pixels, and the pixel → voxel means on the house's fixed-origin grid with the voxel's row for
 every pixel. Written with numpy they are a dozen temporaries each (5–6 ms per 424×240 frame
 on one core); here each is one loop, the same arithmetic in the same order, so the results
-equal the numpy formulation to rounding (``tests/test_frontend_kernels.py`` checks them
+equal the numpy formulation to rounding (the voxels in the order the pixels reach them, not
+sorted by key) (``tests/test_frontend_kernels.py`` checks them
 against it). Open3D's organised normal map has no validity or depth-jump test and no
 intensity gradient; small_gicp's voxel maps have no pixel → voxel map.
 
@@ -124,8 +125,10 @@ def pixel_normals(planes, valid, max_jump_ratio, intensity, has_intensity):
 
 @numba.njit(cache=True, nogil=True)
 def _voxel_ids(points, grid_T_cloud, voxel_m):
-    """Each point's voxel id (first-seen order) on the grid fixed in ``grid``, the packed
-    keys of the ids, and whether a point fell outside the key's range."""
+    """Each point's voxel id (in the order the points first reach the voxels) on the grid
+    fixed in ``grid``, the packed keys of the ids, and whether a point fell outside the key's
+    range. An open-addressing hash table; no sort (an argsort of the keys, for numpy's
+    ``unique`` order, was a third of the preparation)."""
     count = points.shape[0]
     capacity = 16
     while capacity < 2 * count:
@@ -173,7 +176,7 @@ def voxel_means(
 ):  # fmt: skip
     """Voxel means of the valid pixels' ``points`` (flat pixel indices ``rows`` of an image
     ``shape_hw``) on the grid fixed in ``grid`` (``grid_T_cloud``, edge ``voxel_m``), in the
-    order of their packed keys; per voxel the normalised sum of the pixel normals (and the
+    order the pixels (row-major) first reach them; per voxel the normalised sum of the pixel normals (and the
     mean of the intensity gradients) of the interior pixels whose normal is ``defined``
     (pixels ``normal_step`` apart), and the mean intensity. Voxels with fewer than
     ``min_pixel_normals`` normals (or a zero sum) are dropped. Returns the kept voxels'
@@ -186,16 +189,12 @@ def voxel_means(
         z3 = np.zeros((0, 3))
         return z3, z3, np.zeros(0), z3, pixel_voxel.reshape(h, w), True
     m = keys.shape[0]
-    order = np.argsort(keys)
-    rank = np.empty(m, np.int64)
-    for r in range(m):
-        rank[order[r]] = r
     count = np.zeros(m)
     psum = np.zeros((m, 3))
     isum = np.zeros(m)
     flat_intensity = intensity.ravel()
     for i in range(points.shape[0]):
-        r = rank[ids[i]]
+        r = ids[i]
         pixel_voxel[rows[i]] = r
         count[r] += 1.0
         for j in range(3):

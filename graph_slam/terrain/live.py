@@ -25,9 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from graph_slam.terrain.builder import map_cloud, map_pixels
 from graph_slam.terrain.carry import carry_map
-from graph_slam.terrain.depth_edges import depth_range_image
+from graph_slam.terrain.kernels import frame_point_terms
 from graph_slam.terrain.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
@@ -121,18 +120,11 @@ class LiveTerrain:
             self._start(stride_index, strides, covariance)
         if stride_T_camera is None:
             return self.map.view()
-        pixels = map_pixels(frame, self.cfg.pixel_step, self.min_depth_m, self.max_depth_m)
-        points, _ = map_cloud(
-            frame, self.intrinsics, self.cfg.pixel_step, self.min_depth_m, self.max_depth_m, pixels
-        )
-        ranges = None
-        if self.cfg.depth_noise.edge_factor > 0:
-            v_px, u_px = pixels
-            step = self.cfg.pixel_step
-            ranges = depth_range_image(frame.depth_m, step)[v_px // step, u_px // step]
-        view = self.map.update(
-            points, stride_T_camera, self._covariance(covariance), float(frame.t_s), ranges
-        )
+        points, ranges, terms = frame_point_terms(
+            self.cfg, frame.depth_m, self.intrinsics, (self.min_depth_m, self.max_depth_m),
+            stride_T_camera, self._covariance(covariance),
+        )  # fmt: skip
+        view = self.map.fuse(terms, float(frame.t_s), points, ranges)
         self._frames.append(int(frame_index))
         self._last = (strides[0], covariance)
         return view

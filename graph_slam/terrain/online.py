@@ -143,13 +143,16 @@ def z_variance(points_local: np.ndarray, rotation: np.ndarray, cov: np.ndarray) 
     right perturbation) under a 6×6 covariance (rotation first): ``J Σ Jᵀ`` with the z row
     ``J = [p × R[2], R[2]]``. With ``p × r = A p`` (``A = -[r]×``) it is the quadratic
     ``pᵀ Q p + g·p + c``: 3×3 work per point."""
-    r = rotation[2]
-    a = -np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-    q = a.T @ cov[:3, :3] @ a
-    g = 2.0 * a.T @ cov[:3, 3:] @ r
-    c = float(r @ cov[3:, 3:] @ r)
+    q, g, c = z_variance_terms(rotation, cov)
     p = np.asarray(points_local, dtype=np.float64)
     return np.einsum("ni,ni->n", p @ q, p) + p @ g + c
+
+
+def z_variance_terms(rotation: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """``Q``, ``g``, ``c`` of :func:`z_variance`'s quadratic ``pᵀ Q p + g·p + c``."""
+    r = rotation[2]
+    a = -np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return a.T @ cov[:3, :3] @ a, 2.0 * a.T @ cov[:3, 3:] @ r, float(r @ cov[3:, 3:] @ r)
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +206,14 @@ def point_terms(
     var_depth = ray_z**2 * var_range
     var_pose = z_variance(pts, rotation, cov) if cov is not None else np.zeros(len(pts))
     return PointTerms(flat, p[:, 2], var_depth, var_pose)
+
+
+def checked_pose(stride_T_camera) -> np.ndarray:
+    """``stride_T_camera`` as a float 4×4; a :class:`MappingError` unless finite 4×4."""
+    pose = np.asarray(stride_T_camera, dtype=np.float64)
+    if pose.shape != (4, 4) or not np.isfinite(pose).all():
+        raise MappingError(f"online terrain: stride_T_camera must be a finite 4×4, got {pose}")
+    return pose
 
 
 @dataclass(frozen=True, eq=False)
@@ -370,15 +381,21 @@ class OnlineElevationMap:
         """Fuse one frame's camera-frame points placed by its ``stride_T_camera`` (4×4) with
         its 6×6 pose covariance (None: depth noise only) and, per point, the depth range of
         its pixel's neighbourhood (None: no depth-edge term)."""
-        pose = np.asarray(stride_T_camera, dtype=np.float64)
-        if pose.shape != (4, 4) or not np.isfinite(pose).all():
-            raise MappingError(f"online terrain: stride_T_camera must be a finite 4×4, got {pose}")
+        pose = checked_pose(stride_T_camera)
         if depth_range_m is not None and len(depth_range_m) != len(points_camera_m):
             raise MappingError(
                 f"online terrain: {len(depth_range_m)} depth ranges for "
                 f"{len(points_camera_m)} points"
             )
         terms = point_terms(self.cfg, points_camera_m, pose, covariance, depth_range_m)
+        return self.fuse(terms, t_s, points_camera_m, depth_range_m)
+
+    def fuse(
+        self, terms: PointTerms, t_s: float, points_camera_m, depth_range_m=None
+    ) -> TerrainView:
+        """Add one frame's point terms (:func:`point_terms`, or the compiled
+        :func:`graph_slam.terrain.kernels.frame_point_terms`); its camera-frame points and depth ranges are kept for the
+        re-fusion when ``keep_clouds``."""
         self.sums = self.sums.plus(terms, t_s)
         self.t_s = float(t_s)
         if self.cfg.keep_clouds:
