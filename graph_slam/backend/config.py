@@ -180,16 +180,20 @@ class BackendConfig(ConfigModel):
     isam2_relinearize_threshold: float = Field(
         0.01,
         gt=0,
-        description="iSAM2 relinearises a variable whose update exceeds this (rad, m, m/s, "
-        "gyroscope bias rad/s)",
+        description="iSAM2 relinearises a variable whose update exceeds this: pose (rad, m) "
+        "and gyroscope bias (rad/s)",
+    )
+    isam2_velocity_relinearize_threshold: float = Field(
+        0.05, gt=0, description="the same for the velocity (m/s)"
     )
     isam2_accel_bias_relinearize_threshold: float = Field(
-        0.1,
+        0.3,
         gt=0,
-        description="the same for the accelerometer bias (m/s²): the IMU factor is linear in "
-        "the bias to first order (preintegration's bias Jacobians), while a bias that drifts "
-        "by 0.01 m/s² along a stride (the random walk ties every frame's bias together) made "
-        "iSAM2 relinearise and re-eliminate the whole stride, 5–15 ms, on most frames",
+        description="the same for the accelerometer bias (m/s²). Below these two, the IMU "
+        "factor is nearly linear (preintegration's bias Jacobians); at 0.01 for every "
+        "variable, updates of 0.01 m/s or 0.01 m/s² spread along the stride (the bias random "
+        "walk ties every frame's bias together) made iSAM2 re-eliminate the whole stride on "
+        "one frame in five, 5–15 ms each (docs/benchmarks.md, 'session 6')",
     )
     gap_bridge_rot_sigma_rad: float = Field(0.3, gt=0)
     gap_bridge_trans_sigma_m: float = Field(0.2, gt=0)

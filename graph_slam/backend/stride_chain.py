@@ -226,8 +226,10 @@ class StrideChain:
         return flags
 
     def _new_graph(self, t_s: float, p: StartPriors, flags: list[str]) -> None:
+        cfg = self.cfg
         g = StrideGraph(
-            self.cfg.isam2_relinearize_threshold, self.cfg.isam2_accel_bias_relinearize_threshold
+            cfg.isam2_relinearize_threshold,
+            (cfg.isam2_velocity_relinearize_threshold, cfg.isam2_accel_bias_relinearize_threshold),
         )
         tagged = [
             ("prior", factors.pose_prior(0, p.stride_T_imu, p.cov_pose)),
