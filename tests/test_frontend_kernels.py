@@ -115,3 +115,17 @@ def test_depth_outside_the_range_is_not_a_point() -> None:
     step = ProjectiveConfig().pixel_step_for(K)
     expected = np.count_nonzero(depth[::step, ::step] == 1.0)
     assert len(ours.pixel_points_m) == expected
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-10, 1e-6, 1e-3, 0.5, 3.0])
+def test_exp_left_is_the_rotation_vector_exponential(scale) -> None:
+    """Rodrigues' formula (and its second-order form below 1e-8 rad) against scipy."""
+    from scipy.spatial.transform import Rotation
+
+    from graph_slam.frontend.registration import _exp_left
+
+    xi = np.random.default_rng(int(scale * 1e6) + 1).normal(size=6) * scale
+    delta = _exp_left(xi)
+    np.testing.assert_allclose(delta[:3, :3], Rotation.from_rotvec(xi[:3]).as_matrix(), atol=1e-15)
+    np.testing.assert_array_equal(delta[:3, 3], xi[3:])
+    np.testing.assert_array_equal(delta[3], [0, 0, 0, 1])
