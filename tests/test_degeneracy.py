@@ -137,12 +137,33 @@ def test_only_the_constrained_subspace_keeps_information() -> None:
     assert np.linalg.matrix_rank(projected, tol=1e-6 * info.max()) == 3
 
 
-def test_displacement_norms_match_the_cross_product() -> None:
-    from graph_slam.frontend.degeneracy import _displacement_norms
+def test_significance_pass_equals_the_numpy_formulation() -> None:
+    """The compiled significance pass against the numpy one (random rows, point-to-plane and
+    photometric, some of zero weight; the displacement written with ``np.cross`` there)."""
+    from types import SimpleNamespace
+
+    from graph_slam.frontend.degeneracy import _significant, _unit_coordinates
+    from graph_slam.frontend.registration import _Rows
+    from tests.frontend_reference import displacement_norms, significant_reference
 
     rng = np.random.default_rng(7)
     lever, vectors = rng.normal(size=(50, 3)), rng.normal(size=(6, 6))
     expected = np.linalg.norm(
         np.cross(vectors[:3].T[None, :, :], lever[:, None, :]) + vectors[3:].T[None, :, :], axis=2
     )
-    np.testing.assert_allclose(_displacement_norms(lever, vectors), expected, rtol=1e-12)
+    np.testing.assert_allclose(displacement_norms(lever, vectors), expected, rtol=1e-12)
+    n = 400
+    w = rng.uniform(0, 1, 2 * n)
+    w[::9] = 0.0
+    rows = _Rows(rng.normal(size=2 * n), rng.normal(size=(2 * n, 6)), w,
+                 rng.normal(size=(n, 3)), np.full(n, 0.9), n, 0.4)  # fmt: skip
+    config = SimpleNamespace(degeneracy_min_alignment=0.5, degeneracy_min_gradient=1.0)
+    center, length, norm = rows.q.mean(axis=0), 1.3, 17.0
+    vectors = np.linalg.qr(rng.normal(size=(6, 6)))[0]
+    along_map = _unit_coordinates(center, length) @ vectors
+    ours = _significant(rows, along_map, vectors, center, length, norm, config)
+    ref = significant_reference(rows, rows.jac @ along_map, vectors, center, length, norm, config)
+    every_row = w.sum() / w[:n].sum()  # the share if every row counted
+    assert ours[1].min() > 0 and ours[1].max() < every_row  # some rows count, not all
+    for a, b in zip(ours, ref, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12)

@@ -39,8 +39,8 @@ from graph_slam.frontend.registration import RegistrationStatus, kernel_weights
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import RgbdFrame
 from graph_slam.session.synthetic import render_frame
+from tests.frontend_reference import rows_reference as _rows
 from tests.numerics import numerical_hessian
-from tests.projective_reference import rows_reference as _rows
 
 #: The preset's 2 cm voxels; at 128×96 (≈ 1 pixel per cm at 0.6 m) normals from every pixel
 #: and a voxel kept with one pixel normal; tight convergence.

@@ -130,41 +130,27 @@ def _unit_coordinates(center_m: np.ndarray, length_m: float) -> np.ndarray:
     return unit
 
 
-def _displacement_norms(lever: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """N×6: ``|ω × l + t|`` for each row's lever ``l`` (N×3) and each column ``(ω, t)`` of
-    ``vectors`` (6×6), written out per component (``np.cross`` over N×6×3 took 4× longer)."""
-    w, t = vectors[:3], vectors[3:]
-    lx, ly, lz = lever[:, 0:1], lever[:, 1:2], lever[:, 2:3]
-    dx = w[1] * lz - w[2] * ly + t[0]
-    dy = w[2] * lx - w[0] * lz + t[1]
-    dz = w[0] * ly - w[1] * lx + t[2]
-    return np.sqrt(dx * dx + dy * dy + dz * dz)
-
-
 def _significant(
-    rows, along: np.ndarray, vectors, center, length: float, norm: float, config
+    rows, along_map: np.ndarray, vectors, center, length: float, norm: float, config
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per eigen-direction ``v`` of an objective's ``rows`` (:class:`graph_slam.frontend.
-    registration._Rows`; ``along``: each row's Jacobian in ``(L·ω, t)`` times the
-    eigenvectors), the normalised stiffness of the rows that hold it significantly:
-    point-to-plane rows whose normal is aligned with the point's displacement ``δ`` under
-    ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric rows whose intensity
-    gradient along ``δ`` is at least ``degeneracy_min_gradient`` per metre of it; and the
-    share of the geometric rows' weight those rows carry (a photometric row counts as much as
-    a geometric one)."""
+    registration._Rows`; ``along_map``: ``U·vectors``, a row's stiffness along ``v`` in
+    ``(L·ω, t)`` is its Jacobian times a column), the normalised stiffness of the rows that
+    hold it significantly: point-to-plane rows whose normal is aligned with the point's
+    displacement ``δ`` under ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric
+    rows whose intensity gradient along ``δ`` is at least ``degeneracy_min_gradient`` per metre
+    of it; and the share of the geometric rows' weight those rows carry (a photometric row
+    counts as much as a geometric one). One compiled pass
+    (:func:`graph_slam.frontend.kernels.significance`)."""
+    from graph_slam.frontend.kernels import significance
+
     n_geo = rows.n_geo
-    contrib = rows.w[:, None] * along**2
-    # |δ|: how far each point moves under the unit-free motion v (rotation about c over L)
-    moved = _displacement_norms((rows.q - center) / length, vectors)
-    geo = np.abs(along[:n_geo]) >= (
-        config.degeneracy_min_alignment * rows.geo_scale[:, None] * moved
-    )
-    total = np.sum(contrib[:n_geo] * geo, axis=0)
-    count = rows.w[:n_geo] @ geo
-    if len(rows.r) > n_geo and rows.pho_scale > 0:
-        pho = np.abs(along[n_geo:]) >= config.degeneracy_min_gradient * rows.pho_scale * moved
-        total = total + np.sum(contrib[n_geo:] * pho, axis=0)
-        count = count + rows.w[n_geo:] @ pho
+    geo_scale = np.ascontiguousarray(np.broadcast_to(rows.geo_scale, (n_geo,)), dtype=float)
+    total, count = significance(
+        rows.jac, rows.w, rows.q, n_geo, geo_scale, float(rows.pho_scale), along_map,
+        np.asarray(center, float), float(length), vectors, config.degeneracy_min_alignment,
+        config.degeneracy_min_gradient,
+    )  # fmt: skip
     return total / norm, count / max(float(rows.w[:n_geo].sum()), 1e-300)
 
 

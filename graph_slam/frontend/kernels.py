@@ -330,9 +330,9 @@ def projective_rows(
 
 
 @numba.njit(cache=True, nogil=True)
-def normal_equations(jac, r, w, q):
-    """``JᵀWJ`` (6×6) and ``JᵀWr`` of weighted rows, and the sum and the sum of squared
-    norms of the points ``q`` (N×3): the Gauss-Newton system of one iteration in one pass."""
+def normal_equations(jac, r, w):
+    """``JᵀWJ`` (6×6) and ``JᵀWr`` of weighted rows in one pass (rows of zero weight, the
+    robust kernel's outliers, skipped)."""
     hess = np.zeros((6, 6))
     grad = np.zeros(6)
     for i in range(r.shape[0]):
@@ -347,10 +347,46 @@ def normal_equations(jac, r, w, q):
     for a in range(6):
         for b in range(a):
             hess[a, b] = hess[b, a]
-    qsum = np.zeros(3)
-    q2sum = 0.0
-    for i in range(q.shape[0]):
-        for a in range(3):
-            qsum[a] += q[i, a]
-            q2sum += q[i, a] * q[i, a]
-    return hess, grad, qsum, q2sum
+    return hess, grad
+
+
+@numba.njit(cache=True, nogil=True)
+def significance(
+    jac, w, q, n_geo, geo_scale, pho_scale, along_map, center, length, vectors,
+    min_alignment, min_gradient,
+):  # fmt: skip
+    """Per eigen-direction ``v`` (the columns of ``vectors``, coordinates ``(L·ω, t)``): the
+    weighted squared stiffness ``Σ w (J·v)²`` and the weight ``Σ w`` of the rows that hold
+    ``v`` significantly (:func:`graph_slam.frontend.degeneracy._significant`). ``along_map``:
+    ``U·vectors``, so that a row's stiffness along ``v`` is ``J·along_map[:, j]``; a row's
+    point moves by ``|ω × (q − c)/L + t|`` under ``v``. A point-to-plane row (the first
+    ``n_geo``) counts when ``|J·v| ≥ min_alignment · geo_scale · |δ|``, a photometric one (row
+    ``n_geo + i`` for point i) when ``|J·v| ≥ min_gradient · pho_scale · |δ|``."""
+    total = np.zeros(6)
+    count = np.zeros(6)
+    moved = np.empty(6)
+    for i in range(jac.shape[0]):
+        wi = w[i]
+        if wi == 0.0:
+            continue
+        geo = i < n_geo
+        if not geo and pho_scale <= 0.0:
+            continue
+        p = i if geo else i - n_geo
+        lx = (q[p, 0] - center[0]) / length
+        ly = (q[p, 1] - center[1]) / length
+        lz = (q[p, 2] - center[2]) / length
+        for j in range(6):
+            dx = vectors[1, j] * lz - vectors[2, j] * ly + vectors[3, j]
+            dy = vectors[2, j] * lx - vectors[0, j] * lz + vectors[4, j]
+            dz = vectors[0, j] * ly - vectors[1, j] * lx + vectors[5, j]
+            moved[j] = np.sqrt(dx * dx + dy * dy + dz * dz)
+        bound = min_alignment * geo_scale[p] if geo else min_gradient * pho_scale
+        for j in range(6):
+            along = 0.0
+            for a in range(6):
+                along += jac[i, a] * along_map[a, j]
+            if abs(along) >= bound * moved[j]:
+                total[j] += wi * along * along
+                count[j] += wi
+    return total, count

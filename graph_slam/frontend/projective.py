@@ -36,7 +36,6 @@ import numpy as np
 from graph_slam.errors import RecordError, RegistrationFailure
 from graph_slam.frontend import kernels
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
-from graph_slam.frontend.degeneracy import _unit_coordinates
 from graph_slam.frontend.registration import (
     RegistrationResult,
     _analyse,
@@ -47,7 +46,6 @@ from graph_slam.frontend.registration import (
     gate_correspondences,
     kernel_weights,
     registration_failure,
-    restricted_step,
     start_pose,
 )
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame, check_pose
@@ -212,22 +210,6 @@ def associated_rows(
     return corr, _Rows(r, jac, w, q, np.full(len(q), geo), len(q), pho)
 
 
-def _step(rows: _Rows, config: ProjectiveConfig) -> np.ndarray:
-    """The Gauss-Newton step about the target origin that :func:`~graph_slam.frontend.
-    registration._analyse` takes (unit-free Hessian, restricted to the directions whose
-    eigenvalue reaches ``degeneracy_threshold``), its sums in one compiled pass: the inner
-    iterations' (the solution's report, with the significance test, is ``_analyse``'s)."""
-    hess, grad, qsum, q2sum = kernels.normal_equations(rows.jac, rows.r, rows.w, rows.q)
-    count = max(len(rows.q), 1)
-    center = qsum / count
-    length = max(float(np.sqrt(max(q2sum / count - center @ center, 0.0))), 1e-6)
-    to_unit = _unit_coordinates(center, length)
-    norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
-    values, vectors = np.linalg.eigh(to_unit.T @ hess @ to_unit / norm)
-    grad_n = to_unit.T @ grad / norm
-    return to_unit @ restricted_step(values, vectors, grad_n, config.degeneracy_threshold)
-
-
 _fail = registration_failure
 
 
@@ -261,7 +243,7 @@ def register_depth(
     for iteration in range(config.max_iterations + 1):
         corr, rows = associated_rows(source, target, target_T_source, config)
         _gate(config, corr, len(source))
-        step = _step(rows, config)
+        step = _analyse(rows, config, significance=False).step_origin
         # converged: this pose is the solution, its rows the final ones (the step, below
         # min_step, is reported and not taken); else at most max_iterations steps
         if np.linalg.norm(step) < config.min_step:

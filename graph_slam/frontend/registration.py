@@ -26,6 +26,7 @@ from enum import StrEnum
 import numpy as np
 
 from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailure
+from graph_slam.frontend import kernels
 from graph_slam.frontend.cloud import Cloud, Pyramid, build_pyramid, voxel_pyramid
 from graph_slam.frontend.config import RegistrationConfig
 from graph_slam.frontend.degeneracy import (
@@ -199,15 +200,13 @@ def _analyse(rows: _Rows, config, significance: bool = True) -> _Analysis:
     length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
     to_unit = _unit_coordinates(center, length)
     norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
-    jac_n = rows.jac @ to_unit
-    weighted = jac_n * rows.w[:, None]
-    hess_n = weighted.T @ jac_n / norm
-    grad_n = weighted.T @ rows.r / norm
-    values, vectors = np.linalg.eigh(hess_n)
+    hess, grad = kernels.normal_equations(rows.jac, rows.r, rows.w)
+    values, vectors = np.linalg.eigh(to_unit.T @ hess @ to_unit / norm)
+    grad_n = to_unit.T @ grad / norm
     significant = share = None
     if significance:
         significant, share = _significant(
-            rows, jac_n @ vectors, vectors, center, length, norm, config
+            rows, to_unit @ vectors, vectors, center, length, norm, config
         )
     report = DegeneracyReport(
         values, vectors, center, length, config.degeneracy_threshold, significant, share,

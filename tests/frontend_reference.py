@@ -1,6 +1,6 @@
-"""The projective front end's preparation written with numpy (the formulation before the
-compiled kernels of :mod:`graph_slam.frontend.kernels`): the reference they must equal to
-rounding (tests/test_frontend_kernels.py)."""
+"""The front end's per-pixel, per-voxel and per-row loops written with numpy (the
+formulation before the compiled kernels of :mod:`graph_slam.frontend.kernels`): the reference
+they must equal to rounding (tests/test_frontend_kernels.py)."""
 
 from __future__ import annotations
 
@@ -248,3 +248,41 @@ def _cross_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
     out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
     out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+
+def displacement_norms(lever: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """N×6: ``|ω × l + t|`` for each row's lever ``l`` (N×3) and each column ``(ω, t)`` of
+    ``vectors`` (6×6), written out per component (``np.cross`` over N×6×3 took 4× longer)."""
+    w, t = vectors[:3], vectors[3:]
+    lx, ly, lz = lever[:, 0:1], lever[:, 1:2], lever[:, 2:3]
+    dx = w[1] * lz - w[2] * ly + t[0]
+    dy = w[2] * lx - w[0] * lz + t[1]
+    dz = w[0] * ly - w[1] * lx + t[2]
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+def significant_reference(
+    rows, along: np.ndarray, vectors, center, length: float, norm: float, config
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per eigen-direction ``v`` of an objective's ``rows`` (:class:`graph_slam.frontend.
+    registration._Rows`; ``along``: each row's Jacobian in ``(L·ω, t)`` times the
+    eigenvectors), the normalised stiffness of the rows that hold it significantly:
+    point-to-plane rows whose normal is aligned with the point's displacement ``δ`` under
+    ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric rows whose intensity
+    gradient along ``δ`` is at least ``degeneracy_min_gradient`` per metre of it; and the
+    share of the geometric rows' weight those rows carry (a photometric row counts as much as
+    a geometric one)."""
+    n_geo = rows.n_geo
+    contrib = rows.w[:, None] * along**2
+    # |δ|: how far each point moves under the unit-free motion v (rotation about c over L)
+    moved = displacement_norms((rows.q - center) / length, vectors)
+    geo = np.abs(along[:n_geo]) >= (
+        config.degeneracy_min_alignment * rows.geo_scale[:, None] * moved
+    )
+    total = np.sum(contrib[:n_geo] * geo, axis=0)
+    count = rows.w[:n_geo] @ geo
+    if len(rows.r) > n_geo and rows.pho_scale > 0:
+        pho = np.abs(along[n_geo:]) >= config.degeneracy_min_gradient * rows.pho_scale * moved
+        total = total + np.sum(contrib[n_geo:] * pho, axis=0)
+        count = count + rows.w[n_geo:] @ pho
+    return total / norm, count / max(float(rows.w[:n_geo].sum()), 1e-300)
