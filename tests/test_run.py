@@ -223,3 +223,25 @@ def test_rigid_fit_recovers_a_known_motion() -> None:
     r_fit, t_fit = rigid_fit(src, src @ rot.T + t)
     np.testing.assert_allclose(r_fit, rot, atol=1e-12)
     np.testing.assert_allclose(t_fit, t, atol=1e-12)
+
+
+def test_workers_give_the_same_trajectories_and_counts(ran, no_truth_session, tmp_path) -> None:
+    """Two worker processes (the baseline's task first) give what one process gave: the same
+    trajectories, grids and per-stride counts (imu+kin is deterministic; the baseline's Open3D
+    registration was too on this stride)."""
+    from graph_slam.report import RunConfig, run
+
+    report, _ = ran
+    two = run(
+        [no_truth_session], tmp_path / "two", RunConfig.model_validate({**FAST, "workers": 2})
+    )
+    session = report.sessions[0]
+    for tag in ("icp", "imu_kin"):
+        for name in ("online.tum", "smoothed.tum", "frames.csv"):
+            a = (report.out / session / tag / name).read_text()
+            assert a == (two.out / session / tag / name).read_text(), (tag, name)
+    one_doc = json.loads((report.out / "run.json").read_text())
+    two_doc = json.loads((two.out / "run.json").read_text())
+    for variant in ("icp", "imu+kin"):
+        strides = one_doc["sessions"][session]["variants"][variant]["strides"]
+        assert strides == two_doc["sessions"][session]["variants"][variant]["strides"]

@@ -82,3 +82,17 @@ def progress_bar(description: str, every_s: float = PLAIN_PROGRESS_EVERY_S):
             yield lambda done, total: progress.update(task, completed=done, total=total)
 
     return _bar()
+
+
+def workers_option_help(default: str) -> str:
+    return (
+        "Run the (session, variant) pairs in this many processes, the thesis baseline's first "
+        f"(default {default}; 1: one after another). Over the config's workers."
+    )
+
+
+def with_workers(cfg, workers: int | None):
+    """``cfg`` (a RunSettings) with ``workers`` over it (None: as it is)."""
+    if workers is None:
+        return cfg
+    return type(cfg).model_validate({**cfg.model_dump(), "workers": workers})

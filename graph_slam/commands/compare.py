@@ -12,6 +12,8 @@ from typing import Annotated
 
 import typer
 
+from graph_slam.commands._common import with_workers, workers_option_help
+
 DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
     ("slow", "Slow", 9),
     ("normal", "Normal", 9),
@@ -160,9 +162,12 @@ def register(app: typer.Typer) -> None:
         overwrite: Annotated[
             bool, typer.Option("--overwrite", help="Replace a report folder compare wrote.")
         ] = False,
+        workers: Annotated[
+            int | None, typer.Option(min=1, max=64, help=workers_option_help("1"))
+        ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
-        cfg = _load_compare_config(config, variants)
+        cfg = with_workers(_load_compare_config(config, variants), workers)
         _print_report(_run_compare([session], out, cfg, overwrite))
 
     @app.command()
@@ -216,6 +221,10 @@ def register(app: typer.Typer) -> None:
         overwrite: Annotated[
             bool, typer.Option("--overwrite", help="Replace a demo folder graph-slam wrote.")
         ] = False,
+        workers: Annotated[
+            int | None,
+            typer.Option(min=1, max=64, help=workers_option_help("the CPU count, at most 4")),
+        ] = None,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
@@ -232,6 +241,7 @@ def register(app: typer.Typer) -> None:
         size = _demo_resolution(resolution, full_resolution)
         cfg = _with_preset(_load_compare_config(config, variants), preset)
         cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
+        cfg = with_workers(cfg, workers or min(4, os.cpu_count() or 1))
         _check_demo_out(out, overwrite)
         specs = []
         for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):

@@ -7,6 +7,8 @@ from typing import Annotated
 
 import typer
 
+from graph_slam.commands._common import with_workers, workers_option_help
+
 
 def load_run_config(path: Path | None, variants: str | None, kitti: bool, map_dtype: str | None):
     """The YAML's RunConfig with the command line's choices over it."""
@@ -73,13 +75,16 @@ def register(app: typer.Typer) -> None:
         overwrite: Annotated[
             bool, typer.Option("--overwrite", help="Replace an output folder graph-slam wrote.")
         ] = False,
+        workers: Annotated[
+            int | None, typer.Option(min=1, max=64, help=workers_option_help("1"))
+        ] = None,
     ) -> None:
         """Run the variants on recordings (ground truth optional); write trajectories, maps,
         elevation grids, per-frame flags, timing and a report of what agrees."""
         from graph_slam.commands._common import progress_bar
         from graph_slam.report import run
 
-        cfg = load_run_config(config, variants, kitti, map_dtype)
+        cfg = with_workers(load_run_config(config, variants, kitti, map_dtype), workers)
         with progress_bar("running variants") as update:
             report = run(sessions, out, cfg, progress=update, overwrite=overwrite)
         _print_run(report)

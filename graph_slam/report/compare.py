@@ -54,7 +54,7 @@ from graph_slam.report.run import (
     SessionSpec,
     count_progress,
     open_sessions,
-    run_variants,
+    session_results,
 )
 from graph_slam.report.scoring import (
     SessionRun,
@@ -240,8 +240,13 @@ def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnin
     logger = views.make_logger(tmp / "recording.rrd" if cfg.rrd else None)
     t_offset = 0.0
     unscored = []
-    for spec, session in zip(specs, opened, strict=True):
-        run = _run_variants(session, _speed_of(spec, session), cfg, tick, study.n_strides)
+    traces = [_traces(cfg) for _ in opened]
+    runs = session_results(opened, cfg, tick, traces)
+    for spec, session, results, session_traces in zip(specs, opened, runs, traces, strict=True):
+        label = _speed_of(spec, session)
+        run = SessionRun.build(
+            session, label, results, cfg.pipeline, study.n_strides, session_traces or {}
+        )
         if not run.references:
             unscored.append(session.name)
         warnings += run_warnings(session, run, cfg.pipeline.event_source)
@@ -273,26 +278,24 @@ def _relocate(report: CompareReport, tmp: Path, out: Path) -> None:
     report.files = [out / f.relative_to(tmp) for f in report.files]
 
 
-def _run_variants(session, label: str, cfg: CompareConfig, tick, first_stride: int) -> SessionRun:
-    """Step 1 (``run``'s) and 2: every variant's results, and the references (none without
-    ground truth)."""
+def _traces(cfg: CompareConfig) -> dict | None:
+    """A session's per-frame terrain traces (variant → trace): every variant's when the
+    deadline is scored, the recording's grid for the main variant."""
     from graph_slam.report.terrain_trace import TerrainTrace
 
+    if not cfg.pipeline.terrain.online.enabled:
+        return None
     variants = [Variant(v) for v in cfg.variants]
-    traces = {}
-    if cfg.pipeline.terrain.online.enabled:
-        grid_step = cfg.rrd_grid_step if cfg.rrd else 0  # the recording shows the main variant's
-        traces = {
-            v: TerrainTrace(
-                grid_step if v == variants[-1] else 0,
-                cfg.terrain_deadline,
-                cfg.terrain_deadline_interval_s,
-            )
-            for v in variants
-            if cfg.terrain_deadline or (grid_step and v == variants[-1])
-        }
-    results = run_variants(session, cfg.variants, cfg.pipeline, tick, traces)
-    return SessionRun.build(session, label, results, cfg.pipeline, first_stride, traces)
+    grid_step = cfg.rrd_grid_step if cfg.rrd else 0  # the recording shows the main variant's
+    return {
+        v: TerrainTrace(
+            grid_step if v == variants[-1] else 0,
+            cfg.terrain_deadline,
+            cfg.terrain_deadline_interval_s,
+        )
+        for v in variants
+        if cfg.terrain_deadline or (grid_step and v == variants[-1])
+    }
 
 
 def _score(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:

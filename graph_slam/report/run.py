@@ -24,7 +24,7 @@ output layout is documented in docs/run.md.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -60,6 +60,13 @@ class RunSettings(ConfigModel):
         ge=1,
         description="log every n-th frame's live elevation grid (height, σ) and its boxes to "
         "the .rrd (9: 10 Hz at 90 Hz)",
+    )
+    workers: int = Field(
+        1,
+        ge=1,
+        le=64,
+        description="run the (session, variant) pairs in this many spawned processes, the "
+        "thesis baseline's first (1: one after another in this process; docs/run.md)",
     )
 
 
@@ -139,6 +146,20 @@ def run_variants(
     return results
 
 
+def session_results(opened, cfg: RunSettings, tick, traces) -> Iterator[dict]:
+    """Per opened session, in order: :func:`run_variants`'s results, run here or, with
+    ``cfg.workers`` > 1, in worker processes (:mod:`graph_slam.report.parallel`).
+    ``traces``: per session, variant → trace (or None), as :func:`run_variants` takes them
+    (the filled traces replace them)."""
+    if cfg.workers > 1 and len(opened) * len(cfg.variants) > 1:
+        from graph_slam.report.parallel import run_sessions
+
+        yield from run_sessions(opened, cfg.variants, cfg.pipeline, tick, traces, cfg.workers)
+        return
+    for session, session_traces in zip(opened, traces, strict=True):
+        yield run_variants(session, cfg.variants, cfg.pipeline, tick, session_traces)
+
+
 def reference_variant(cfg: RunConfig) -> Variant:
     """The variant the others are compared with."""
     variants = [Variant(v) for v in cfg.variants]
@@ -206,14 +227,14 @@ def _write_run(tmp: Path, opened, cfg: RunConfig, reference, progress, warnings)
     sessions: dict[str, dict] = {}
     t_offset = 0.0
     main = Variant(cfg.variants[-1])
-    for session in opened:
-        trace = None
-        if cfg.rrd and cfg.pipeline.terrain.online.enabled:
-            from graph_slam.report.terrain_trace import TerrainTrace
+    traces: list[dict | None] = [None] * len(opened)
+    if cfg.rrd and cfg.pipeline.terrain.online.enabled:
+        from graph_slam.report.terrain_trace import TerrainTrace
 
-            trace = TerrainTrace(cfg.rrd_grid_step, every_frame=False)
-        traces = None if trace is None else {main: trace}
-        results = run_variants(session, cfg.variants, cfg.pipeline, tick, traces)
+        traces = [{main: TerrainTrace(cfg.rrd_grid_step, every_frame=False)} for _ in opened]
+    runs = session_results(opened, cfg, tick, traces)
+    for session, results, session_traces in zip(opened, runs, traces, strict=True):
+        trace = None if session_traces is None else session_traces[main]
         warnings += rejected_samples(session, results)
         for variant, res in results.items():
             files += write_variant(tmp / session.name / variant.tag, res, cfg)
