@@ -1,5 +1,5 @@
 """The real-time front end without nearest-neighbour searches: organised normals, projective
-data association, colored ICP's objective by Gauss-Newton in numpy.
+data association, colored ICP's objective by Gauss-Newton (loops compiled).
 
 ``prepare_depth(frame, intrinsics, config, cloud_config, grid_T_cloud)`` turns a frame into a
 :class:`DepthFrame`, once:
@@ -9,10 +9,11 @@ data association, colored ICP's objective by Gauss-Newton in numpy.
   ``∂P/∂u ≈ P(u+1) − P(u−1)`` and ``∂P/∂v``; the normal is their cross product and the
   intensity gradient in the tangent plane solves ``d·∂P/∂u = ∂I/∂u``, ``d·∂P/∂v = ∂I/∂v``,
   ``d·n = 0`` (pixels next to a depth jump, or a missing neighbour, get none);
-* voxel means on the house's fixed-origin grid (:func:`graph_slam.frontend.cloud.voxel_index`,
-  ``grid_T_cloud`` as for the other presets): mean point, colour, intensity gradient, and the
-  normal of the summed (area-weighted) cross products — an unbiased sum, since the two
-  differences share no pixel; voxels without a normal are dropped;
+* voxel means on the house's fixed-origin grid (the keys of
+  :func:`graph_slam.frontend.cloud.voxel_index`, ``grid_T_cloud`` as for the other presets):
+  mean point, colour, intensity gradient, and the normal of the summed (area-weighted) cross
+  products — an unbiased sum, since the two differences share no pixel; voxels without a
+  normal are dropped;
 * the map ``pixel → voxel row`` (−1: none), which makes the frame a target.
 
 ``register_depth(source, target, config, guess)``: Gauss-Newton on colored ICP's objective
@@ -21,9 +22,10 @@ Open3D's, Park et al. 2017) with **projective data association**: each source vo
 moved by the current estimate, is projected into the target's decimated image; its
 correspondence is the target voxel of the pixel it lands on, kept when within
 ``max_correspondence_m`` and when the normals agree within ``max_normal_angle_deg``
-(KinectFusion, DVO). Everything is O(N) vectorised numpy; the quality report and the
-information are the accurate path's (:mod:`graph_slam.frontend.registration`), from the last
-iteration's rows. See docs/frontend.md, "The real-time preset".
+(KinectFusion, DVO). Every pass is O(N), its loops compiled
+(:mod:`graph_slam.frontend.kernels`); the quality report and the information are the accurate
+path's (:mod:`graph_slam.frontend.registration`), from the last iteration's rows. See
+docs/frontend.md, "The real-time preset".
 """
 
 from __future__ import annotations
