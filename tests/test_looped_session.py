@@ -80,3 +80,35 @@ def test_a_causal_replay_runs_over_the_loop(recording) -> None:
 def test_the_minutes_to_loop_must_be_positive(recording) -> None:
     with pytest.raises(SessionError, match="minutes to loop"):
         LoopedSession(recording, minutes=0)
+
+
+@pytest.mark.parametrize("variant", ["icp+imu+kin:realtime", "icp"])
+def test_kept_frame_records_are_the_latest_and_the_counts_whole(recording, variant) -> None:
+    """``keep_frames``: a long run keeps only about the latest N frame records (both lists:
+    the pipeline's and the back end's), counts every frame, and the kept records are those an
+    unbounded run gives for the same frames (the run itself does not change)."""
+    full, kept = _run(recording, variant, None), _run(recording, variant, 20)
+    n = full.n_frames
+    assert n == len(full.frames) == 70 and kept.n_frames == n
+    assert 20 <= len(kept.frames) <= 40 and kept.frames_released == n - len(kept.frames)
+    assert kept.counts["frames"] == full.counts["frames"] == n
+    assert kept.counts["with_pose"] == full.counts["with_pose"]
+    for a, b in zip(kept.frames, full.frames[kept.frames_released :], strict=True):
+        assert a.frame_index == b.frame_index and a.status == b.status
+        if variant != "icp":  # deterministic: the same poses
+            np.testing.assert_array_equal(a.stride_T_camera, b.stride_T_camera)
+    if kept.backend is not None:
+        assert 20 <= len(kept.backend.frames) <= 40 and kept.backend.n_frames == n
+
+
+def _run(session, variant: str, keep: int | None):
+    """The first 70 frames (a stride and a half), the baseline with one coarse ICP level."""
+    from graph_slam.bench.realtime import row_config
+    from graph_slam.pipelines import PipelineConfig, run_session
+
+    data = row_config(variant).model_dump(mode="json")
+    data.update(keep_frames=keep, max_frames=70)
+    data["baseline"]["registration"]["levels"] = [
+        {"voxel_m": 0.04, "max_correspondence_m": 0.04, "max_iterations": 15}
+    ]
+    return run_session(session, PipelineConfig.model_validate(data))

@@ -132,7 +132,7 @@ class StrideSLAM:
                 f"({self._last_frame_t!r})"
             )
         self.strides.close_if_missed(t_s)
-        t_start, index = time.perf_counter(), len(self.results.frames)
+        t_start, index = time.perf_counter(), self.results.n_frames
         if self.strides.graph is None:
             return self._stride_start(index, t_s, t_start, icp, foot_loaded, kinematics)
         g, use = self.strides.graph, self.cfg.factors

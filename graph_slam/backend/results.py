@@ -68,6 +68,16 @@ class StrideSummary:
         return bool(self.flags)
 
 
+def release_oldest(frames: list, keep: int | None) -> list:
+    """Remove from ``frames`` all but the ``keep`` latest when it holds twice as many (the
+    removal amortised over ``keep`` frames); the removed ones, oldest first (None: none)."""
+    if keep is None or len(frames) <= 2 * keep:
+        return []
+    released = frames[: len(frames) - keep]
+    del frames[: len(frames) - keep]
+    return released
+
+
 @dataclass(eq=False)
 class Results:
     """Everything a run produced, frame by frame and stride by stride."""
@@ -75,6 +85,18 @@ class Results:
     frames: list[FrameEstimate] = field(default_factory=list)
     strides: list[StrideSummary] = field(default_factory=list)
     imu_counts: dict[str, int] = field(default_factory=dict)
+    frames_released: int = 0
+    """Frames no longer in ``frames`` (``release_frames``): ``frames[i]`` is frame
+    ``frames_released + i``."""
+
+    @property
+    def n_frames(self) -> int:
+        """Frames added, kept or released."""
+        return self.frames_released + len(self.frames)
+
+    def release_frames(self, keep: int | None) -> None:
+        """Keep about the ``keep`` latest frames' records (None: all; ``keep_frames``)."""
+        self.frames_released += len(release_oldest(self.frames, keep))
 
     @property
     def t_s(self) -> np.ndarray:

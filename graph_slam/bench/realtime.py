@@ -116,6 +116,12 @@ class RealtimeRow:
     frames_without_pose: int
     wall_s: float
     machine: dict = field(default_factory=dict)
+    scored: bool = True
+    """False for a long run that kept only its latest frame records (``--minutes``)."""
+
+
+#: the frame records a ``--minutes`` run keeps (10 s at 90 Hz)
+LONG_RUN_KEEP_FRAMES = 900
 
 
 def run_row(
@@ -127,7 +133,8 @@ def run_row(
 ) -> RealtimeRow:
     """Replay one row on one session and score what it processed (in this process).
     ``minutes``: the session looped to that length (:class:`~graph_slam.session.looped.
-    LoopedSession`: memory over a long run, with ``terrain.online.keep_stride_grids: 2``)."""
+    LoopedSession`: memory over a long run, with ``terrain.online.keep_stride_grids: 2`` and
+    ``keep_frames``: :data:`LONG_RUN_KEEP_FRAMES`; not scored)."""
     from graph_slam.bench.accuracy import score
     from graph_slam.pipelines.replay import replay_session
     from graph_slam.session import open_session
@@ -138,9 +145,11 @@ def run_row(
     session = open_session(session_path)
     if minutes is not None:
         session = LoopedSession(session, minutes, cfg.event_source)
-        # a long run as a controller runs it: only the latest strides' grids kept
+        # a long run as a controller runs it: only the latest strides' grids and the latest
+        # frames' records kept (the run is then not scored: scoring needs every frame)
         data = cfg.model_dump(mode="json")
         data["terrain"]["online"]["keep_stride_grids"] = 2
+        data["keep_frames"] = LONG_RUN_KEEP_FRAMES
         cfg = PipelineConfig.model_validate(data)
     t0 = time.perf_counter()
     res = replay_session(session, cfg, pace=pace)  # type: ignore[arg-type]
@@ -148,7 +157,7 @@ def run_row(
     leg, _ = session_leg_model(
         session, cfg.mount_pitch_deg, cfg.mount_estimate, event_source=cfg.event_source
     )
-    strides = score(session, res.results, leg)
+    strides = score(session, res.results, leg) if cfg.keep_frames is None else []
     on = np.array([s.online_rmse_m for s in strides]) * 1e3
     sm = np.array([s.smoothed_rmse_m for s in strides]) * 1e3
     return RealtimeRow(
@@ -171,9 +180,10 @@ def run_row(
         strides_scored=len(strides),
         online_rmse_mm=float(np.nanmedian(on)) if np.isfinite(on).any() else float("nan"),
         smoothed_rmse_mm=float(np.nanmedian(sm)) if np.isfinite(sm).any() else float("nan"),
-        frames_without_pose=int((~res.results.has_pose).sum()),
+        frames_without_pose=res.results.n_frames - res.results.n_with_pose,
         wall_s=wall,
         machine=machine(),
+        scored=cfg.keep_frames is None,
     )
 
 
@@ -244,11 +254,17 @@ def row_lines(r: RealtimeRow) -> list[str]:
         if r.stages[key].n:
             lines.append(f"    {'  ' + name:22s}{r.stages[key].text()}")
     lines.append(f"    {'  finish (last stride)':22s}{r.finish_ms:7.1f}")
-    lines.append(
-        f"    accuracy of the processed frames: {r.strides_scored} complete strides, "
-        f"stride-frame RMSE median online {r.online_rmse_mm:.1f} mm, smoothed "
-        f"{r.smoothed_rmse_mm:.1f} mm; frames without pose {r.frames_without_pose}"
-    )
+    if r.scored:
+        lines.append(
+            f"    accuracy of the processed frames: {r.strides_scored} complete strides, "
+            f"stride-frame RMSE median online {r.online_rmse_mm:.1f} mm, smoothed "
+            f"{r.smoothed_rmse_mm:.1f} mm; frames without pose {r.frames_without_pose}"
+        )
+    else:
+        lines.append(
+            f"    not scored: a long run keeps only its latest {LONG_RUN_KEEP_FRAMES} frame "
+            "records (keep_frames)"
+        )
     if len(r.rss_mb) > 2:
         lines.append(
             "    resident memory: "

@@ -124,7 +124,7 @@ class ThesisBaseline:
     # ------------------------------------------------------------------ frames
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         t0 = time.perf_counter()
-        index = len(self.results.frames)
+        index = self.results.n_frames
         cloud = frame_cloud(
             frame, self.intrinsics, self.cfg.cloud, self.has_color, self.cfg.baseline.pixel_step
         )
@@ -182,6 +182,7 @@ class ThesisBaseline:
             terrain=view,
         )
         self.results.frames.append(dataclasses.replace(out, terrain=None))
+        self.results.release_frames(self.cfg.keep_frames)
         return out
 
     def _register(self, cloud) -> tuple[np.ndarray | None, str, float]:
@@ -239,8 +240,7 @@ class ThesisBaseline:
 
     def finish(self) -> PipelineResults:
         self._close_stride()
-        n = len(self.results.frames)
-        reg = int(sum(f.has_pose for f in self.results.frames))
+        n, reg = self.results.n_frames, self.results.n_with_pose
         self.results.counts = {
             "frames": n,
             "with_pose": reg,

@@ -207,6 +207,13 @@ class PipelineConfig(ConfigModel):
         "gravity_min_window_s when fusing it with the floor (widens the floor's angle gate)",
     )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
+    keep_frames: int | None = Field(
+        None,
+        ge=1,
+        description="the results keep about this many of the latest frame records (1–2×; "
+        "older ones are counted, not kept: a controller running for hours, ~3 KB a frame); "
+        "None: every frame (evaluation and scoring need them all)",
+    )
 
     @model_validator(mode="before")
     @classmethod

@@ -262,7 +262,7 @@ class GraphPipeline:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
         map cloud; strides the back end closed get their terrain maps."""
         t0 = time.perf_counter()
-        index = len(self.results.frames)
+        index = self.results.n_frames
         stages: dict[str, float] = {}
         cloud, icp, pyramid, fitness = self._register(frame, index, foot_loaded, stages)
         floor_flag: tuple[str, ...] = ()
@@ -312,6 +312,8 @@ class GraphPipeline:
             terrain=view,
         )
         self.results.frames.append(dataclasses.replace(out, terrain=None))
+        self.results.release_frames(self.cfg.keep_frames)
+        self.slam.results.release_frames(self.cfg.keep_frames)
         return out
 
     def _remember(self, index: int, pyramid, est, t_s: float) -> None:
@@ -392,8 +394,8 @@ class GraphPipeline:
                 ]
             )
         self.results.counts = {
-            "frames": len(self.results.frames),
-            "with_pose": int(sum(f.has_pose for f in self.results.frames)),
+            "frames": self.results.n_frames,
+            "with_pose": self.results.n_with_pose,
             "icp_accepted": int(sum(s.n_icp_accepted for s in res.strides)),
             "icp_rejected": int(sum(s.n_icp_rejected for s in res.strides)),
             **{f"imu_{k}": v for k, v in res.imu_counts.items()},

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from graph_slam.backend.results import release_oldest
 from graph_slam.variants import Variant
 
 if TYPE_CHECKING:
@@ -101,6 +102,26 @@ class PipelineResults:
     """The back end's own :class:`graph_slam.backend.Results` (graph variants)."""
     config: dict[str, Any] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
+    frames_released: int = 0
+    """Frames no longer in ``frames`` (``keep_frames``): ``frames[i]`` is frame
+    ``frames_released + i``."""
+    with_pose_released: int = 0
+
+    @property
+    def n_frames(self) -> int:
+        """Frames processed, kept or released."""
+        return self.frames_released + len(self.frames)
+
+    @property
+    def n_with_pose(self) -> int:
+        return self.with_pose_released + int(sum(f.has_pose for f in self.frames))
+
+    def release_frames(self, keep: int | None) -> None:
+        """Keep about the ``keep`` latest frame records (None: all; ``PipelineConfig.
+        keep_frames``): a controller's memory stays flat over hours."""
+        released = release_oldest(self.frames, keep)
+        self.frames_released += len(released)
+        self.with_pose_released += sum(f.has_pose for f in released)
 
     @property
     def t_s(self) -> np.ndarray:
