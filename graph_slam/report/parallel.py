@@ -8,7 +8,9 @@ ms), so two workers finish together; the caller takes the sessions back in order
 soon as its variants are done, and scores it while the workers go on with the next. Progress
 comes back through a queue as frame counts. Each run is the same as in one process (the same
 configuration, the same session, nothing shared): the results do not depend on ``workers``
-beyond the thread-level nondeterminism of Open3D's registration.
+beyond the thread-level nondeterminism of Open3D's registration. A task that fails raises its
+error when its session is taken back; the tasks not started are then cancelled (those running
+finish first).
 """
 
 from __future__ import annotations
@@ -74,18 +76,27 @@ def run_sessions(
             trace = None if traces[s] is None else traces[s].get(v)
             data = {**pipeline.model_dump(mode="json"), "variant": str(v)}
             futures[(s, v)] = pool.submit(_run_task, str(sessions[s].path), data, trace, ticks)
-        for s in range(len(sessions)):
-            mine = [futures[(s, v)] for v in order]
-            while not all(f.done() for f in mine):
-                wait(mine, timeout=0.5, return_when=FIRST_COMPLETED)
-                _drain(ticks, tick)
-            _drain(ticks, tick)
-            results = {}
-            for v, future in zip(order, mine, strict=True):
-                results[v], trace = future.result()
-                if traces[s] is not None and v in traces[s]:
-                    traces[s][v] = trace
-            yield results
+        try:
+            for s in range(len(sessions)):
+                yield _collect(s, order, futures, traces, ticks, tick)
+        except BaseException:  # a failed task or an interrupt: start nothing more
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+
+
+def _collect(s: int, order, futures, traces, ticks, tick) -> dict:
+    """Session ``s``'s results once its tasks are done (progress drained meanwhile)."""
+    mine = [futures[(s, v)] for v in order]
+    while not all(f.done() for f in mine):
+        wait(mine, timeout=0.5, return_when=FIRST_COMPLETED)
+        _drain(ticks, tick)
+    _drain(ticks, tick)
+    results = {}
+    for v, future in zip(order, mine, strict=True):
+        results[v], trace = future.result()  # a worker's exception is raised here
+        if traces[s] is not None and v in traces[s]:
+            traces[s][v] = trace
+    return results
 
 
 def _drain(ticks, tick) -> None:
