@@ -32,6 +32,7 @@ from graph_slam.frontend.degeneracy import (
     DegeneracyReport,
     _significant,
     _unit_coordinates,
+    floor_information,
     project_information,
 )
 from graph_slam.session.records import check_pose
@@ -53,8 +54,10 @@ class RegistrationResult:
     ``information`` is 6×6, rotation first then translation (GTSAM ``Pose3`` order), in the
     tangent space GTSAM uses for ``BetweenFactor<Pose3>(target, source, target_T_source)``:
     ``target_T_source_true = target_T_source · Exp(ξ)``, ``ξ = (ω, t)`` in the source frame.
-    It is JᵀWJ / σ² with σ the weighted rms residual (floored); it assumes independent
-    residuals and is over-confident by a large factor (see docs/frontend.md).
+    It is ``(Σ_solver + Σ_floor)⁻¹`` with ``Σ_solver = (scale · JᵀWJ / σ²)⁻¹`` (σ the weighted
+    rms residual, floored) and a fixed floor in the constrained directions (the accurate path's
+    ``information_floor_m`` / ``information_floor_rad``; see docs/frontend.md, "Calibrated
+    information").
     """
 
     target_T_source: np.ndarray
@@ -229,11 +232,16 @@ def _information(
     min_sigma_m: float,
     degeneracy: DegeneracyReport | None = None,
     scale: float = 1.0,
+    *,
+    floor_m: float = 0.0,
+    floor_rad: float = 0.0,
 ) -> tuple[np.ndarray, float]:
     """``scale · JᵀWJ / σ²`` in GTSAM's tangent space (right perturbation, source frame) and σ,
     the weighted rms residual, floored at ``min_sigma_m`` (in the geometric residual's scale).
     With a ``degeneracy`` report, only its constrained directions keep information (``Mᵀ I M``,
-    :meth:`DegeneracyReport.projector`): the weak ones get exactly zero."""
+    :meth:`DegeneracyReport.projector`): the weak ones get exactly zero. ``floor_m`` /
+    ``floor_rad`` add a fixed covariance floor (σ per translation / rotation axis) in the
+    constrained subspace (:func:`floor_information`); 0 (the default) adds none."""
     sigma2 = float(np.sum(rows.w * rows.r**2) / max(float(rows.w.sum()), 1e-300))
     sigma = max(np.sqrt(sigma2), min_sigma_m * float(np.median(rows.geo_scale)))
     info_left = (rows.jac * rows.w[:, None]).T @ rows.jac / sigma**2
@@ -241,6 +249,7 @@ def _information(
     info = scale * (ad.T @ info_left @ ad)
     if degeneracy is not None:
         info = project_information(info, degeneracy, target_T_source)
+    info = floor_information(info, floor_m, floor_rad, degeneracy, target_T_source)
     return info, float(sigma)
 
 
@@ -465,7 +474,8 @@ def register(
     analysis = _analyse(rows, config)
     information, sigma = _information(
         rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
-        config.information_scale,
+        config.information_scale, floor_m=config.information_floor_m,
+        floor_rad=config.information_floor_rad,
     )  # fmt: skip
     timing["information"] = time.perf_counter() - t0
     return conclude(
