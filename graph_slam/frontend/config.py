@@ -144,6 +144,13 @@ class RegistrationConfig(ConstraintAnalysisConfig):
     lambda_geometric: float = Field(
         0.968, ge=0, le=1, description="colored ICP: weight of the geometric term (Park 2017)"
     )
+    kernel_noise_sigmas: float | None = Field(
+        5.5,
+        gt=0,
+        description="noise-aware kernel: when this × the residuals' robust σ (MAD, at the "
+        "finest level's solution) exceeds the finest level's k, that level is run again with "
+        "it (depth noise above the sensor's nominal); None = off",
+    )
     normal_radius_factor: float = Field(2.0, gt=0, description="normal radius / voxel_m")
     normal_max_nn: int = Field(30, ge=3)
     relative_fitness: float = Field(1e-6, ge=0, description="Open3D ICP stopping criterion")
