@@ -5,7 +5,8 @@ robust kernel, quality gates); the pipelines' config holds both. Presets:
 :func:`thesis_registration` (the thesis: multi-scale colored ICP as in Open3D's tutorial, no
 robust kernel), :func:`colored_registration` (the default: the same with a Tukey kernel),
 :func:`refined_colored_registration` (then a depth-noise-weighted refinement at 5 mm) and
-:func:`fast_point_to_plane` (depth only, one 2 cm level). :class:`GicpConfig` and
+:func:`fast_point_to_plane` (depth only, one 2 cm level); :func:`with_real_camera_floor` puts
+the covariance floor of a real camera on any of them. :class:`GicpConfig` and
 :func:`realtime_registration`: the real-time front end (small_gicp's GICP on one fixed-grid
 scale, each frame prepared once: :mod:`graph_slam.frontend.realtime`).
 """
