@@ -83,8 +83,7 @@ def _tum_chi2(folder: Path, floor: bool):
 
 def test_real_camera_floor_calibrates_the_copied_tum_frames() -> None:
     """The four copied TUM fr1/xyz frames (3 pairs, the noisiest of the ten): with the
-    real-camera floor χ²/dof median 2.4 (measured), with the simulator's default 109 (663
-    without any floor)."""
+    real-camera floor χ²/dof median 2.4 (measured; 663 without the floor)."""
     from conftest import TEST_DATA
 
     real = _tum_chi2(TEST_DATA / "tum_fr1_xyz_10", floor=True)
@@ -93,8 +92,8 @@ def test_real_camera_floor_calibrates_the_copied_tum_frames() -> None:
 
 
 def test_real_camera_floor_puts_the_tum_chi2_in_the_band() -> None:
-    """The ten TUM frames (9 pairs, ../shared/data): χ²/dof median 0.84 with the real-camera
-    floor (the issue's band 0.5–2); 39 with the simulator's default floor."""
+    """The ten TUM frames (9 pairs, ../shared/data): χ²/dof median 0.83 with the real-camera
+    floor (the issue's band 0.5–2); 663 with the default (no floor)."""
     from conftest import shared_data
 
     real = _tum_chi2(shared_data("tum_fr1_xyz_10"), floor=True)

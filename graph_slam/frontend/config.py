@@ -173,25 +173,25 @@ class RegistrationConfig(ConstraintAnalysisConfig):
         "False returns Open3D's result as it is (the step is still reported: final_step_m)",
     )
     information_scale: float = Field(
-        0.7,
+        0.14,
         gt=0,
-        description="multiplies JᵀWJ/σ² (correspondences are not independent); with the floor "
-        "below, calibrated on the simulator's box course, textured and not, so that the χ² of "
-        "the relative pose against the truth is near its degrees of freedom (χ²/dof median "
-        "0.65 and 0.86; docs/frontend.md)",
+        description="multiplies JᵀWJ/σ² (correspondences are not independent): calibrated on "
+        "the simulator's box course, textured and not, so that the χ² of the relative pose "
+        "against the truth is near its degrees of freedom (χ²/dof median 0.57 and 1.79; "
+        "docs/frontend.md)",
     )
     information_floor_m: float = Field(
-        0.00025,
+        0.0,
         ge=0,
         description="covariance floor: σ per translation axis added to the solver's covariance "
-        "in the constrained directions (errors the residuals do not show); 0 = none. A real "
-        "camera: REAL_CAMERA_FLOOR_M",
+        "in the constrained directions (errors the residuals do not show); 0 (default, the "
+        "simulator) = none. A real camera: REAL_CAMERA_FLOOR_M (with_real_camera_floor)",
     )
     information_floor_rad: float = Field(
-        0.00044,
+        0.0,
         ge=0,
-        description="covariance floor: σ per rotation axis (0.025 deg); 0 = none. A real "
-        "camera: REAL_CAMERA_FLOOR_RAD",
+        description="covariance floor: σ per rotation axis; 0 = none. A real camera: "
+        "REAL_CAMERA_FLOOR_RAD",
     )
     fail_on_degenerate: bool = Field(
         False, description="raise RegistrationError(DEGENERATE) instead of returning the result"
@@ -227,8 +227,7 @@ class RegistrationConfig(ConstraintAnalysisConfig):
 
 
 # The covariance floor that makes the accurate preset's χ² honest on a real RGB-D camera (the
-# TUM fr1/xyz frames against their motion-capture truth: χ²/dof median 0.84; the default floor
-# leaves 39): millimetres of systematic error (calibration, depth bias, timing, and the
+# TUM fr1/xyz frames against their motion-capture truth: χ²/dof median 0.83; without it 663): millimetres of systematic error (calibration, depth bias, timing, and the
 # reference's own error) that the simulator does not render. docs/frontend.md.
 REAL_CAMERA_FLOOR_M = 0.0015
 REAL_CAMERA_FLOOR_RAD = 0.0035  # 0.2 deg
