@@ -278,10 +278,11 @@ def calibration_bench(
     ] = None,
 ) -> None:
     """Issue 20: χ²/dof of the registrations' information against the truth (accurate and
-    realtime presets; docs/frontend.md, "Calibrated information")."""
+    realtime presets, and on the TUM frames the accurate preset with the real-camera
+    covariance floor; docs/frontend.md, "Calibrated information")."""
     from graph_slam.bench.calibration import chi2_of_pairs
     from graph_slam.bench.registration import default_tum_folder, read_tum_sample, session_dataset
-    from graph_slam.frontend.config import realtime_registration
+    from graph_slam.frontend.config import realtime_registration, with_real_camera_floor
     from graph_slam.pipelines.config import PipelineConfig
     from graph_slam.pipelines.protocol import sensor_registration
 
@@ -297,6 +298,9 @@ def calibration_bench(
             # depth only: point-to-plane with the graph's depth-only settings
             config = sensor_registration(preset, has_color, PipelineConfig().graph.depth_only)
             typer.echo(chi2_of_pairs(data, config, name=name).line())
+        if data.name.startswith("TUM"):  # a real camera: its own covariance floor
+            config = with_real_camera_floor(PipelineConfig().graph.registration)
+            typer.echo(chi2_of_pairs(data, config, name="accurate, real-camera floor").line())
 
 
 @bench_app.command("terrain")

@@ -164,3 +164,40 @@ def project_information(
     m = degeneracy.projector(target_T_source)
     info = m.T @ information @ m
     return 0.5 * (info + info.T)
+
+
+def floor_information(
+    information: np.ndarray,
+    floor_m: float,
+    floor_rad: float,
+    degeneracy: DegeneracyReport | None = None,
+    target_T_source: np.ndarray | None = None,
+) -> np.ndarray:
+    """The information of a covariance that adds a fixed floor to the solver's: ``I' =
+    (I⁻¹ + Σ_f)⁻¹``, ``Σ_f = diag(floor_rad², ×3, floor_m², ×3)`` (right tangent, rotation
+    first), taken in the constrained subspace only.
+
+    With a degeneracy report the (projected) ``I = Pᵀ A P`` lives on the ``d`` constrained
+    directions: ``P = B⁺ M`` (``M`` the report's oblique projector, ``B`` an orthonormal basis
+    of its range) maps a twist to its constrained coordinates and ``A = B I Bᵀ`` is their
+    information; the floor is carried through the same map, ``I' = Pᵀ (A⁻¹ + P Σ_f Pᵀ)⁻¹ P``.
+    The weak directions keep exactly zero information, and ``dof`` is unchanged. A zero floor
+    returns ``information`` as it is."""
+    if floor_m <= 0.0 and floor_rad <= 0.0:
+        return information
+    floor = np.diag([floor_rad**2] * 3 + [floor_m**2] * 3)
+    if degeneracy is None or not degeneracy.is_degenerate:
+        basis = p = np.eye(6)
+    else:
+        if target_T_source is None:
+            raise ValueError("floor_information: a degeneracy report needs target_T_source")
+        if degeneracy.dof == 0:
+            return np.zeros_like(information)
+        m = degeneracy.projector(target_T_source)
+        basis = np.linalg.svd(m)[0][:, : degeneracy.dof]  # orthonormal basis B of range(M)
+        p = basis.T @ m  # M B = B, so Bᵀ I B = A
+    a = basis.T @ information @ basis
+    # (A⁻¹ + S)⁻¹ = (1 + A S)⁻¹ A: no inverse of A (it may be ill-conditioned)
+    floored = np.linalg.solve(np.eye(len(a)) + a @ (p @ floor @ p.T), a)
+    floored = p.T @ floored @ p
+    return 0.5 * (floored + floored.T)
