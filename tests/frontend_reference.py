@@ -11,8 +11,8 @@ import numpy as np
 from graph_slam.errors import RecordError
 from graph_slam.frontend.cloud import voxel_groups, voxel_index
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
+from graph_slam.frontend.objective import _Rows, kernel_weights
 from graph_slam.frontend.projective import DepthFrame
-from graph_slam.frontend.registration import _Rows, kernel_weights
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame, check_pose
 
 
@@ -210,7 +210,7 @@ def rows_reference(
     target_T_source: np.ndarray,
     config: ProjectiveConfig,
 ) -> _Rows:
-    """Colored ICP's rows (as :func:`graph_slam.frontend.registration._rows`, which takes
+    """Colored ICP's rows (as :func:`graph_slam.frontend.objective._rows`, which takes
     clouds): point-to-plane ``√λ · n·(q − p)`` and, with intensities on both frames,
     ``√(1−λ) · (I_s − (I_t + d·(q_proj − p)))``; Jacobian for a left perturbation about the
     target origin; Tukey weights at ``kernel_scale · voxel_m``."""
@@ -265,7 +265,7 @@ def significant_reference(
     rows, along: np.ndarray, vectors, center, length: float, norm: float, config
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per eigen-direction ``v`` of an objective's ``rows`` (:class:`graph_slam.frontend.
-    registration._Rows`; ``along``: each row's Jacobian in ``(L·ω, t)`` times the
+    objective._Rows`; ``along``: each row's Jacobian in ``(L·ω, t)`` times the
     eigenvectors), the normalised stiffness of the rows that hold it significantly:
     point-to-plane rows whose normal is aligned with the point's displacement ``δ`` under
     ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric rows whose intensity

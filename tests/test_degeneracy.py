@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from graph_slam.frontend.config import RegistrationConfig
-from graph_slam.frontend.registration import _analyse, _rows, project_information
+from graph_slam.frontend.degeneracy import project_information
+from graph_slam.frontend.objective import _analyse, _rows
 from graph_slam.session.records import Cloud
 
 CONFIG = RegistrationConfig(method="point_to_plane")
@@ -143,7 +144,7 @@ def test_significance_pass_equals_the_numpy_formulation() -> None:
     from types import SimpleNamespace
 
     from graph_slam.frontend.degeneracy import _significant, _unit_coordinates
-    from graph_slam.frontend.registration import _Rows
+    from graph_slam.frontend.objective import _Rows
     from tests.frontend_reference import displacement_norms, significant_reference
 
     rng = np.random.default_rng(7)

@@ -21,8 +21,8 @@ from test_frontend_registration import K
 from graph_slam.errors import RecordError
 from graph_slam.frontend import kernels
 from graph_slam.frontend.config import ProjectiveConfig
+from graph_slam.frontend.objective import _analyse
 from graph_slam.frontend.projective import associated_rows, prepare_depth
-from graph_slam.frontend.registration import _analyse
 from graph_slam.session.records import RgbdFrame
 from tests.frontend_reference import (
     associate_reference,
@@ -129,7 +129,7 @@ def test_exp_left_is_the_rotation_vector_exponential(scale) -> None:
     """Rodrigues' formula (and its second-order form below 1e-8 rad) against scipy."""
     from scipy.spatial.transform import Rotation
 
-    from graph_slam.frontend.registration import _exp_left
+    from graph_slam.frontend.objective import _exp_left
 
     xi = np.random.default_rng(int(scale * 1e6) + 1).normal(size=6) * scale
     delta = _exp_left(xi)

@@ -27,6 +27,7 @@ from test_frontend_registration import (
 from graph_slam.config import config_from_dict
 from graph_slam.errors import RegistrationError, RegistrationFailure
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig, realtime_registration
+from graph_slam.frontend.objective import kernel_weights
 from graph_slam.frontend.projective import (
     DepthFrame,
     associate,
@@ -35,7 +36,7 @@ from graph_slam.frontend.projective import (
     prepare_depth,
     register_depth,
 )
-from graph_slam.frontend.registration import RegistrationStatus, kernel_weights
+from graph_slam.frontend.registration import RegistrationStatus
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import RgbdFrame
 from graph_slam.session.synthetic import render_frame

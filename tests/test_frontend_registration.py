@@ -24,11 +24,8 @@ from graph_slam.frontend import (
     fast_point_to_plane,
     register,
 )
-from graph_slam.frontend.registration import (
-    _information,
-    _open3d_rows,
-    kernel_weights,
-)
+from graph_slam.frontend.objective import _information, kernel_weights
+from graph_slam.frontend.registration import _open3d_rows
 from graph_slam.session.synthetic import (
     WORLD_R_CAMERA_LEVEL,
     SyntheticConfig,

@@ -3,7 +3,7 @@
 :class:`DegeneracyReport` (the unit-free Hessian's eigen-structure and, per eigen-direction,
 the stiffness and weight share of the rows that hold it significantly),
 :func:`project_information` (the information kept on the constrained directions only) and
-the significance test itself. :func:`graph_slam.frontend.registration._analyse` builds the
+the significance test itself. :func:`graph_slam.frontend.objective._analyse` builds the
 report from an objective's rows; docs/frontend.md ("Degeneracy report") explains the test and
 its measured margins.
 """
@@ -134,7 +134,7 @@ def _significant(
     rows, along_map: np.ndarray, vectors, center, length: float, norm: float, config
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per eigen-direction ``v`` of an objective's ``rows`` (:class:`graph_slam.frontend.
-    registration._Rows`; ``along_map``: ``U·vectors``, a row's stiffness along ``v`` in
+    objective._Rows`; ``along_map``: ``U·vectors``, a row's stiffness along ``v`` in
     ``(L·ω, t)`` is its Jacobian times a column), the normalised stiffness of the rows that
     hold it significantly: point-to-plane rows whose normal is aligned with the point's
     displacement ``δ`` under ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric

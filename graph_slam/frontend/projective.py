@@ -38,15 +38,11 @@ import numpy as np
 from graph_slam.errors import RecordError, RegistrationFailure
 from graph_slam.frontend import kernels
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
+from graph_slam.frontend.objective import _analyse, _exp_left, _information, _Rows, kernel_weights
 from graph_slam.frontend.registration import (
     RegistrationResult,
-    _analyse,
-    _exp_left,
-    _information,
-    _Rows,
     conclude,
     gate_correspondences,
-    kernel_weights,
     registration_failure,
     start_pose,
 )
@@ -192,7 +188,7 @@ def associated_rows(
     source: DepthFrame, target: DepthFrame, target_T_source: np.ndarray, config: ProjectiveConfig
 ) -> tuple[np.ndarray, _Rows]:
     """The correspondences (:func:`associate`) and colored ICP's rows at them (as
-    :func:`graph_slam.frontend.registration._rows`, which takes clouds): point-to-plane
+    :func:`graph_slam.frontend.objective._rows`, which takes clouds): point-to-plane
     ``√λ · n·(q − p)`` and, with intensities on both frames, ``√(1−λ) · (I_s − (I_t +
     d·(q_proj − p)))``; Jacobian for a left perturbation about the target origin; Tukey
     weights at ``kernel_scale · voxel_m``. One compiled pass

@@ -26,17 +26,13 @@ import numpy as np
 from graph_slam.errors import RegistrationFailure
 from graph_slam.frontend.cloud import Cloud, voxel_downsample
 from graph_slam.frontend.config import GicpConfig
+from graph_slam.frontend.degeneracy import DegeneracyReport, project_information
+from graph_slam.frontend.objective import _analyse, _exp_left, _information, _rows
 from graph_slam.frontend.registration import (
-    DegeneracyReport,
     RegistrationResult,
-    _analyse,
-    _exp_left,
-    _information,
-    _rows,
     conclude,
     fail_if_degenerate,
     gate_correspondences,
-    project_information,
     registration_failure,
     start_pose,
 )
