@@ -223,7 +223,7 @@ def register(app: typer.Typer) -> None:
         ] = False,
         workers: Annotated[
             int | None,
-            typer.Option(min=1, max=64, help=workers_option_help("the CPU count, at most 4")),
+            typer.Option(min=1, max=64, help=workers_option_help("1")),
         ] = None,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
@@ -241,7 +241,7 @@ def register(app: typer.Typer) -> None:
         size = _demo_resolution(resolution, full_resolution)
         cfg = _with_preset(_load_compare_config(config, variants), preset)
         cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
-        cfg = with_workers(cfg, workers or min(4, os.cpu_count() or 1))
+        cfg = with_workers(cfg, workers)
         _check_demo_out(out, overwrite)
         specs = []
         for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):
