@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from graph_slam.frontend.kernels import significance
 from kinematics.conversions import adjoint_rot_first, skew
 
 
@@ -142,8 +143,6 @@ def _significant(
     of it; and the share of the geometric rows' weight those rows carry (a photometric row
     counts as much as a geometric one). One compiled pass
     (:func:`graph_slam.frontend.kernels.significance`)."""
-    from graph_slam.frontend.kernels import significance
-
     n_geo = rows.n_geo
     geo_scale = np.ascontiguousarray(np.broadcast_to(rows.geo_scale, (n_geo,)), dtype=float)
     total, count = significance(
