@@ -102,6 +102,7 @@ class LegModel:
         except (RuntimeError, ValueError) as err:
             raise LegModelError(f"{source}: Pinocchio cannot parse the URDF ({err})") from None
         names = tuple(self.model.names[1:])
+        self._joint_names = names  # pinocchio's names list costs ~40 µs a read
         if names != JOINT_NAMES or self.model.nq != 2 or self.model.nv != 2:
             raise LegModelError(
                 f"{source}: the leg URDF must have exactly the revolute joints {list(JOINT_NAMES)} "
@@ -130,7 +131,7 @@ class LegModel:
     @property
     def joint_names(self) -> tuple[str, ...]:
         """Joint names in the order of q."""
-        return tuple(self.model.names[1:])
+        return self._joint_names
 
     def channel_order(self, channel_names: Sequence[str]) -> np.ndarray:
         """Indices that take encoder channels (in ``channel_names`` order) to q order.

@@ -69,7 +69,8 @@ def test_fit_floor_recovers_the_up_direction(pitch_deg, roll_deg):
     assert fit.ok, fit.reason
     assert math.degrees(math.acos(min(1.0, fit.normal @ up))) < 0.05
     assert fit.height_m == pytest.approx(0.6, abs=0.002)
-    assert fit.n_inliers > 15000
+    refit = pts[:: -(-len(pts) // FloorConfig().max_points)]  # the points the fit uses
+    assert fit.n_inliers > 0.6 * len(refit)  # the floor's share of the scene
     assert 0 < fit.sigma_rad < 0.01
     assert fit.angle_to_hint_rad == pytest.approx(math.radians(2.0), abs=math.radians(0.1))
 

@@ -280,3 +280,25 @@ def test_a_throwaway_pipeline_warms_up_before_the_clock_starts(online_session):
     replay_session(online_session, PipelineConfig(max_frames=5), compute_cost=lambda i, s: 0.0,
                    warmup_frames=0, pipeline_factory=Counting)  # fmt: skip
     assert len(built) == 1
+
+
+def test_the_heap_is_frozen_during_the_replay_only(online_session):
+    """``freeze_gc``: the collector's heap is frozen while the frames play (a full collection
+    then walks only new objects) and unfrozen after; off, it is never frozen."""
+    import gc
+
+    seen = []
+
+    class Probe(RecordingPipeline):
+        def add_frame(self, frame, foot_loaded):
+            seen.append(gc.get_freeze_count())
+            return super().add_frame(frame, foot_loaded)
+
+    cfg = PipelineConfig(max_frames=4)
+    replay_session(online_session, cfg, compute_cost=lambda i, s: 0.0, pipeline_factory=Probe)
+    assert min(seen[-4:]) > 0 and gc.get_freeze_count() == 0
+    seen.clear()
+    replay_session(
+        online_session, cfg, compute_cost=lambda i, s: 0.0, pipeline_factory=Probe, freeze_gc=False
+    )
+    assert max(seen) == 0

@@ -177,6 +177,21 @@ class BackendConfig(ConfigModel):
         "(memory grows with the run's length)",
     )
     covariances: bool = Field(False, description="per-frame marginal covariances (slower)")
+    end_state: Literal["at_close", "next_frame"] = Field(
+        "at_close",
+        description="when a closed stride's Gauss-Newton step and end-state marginals (what "
+        "the next stride's priors carry) are computed: at the close, on the foot strike's "
+        "frame, or on the frame after it (next_frame: the new stride starts from the live "
+        "iSAM2's end state and marginals and gets the settled priors one frame later; the "
+        "strike's frame then carries only the floor fit; 8-14 ms moved off it at 424x240, "
+        "docs/benchmarks.md)",
+    )
+    end_state_frames: int = Field(
+        3,
+        ge=1,
+        description="with end_state next_frame: over how many frames after the strike's "
+        "(the factors linearised in end_state_frames - 1 slices, then the elimination)",
+    )
     isam2_relinearize_threshold: float = Field(
         0.01,
         gt=0,

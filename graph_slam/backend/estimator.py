@@ -91,8 +91,10 @@ class StrideSLAM:
     def finish(self) -> Results:
         """Close the open stride and return every result (deferred smoothings not run:
         :meth:`smooth_deferred`)."""
+        self.strides.settle_pending(at_once=True)
         if self.strides.graph is not None:
             self.strides.close()
+        self.strides.settle_pending(at_once=True)
         self.results.imu_counts = dict(self.imu.counts)
         return self.results
 
@@ -135,6 +137,7 @@ class StrideSLAM:
         t_start, index = time.perf_counter(), self.results.n_frames
         if self.strides.graph is None:
             return self._stride_start(index, t_s, t_start, icp, foot_loaded, kinematics)
+        self.strides.settle_pending()  # end_state: next_frame
         g, use = self.strides.graph, self.cfg.factors
         pred = self.imu.predict(g, t_s)  # 1. IMU prediction (or a gap and its bridges)
         tagged, flags, gate = list(pred.tagged), list(pred.flags), None

@@ -75,13 +75,21 @@ def contact_point_factor(
     directions: the foot may pivot about the point (heel rocker, toe rocker)."""
     imu_p = np.asarray(imu_p_point, float).copy()
     stride_p = np.asarray(stride_p_point, float).copy()
+    skew = np.array(
+        [[0.0, -imu_p[2], imu_p[1]], [imu_p[2], 0.0, -imu_p[0]], [-imu_p[1], imu_p[0], 0.0]]
+    )
 
+    # GTSAM calls this at every relinearisation: contact_point_residual without its checks
+    # and allocations (a third of the time of linearising a stride at its close)
     def error(this: gtsam.CustomFactor, values: gtsam.Values, jac: list | None):
-        pose = values.atPose3(this.keys()[0]).matrix()
-        err, h = contact_point_residual(pose, imu_p, stride_p)
+        pose = values.atPose3(this.keys()[0])
+        rot = pose.rotation().matrix()
         if jac is not None:
+            h = np.empty((3, 6))
+            h[:, :3] = -rot @ skew
+            h[:, 3:] = rot
             jac[0] = h
-        return err
+        return rot @ imu_p + pose.translation() - stride_p
 
     model = noise.robust(noise.vector_sigmas(sigma_m), kernel, robust_k)
     return gtsam.CustomFactor(model, [X(k)], error)

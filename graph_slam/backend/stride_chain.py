@@ -28,19 +28,21 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from collections.abc import Iterator
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
 from graph_slam.backend import factors
-from graph_slam.backend.config import BackendConfig, PriorConfig
+from graph_slam.backend.config import BackendConfig
 from graph_slam.backend.gating import GateDecision
 from graph_slam.backend.keys import B, V, X
 from graph_slam.backend.measurements import KinematicMeasurement
 from graph_slam.backend.prediction import ImuPredictor, Prediction
+from graph_slam.backend.priors import StartPriors, carried_priors, first_stride_priors
 from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
-from graph_slam.backend.stride_graph import NavEstimate, StrideGraph
+from graph_slam.backend.stride_graph import NavEstimate, Smoothed, StrideGraph
 
 log = logging.getLogger(__name__)
 
@@ -48,101 +50,45 @@ log = logging.getLogger(__name__)
 UNANCHORED = ("missed_foot_strike",)
 
 
-def gravity_aligned_rotation(up_in_imu: np.ndarray) -> np.ndarray:
-    """``nav_R_imu`` with z along ``up_in_imu`` and zero yaw of the IMU's x axis (if possible)."""
-    z = up_in_imu / np.linalg.norm(up_in_imu)  # nav z expressed in the IMU frame
-    x_imu = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = x_imu - (x_imu @ z) * z
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    return np.vstack([x, y, z])  # rows: nav axes in IMU coordinates -> nav_R_imu
+@dataclass
+class _StartInputs:
+    """What a stride's start was given (its priors are recomputed when the end state they
+    came from is settled)."""
+
+    t_s: float
+    anchor: KinematicMeasurement | None
+    reason: str
+    unloaded_first: bool
+    world_T_old: np.ndarray
 
 
 @dataclass(eq=False)
-class StartPriors:
-    """Priors of a stride's first state (IMU local covariances, rotation first)."""
+class _Unsettled:
+    """A closed stride whose Gauss-Newton step and end-state marginals wait for the next
+    frame (``end_state: next_frame``)."""
 
-    stride_T_imu: gtsam.Pose3
-    cov_pose: np.ndarray
-    velocity_m_s: np.ndarray
-    cov_velocity: np.ndarray
-    bias: gtsam.imuBias.ConstantBias
-    cov_bias: np.ndarray
-    flags: list[str] = field(default_factory=list)
-    old_stride_T_imu: np.ndarray | None = None
-    """The predicted IMU pose in the previous stride's frame when a new stride frame starts
-    (``world_T_stride`` chains by it), else None."""
+    graph: StrideGraph
+    work: Iterator[Smoothed | None]
+    """:meth:`StrideGraph.settle_in_pieces`: one piece a frame."""
+    summary: StrideSummary | None = None
+    start: _StartInputs | None = None
+    spent_s: float = 0.0
 
 
-def first_stride_priors(
-    pc: PriorConfig,
-    camera_T_imu: np.ndarray,
-    anchor: KinematicMeasurement | None,
-    gravity_in_imu: np.ndarray | None,
-) -> StartPriors:
-    """The session's first state: the anchor, or gravity-aligned; weak velocity/bias priors."""
-    flags = []
-    if anchor is not None:
-        pose, cov_pose = factors.camera_pose_to_imu(
-            anchor.stride_T_camera, anchor.covariance, camera_T_imu
-        )
-    else:
-        rot = np.eye(3) if gravity_in_imu is None else gravity_aligned_rotation(gravity_in_imu)
-        pose = gtsam.Pose3(gtsam.Rot3(rot), np.zeros(3))
-        s = np.r_[
-            pc.first_roll_pitch_sigma_rad,
-            pc.first_roll_pitch_sigma_rad,
-            pc.first_yaw_sigma_rad,
-            np.full(3, pc.first_position_sigma_m),
-        ]
-        # roll/pitch sigmas are about the nav axes: rotate into the body (local) frame
-        ad = np.zeros((6, 6))
-        ad[:3, :3] = ad[3:, 3:] = rot.T
-        cov_pose = ad @ np.diag(s**2) @ ad.T
-        flags.append("no_anchor" if gravity_in_imu is not None else "no_anchor_no_gravity")
-    cov_bias = np.diag(
-        np.r_[
-            np.full(3, pc.first_accel_bias_sigma_m_s2**2),
-            np.full(3, pc.first_gyro_bias_sigma_rad_s**2),
-        ]
-    )
-    cov_vel = np.eye(3) * pc.first_velocity_sigma_m_s**2
-    bias = gtsam.imuBias.ConstantBias()
-    return StartPriors(pose, cov_pose, np.zeros(3), cov_vel, bias, cov_bias, flags)
+def _prior_factors(p: StartPriors) -> list[tuple[str, object]]:
+    return [
+        ("prior", factors.pose_prior(0, p.stride_T_imu, p.cov_pose)),
+        ("prior", factors.velocity_prior(0, p.velocity_m_s, p.cov_velocity)),
+        ("prior", factors.bias_prior(0, p.bias, p.cov_bias)),
+    ]
 
 
-def carried_priors(
-    pc: PriorConfig,
-    camera_T_imu: np.ndarray,
-    reason: str,
-    pred: gtsam.NavState,
-    cov_x: np.ndarray,
-    cov_v: np.ndarray,
-    bias: gtsam.imuBias.ConstantBias,
-    cov_b: np.ndarray,
-    anchor: KinematicMeasurement | None,
-    out_of_unloaded_first: bool = False,
-) -> StartPriors:
-    """The previous stride's end state ``pred`` (propagated to this frame, covariances incl.
-    preintegration) as the new stride's priors; see the module docstring for the inflation."""
-    infl = pc.carry_inflation if reason == "foot_strike" else pc.missed_strike_inflation
-    if out_of_unloaded_first:
-        infl *= pc.first_carry_inflation
-    if anchor is not None and reason == "foot_strike":
-        pose, cov_pose = factors.camera_pose_to_imu(
-            anchor.stride_T_camera, anchor.covariance, camera_T_imu
-        )
-        new_R_old = pose.rotation().matrix() @ pred.pose().rotation().matrix().T
-        vel = new_R_old @ np.asarray(pred.velocity())
-        cov_vel = new_R_old @ cov_v @ new_R_old.T * infl
-        old = pred.pose().matrix()
-        return StartPriors(pose, cov_pose, vel, cov_vel, bias, cov_b * infl, [], old)
-    flags = []  # no new stride frame: continue in the previous one, inflated
-    if reason == "foot_strike":
-        flags.append("no_anchor")
-        infl = pc.missed_strike_inflation
-    pose, vel = pred.pose(), np.asarray(pred.velocity())
-    return StartPriors(pose, cov_x * infl, vel, cov_v * infl, bias, cov_b * infl, flags)
+def _chained(world_T_old: np.ndarray, p: StartPriors) -> np.ndarray:
+    """``world_T_stride`` of a stride started with ``p``: a new stride frame chains by the
+    predicted IMU pose in the old one; otherwise the old frame goes on."""
+    if p.old_stride_T_imu is None:
+        return world_T_old
+    return world_T_old @ p.old_stride_T_imu @ np.linalg.inv(p.stride_T_imu.matrix())
 
 
 class StrideChain:
@@ -163,6 +109,7 @@ class StrideChain:
         self._last_nav = None  # (t_s, NavEstimate, cov_pose, cov_vel, cov_bias) at stride end
         self._started_loaded = True  # the open stride's first frame had the foot loaded
         self.deferred: list[tuple[StrideSummary, StrideGraph]] = []
+        self._unsettled: _Unsettled | None = None  # end_state: next_frame
         """Closed strides whose batch smoothing waits (``defer_smoothing``)."""
 
     @property
@@ -191,39 +138,42 @@ class StrideChain:
         reason = self.pending or "first_stride"
         if self._last_nav is None:
             reason = "first_stride"
-        flags = [reason] if reason != "foot_strike" else []
+        unloaded_first = self.start_reason == "first_stride" and not self._started_loaded
+        inputs = _StartInputs(t_s, anchor, reason, unloaded_first, self.world_T_stride.copy())
+        priors, flags = self._priors(inputs)
+        self._new_graph(t_s, priors, flags)
+        self.world_T_stride = _chained(inputs.world_T_old, priors)
+        if self._unsettled is not None:  # started from the provisional end state
+            self._unsettled.start = inputs
+        self.start_reason = reason
+        self.pending = None
+        self._started_loaded = bool(foot_loaded)
+        return flags
+
+    def _priors(self, s: _StartInputs) -> tuple[StartPriors, list[str]]:
+        """The first state's priors for a stride started with ``s``, and its frame flags."""
+        flags = [s.reason] if s.reason != "foot_strike" else []
         if self._last_nav is None:  # first stride of the session: gravity-aligned, weak priors
             priors = first_stride_priors(
-                self.cfg.priors, self.camera_T_imu, anchor, self.imu.gravity(t_s)
+                self.cfg.priors, self.camera_T_imu, s.anchor, self.imu.gravity(s.t_s)
             )
         else:
             t_last, nav, cov_x, cov_v, cov_b = self._last_nav
-            pred, cov_x, cov_v, carry_flags = self.imu.carry(t_last, nav, cov_x, cov_v, t_s)
+            pred, cov_x, cov_v, carry_flags = self.imu.carry(t_last, nav, cov_x, cov_v, s.t_s)
             flags += carry_flags
-            unloaded_first = self.start_reason == "first_stride" and not self._started_loaded
             priors = carried_priors(
                 self.cfg.priors,
                 self.camera_T_imu,
-                reason,
+                s.reason,
                 pred,
                 cov_x,
                 cov_v,
                 nav.bias,
                 cov_b,
-                anchor,
-                unloaded_first,
+                s.anchor,
+                s.unloaded_first,
             )
-        flags += priors.flags
-        if priors.old_stride_T_imu is not None:  # a new stride frame: chain it
-            new_T_imu = priors.stride_T_imu.matrix()
-            self.world_T_stride = (
-                self.world_T_stride @ priors.old_stride_T_imu @ np.linalg.inv(new_T_imu)
-            )
-        self._new_graph(t_s, priors, flags)
-        self.start_reason = reason
-        self.pending = None
-        self._started_loaded = bool(foot_loaded)
-        return flags
+        return priors, flags + priors.flags
 
     def _new_graph(self, t_s: float, p: StartPriors, flags: list[str]) -> None:
         cfg = self.cfg
@@ -231,11 +181,7 @@ class StrideChain:
             cfg.isam2_relinearize_threshold,
             (cfg.isam2_velocity_relinearize_threshold, cfg.isam2_accel_bias_relinearize_threshold),
         )
-        tagged = [
-            ("prior", factors.pose_prior(0, p.stride_T_imu, p.cov_pose)),
-            ("prior", factors.velocity_prior(0, p.velocity_m_s, p.cov_velocity)),
-            ("prior", factors.bias_prior(0, p.bias, p.cov_bias)),
-        ]
+        tagged = _prior_factors(p)
         values = gtsam.Values()
         values.insert(X(0), p.stride_T_imu)
         values.insert(V(0), p.velocity_m_s)
@@ -296,31 +242,72 @@ class StrideChain:
         """Smooth the open stride, keep its end state for the next one, summarise it. With
         ``defer_smoothing`` the end state is iSAM2's and the smoothing is queued
         (:meth:`smooth_deferred`)."""
+        self.settle_pending(at_once=True)
         g = self.graph
         defer = self.cfg.smoothing and self.cfg.defer_smoothing
-        result, marginals, smoothing_s = g.smooth(self.cfg.smoothing and not defer)
+        lm = self.cfg.smoothing and not defer
+        t0 = time.perf_counter()
+        values = g.batch() if lm else g.estimate
+        marginals = "all" if self.cfg.covariances else "end"
+        if self.cfg.end_state == "next_frame":  # the live iSAM2's for now: settle_pending
+            smoothed = Smoothed(values, 0.0)
+            work = g.settle_in_pieces(values, marginals, not lm, self.cfg.end_state_frames)
+            self._unsettled = _Unsettled(g, work)
+        else:
+            smoothed = g.settle(values, marginals, step=not lm)
+        smoothed.seconds = time.perf_counter() - t0
         n = g.n_states
-        last = g.nav(n - 1, result)
-        marginal = g.marginal_covariance  # online iSAM2 when the smoothed one failed
-        if marginals is not None:
-
-            def marginal(key):
-                return np.asarray(marginals.marginalCovariance(key))
-
-        end = tuple(marginal(key(n - 1)) for key in (X, V, B))
-        covs = None
-        if marginals is not None and self.cfg.covariances:
-            covs = np.array(
-                [factors.imu_cov_to_camera(marginal(X(k)), self.camera_T_imu) for k in range(n)]
-            )
+        last = g.nav(n - 1, smoothed.values)
+        end = smoothed.end
+        if end is None:  # online iSAM2's (provisional, or the settled ones failed)
+            end = tuple(g.marginal_covariance(key(n - 1)) for key in (X, V, B))
+        covs = self._camera_covariances(smoothed, n)
         self._last_nav = (g.t_s[-1], last, *end)
-        summary = self._summary(result, covs, smoothing_s, last)
+        summary = self._summary(smoothed.values, covs, smoothed.seconds, last)
         self.results.strides.append(summary)
+        if self._unsettled is not None:
+            self._unsettled.summary = summary
         if defer:
             summary.flags = (*summary.flags, "smoothing_deferred")
             self.deferred.append((summary, g))
         self.graph = None
         return summary
+
+    def settle_pending(self, at_once: bool = False) -> None:
+        """``end_state: next_frame``: one piece (all with ``at_once``) of the last closed
+        stride's settling (its Gauss-Newton step and end-state marginals,
+        :meth:`StrideGraph.settle_in_pieces`, ``end_state_frames`` pieces). After the last,
+        its summary is updated and the stride started since from the provisional end state
+        gets its settled priors (:meth:`StrideGraph.replace_priors`, ``world_T_stride``
+        chained again). Frames already returned keep their provisional online poses."""
+        u = self._unsettled
+        if u is None:
+            return
+        t0 = time.perf_counter()
+        smoothed = next(u.work)
+        while smoothed is None and at_once:
+            smoothed = next(u.work)
+        if smoothed is None:
+            u.spent_s += time.perf_counter() - t0
+            return
+        self._unsettled = None
+        g, summary = u.graph, u.summary
+        summary.flags = tuple(sorted({*summary.flags, *g.flags}))
+        if smoothed.end is not None:
+            n = g.n_states
+            last = g.nav(n - 1, smoothed.values)
+            self._last_nav = (g.t_s[-1], last, *smoothed.end)
+            summary.smoothed_stride_T_camera = np.array(
+                [smoothed.values.atPose3(X(k)).matrix() for k in range(n)]
+            ) @ np.linalg.inv(self.camera_T_imu)
+            summary.smoothed_covariances = self._camera_covariances(smoothed, n)
+            summary.velocity_end_m_s = last.velocity_m_s
+            summary.bias_end = np.asarray(last.bias.vector())
+            if u.start is not None and self.graph is not None:
+                priors, _ = self._priors(u.start)
+                self.graph.replace_priors(_prior_factors(priors))
+                self.world_T_stride = _chained(u.start.world_T_old, priors)
+        summary.smoothing_s += u.spent_s + time.perf_counter() - t0
 
     def smooth_deferred(self, keep: int = 0) -> list[StrideSummary]:
         """Run the queued smoothings, oldest first, until ``keep`` strides wait: each
@@ -330,23 +317,30 @@ class StrideChain:
         inv_ext = np.linalg.inv(self.camera_T_imu)
         while len(self.deferred) > keep:
             summary, g = self.deferred.pop(0)
-            result, marginals, smoothing_s = g.smooth(True, marginals=self.cfg.covariances)
+            smoothed = g.smooth(True, "all" if self.cfg.covariances else "none")
+            result = smoothed.values
             summary.smoothed_stride_T_camera = np.array(
                 [result.atPose3(X(k)).matrix() @ inv_ext for k in range(g.n_states)]
             )
-            if marginals is not None:
-                summary.smoothed_covariances = np.array(
-                    [
-                        factors.imu_cov_to_camera(
-                            np.asarray(marginals.marginalCovariance(X(k))), self.camera_T_imu
-                        )
-                        for k in range(g.n_states)
-                    ]
-                )
-            summary.smoothing_s = smoothing_s
+            if smoothed.isam is not None:
+                summary.smoothed_covariances = self._camera_covariances(smoothed, g.n_states)
+            summary.smoothing_s = smoothed.seconds
             summary.flags = tuple(sorted({*summary.flags, *g.flags} - {"smoothing_deferred"}))
             done.append(summary)
         return done
+
+    def _camera_covariances(self, smoothed: Smoothed, n: int) -> np.ndarray | None:
+        """Every state's smoothed pose covariance, camera frame (``marginals="all"`` only)."""
+        if smoothed.isam is None:
+            return None
+        return np.array(
+            [
+                factors.imu_cov_to_camera(
+                    np.asarray(smoothed.isam.marginalCovariance(X(k))), self.camera_T_imu
+                )
+                for k in range(n)
+            ]
+        )
 
     def _summary(self, result, covs, smoothing_s: float, last: NavEstimate) -> StrideSummary:
         g, c = self.graph, self._counts

@@ -237,9 +237,10 @@ class PipelineConfig(ConfigModel):
 #: Named settings of a whole pipeline, applied over a config (``VARIANT:PRESET`` rows of the
 #: benchmarks). ``realtime``: the real-time registration preset with the IMU's initial guess,
 #: iSAM2 as the stride's smoother (``backend.smoothing: false``: a stride's smoothed poses are
-#: iSAM2's estimate at its close, its end-state marginals come from the live iSAM2 — no batch
-#: LM, no second factorisation, no graph kept after the close; measured on the 424×240
-#: sessions, docs/benchmarks.md), the online grid without kept clouds (``terrain.online.
+#: iSAM2's estimate at its close plus one Gauss-Newton step, no batch LM; measured on the
+#: 424×240 sessions, docs/benchmarks.md), that step and the end-state marginals on the frame
+#: after the foot strike (``backend.end_state: next_frame``: the strike's frame already
+#: carries the floor fit), the online grid without kept clouds (``terrain.online.
 #: keep_clouds: false``: no re-fusion at the close; the stride's grid is the online one) and
 #: no stride maps: fusing a stride's map at its close takes 0.3–1.2 s at 424×240, which the
 #: real-time path cannot afford; the terrain for the controller is the incremental grid
@@ -250,12 +251,12 @@ PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
     "thesis": {"graph": {"registration": "thesis"}},
     "realtime": {
         "graph": {"registration": "realtime", "imu_guess": True},
-        "backend": {"smoothing": False},
+        "backend": {"smoothing": False, "end_state": "next_frame"},
         "terrain": {"enabled": False, "online": {"enabled": True, "keep_clouds": False}},
     },
     "realtime-gicp": {
         "graph": {"registration": "realtime-gicp", "imu_guess": True},
-        "backend": {"smoothing": False},
+        "backend": {"smoothing": False, "end_state": "next_frame"},
         "terrain": {"enabled": False, "online": {"enabled": True, "keep_clouds": False}},
     },
 }
