@@ -66,7 +66,7 @@ def test_end_state_equals_a_refactorised_isam2(open_stride):
         np.testing.assert_allclose(got_values.atVector(V(k)), want_values.atVector(V(k)), atol=1e-8)
 
 
-@pytest.mark.parametrize("pieces", [1, 2, 4])
+@pytest.mark.parametrize("pieces", [1, 2, 3, 4, 7])
 def test_settling_in_pieces_equals_settling_at_once(open_stride, pieces):
     g = open_stride
     whole = g.settle(g.estimate, "end", step=True)

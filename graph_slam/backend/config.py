@@ -187,10 +187,11 @@ class BackendConfig(ConfigModel):
         "docs/benchmarks.md)",
     )
     end_state_frames: int = Field(
-        3,
+        4,
         ge=1,
         description="with end_state next_frame: over how many frames after the strike's "
-        "(the factors linearised in end_state_frames - 1 slices, then the elimination)",
+        "(the first half linearise slices of the factors, the rest eliminate ranges of "
+        "states: ~1-2 ms each at 424x240; graph_slam.backend.end_state)",
     )
     isam2_relinearize_threshold: float = Field(
         0.01,

@@ -110,6 +110,7 @@ class StrideChain:
         self._started_loaded = True  # the open stride's first frame had the foot loaded
         self.deferred: list[tuple[StrideSummary, StrideGraph]] = []
         self._unsettled: _Unsettled | None = None  # end_state: next_frame
+        self._retired: _Unsettled | None = None
         """Closed strides whose batch smoothing waits (``defer_smoothing``)."""
 
     @property
@@ -279,7 +280,9 @@ class StrideChain:
         :meth:`StrideGraph.settle_in_pieces`, ``end_state_frames`` pieces). After the last,
         its summary is updated and the stride started since from the provisional end state
         gets its settled priors (:meth:`StrideGraph.replace_priors`, ``world_T_stride``
-        chained again). Frames already returned keep their provisional online poses."""
+        chained again); its graph is freed on the call after. Frames already returned keep
+        their provisional online poses."""
+        self._retired = None  # the stride settled on the last call: its graph freed now
         u = self._unsettled
         if u is None:
             return
@@ -291,6 +294,7 @@ class StrideChain:
             u.spent_s += time.perf_counter() - t0
             return
         self._unsettled = None
+        self._retired = u  # freeing a stride's graph takes 1–2 ms: on the next call
         g, summary = u.graph, u.summary
         summary.flags = tuple(sorted({*summary.flags, *g.flags}))
         if smoothed.end is not None:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graph_slam.backend import end_state
 from graph_slam.backend.keys import B, V, X
 from graph_slam.errors import EstimationError
 
@@ -259,7 +260,7 @@ class StrideGraph:
                     np.asarray(out.isam.marginalCovariance(key(n - 1))) for key in (X, V, B)
                 )
             elif marginals == "end" or step:
-                return self._settle_linear(values, self.graph.linearize(values), marginals, step)
+                return next(self.settle_in_pieces(values, marginals, step, 1))
         except (RuntimeError, np.linalg.LinAlgError) as err:
             out.isam = None
             self._marginals_failed(err)
@@ -269,47 +270,33 @@ class StrideGraph:
     def settle_in_pieces(
         self, values: gtsam.Values, marginals: str = "end", step: bool = False, pieces: int = 1
     ) -> Iterator[Smoothed | None]:
-        """:meth:`settle` spread over ``pieces`` calls of ``next``: the factors linearised in
-        ``pieces - 1`` slices, then the elimination; yields None until the last piece, which
-        yields the result (``seconds``: the pieces' sum). ``"all"`` or one piece: at once."""
-        if marginals == "all" or pieces <= 1 or not (marginals == "end" or step):
+        """:meth:`settle` spread over ``pieces`` calls of ``next``
+        (:func:`graph_slam.backend.end_state.pieces`: slices of the linearisation, then
+        ranges of the elimination); yields None until the last piece, which yields the
+        result (``seconds``: the pieces' sum). ``"all"``: at once."""
+        if marginals == "all" or not (marginals == "end" or step):
             yield self.settle(values, marginals, step)
             return
-        gfg, spent, m, parts = gtsam.GaussianFactorGraph(), 0.0, self.graph.size(), pieces - 1
-        failed = None
-        for i in range(parts):
+        out, spent = Smoothed(values, 0.0), 0.0
+        work = end_state.pieces(self.graph, values, self.n_states, pieces)
+        while True:
             t0 = time.perf_counter()
-            if failed is None:
-                part = gtsam.NonlinearFactorGraph()
-                for j in range(m * i // parts, m * (i + 1) // parts):
-                    part.add(self.graph.at(j))
-                try:
-                    gfg.push_back(part.linearize(values))
-                except RuntimeError as err:
-                    failed = err
+            try:
+                piece = next(work)
+            except (RuntimeError, np.linalg.LinAlgError) as err:
+                self._marginals_failed(err)
+                piece = "failed"
             spent += time.perf_counter() - t0
-            yield None
-        if failed is not None:
-            self._marginals_failed(failed)
-            out = Smoothed(values, 0.0)
-        else:
-            out = self._settle_linear(values, gfg, marginals, step)
-        out.seconds += spent
-        yield out
-
-    def _settle_linear(
-        self, values: gtsam.Values, gfg: gtsam.GaussianFactorGraph, marginals: str, step: bool
-    ) -> Smoothed:
-        t0 = time.perf_counter()
-        out = Smoothed(values, 0.0)
-        try:
-            delta, end = self._end_from_linear(gfg)
-            out.values = values.retract(delta) if step else values
-            out.end = end if marginals == "end" else None
-        except (RuntimeError, np.linalg.LinAlgError) as err:
-            self._marginals_failed(err)
-        out.seconds = time.perf_counter() - t0
-        return out
+            if piece is None:
+                yield None
+                continue
+            if piece != "failed":
+                delta, end = piece
+                out.values = values.retract(delta) if step else values
+                out.end = end if marginals == "end" else None
+            out.seconds = spent
+            yield out
+            return
 
     def _marginals_failed(self, err: Exception) -> None:
         log.warning("stride marginals failed (%s)", err)
@@ -318,46 +305,8 @@ class StrideGraph:
     def end_state(
         self, values: gtsam.Values
     ) -> tuple[gtsam.VectorValues, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """The Gauss-Newton step of the whole stride linearised at ``values`` and the last
-        state's marginal covariances (pose, velocity, bias), from one elimination.
-
-        Every state but the last is eliminated in time order (a chain: no fill-in beyond
-        neighbours); what remains is the last state's joint marginal information ``Λ`` and
-        ``η``, so its covariance is ``Λ⁻¹`` and its step ``Λ⁻¹η``, and back-substitution gives
-        the others' steps. Equal to an iSAM2 refactorised at ``values`` (covariances to 1e-9
-        relative, steps to 1e-12 on the simulator's strides) in about half the time.
-        GTSAM's default elimination first (Cholesky where it can); QR when Cholesky calls the
-        system indeterminant (the bias random walk between frames is ~1e10 times more informative than the bias prior). Raises
-        ``RuntimeError`` (GTSAM) or ``LinAlgError`` when neither works or the result is not
-        finite.
-        """
-        return self._end_from_linear(self.graph.linearize(values))
-
-    def _end_from_linear(
-        self, gfg: gtsam.GaussianFactorGraph
-    ) -> tuple[gtsam.VectorValues, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        n = self.n_states
-        ordering = gtsam.Ordering()
-        for k in range(n - 1):
-            for key in (B, V, X):
-                ordering.push_back(key(k))
-        last = gtsam.Ordering()
-        for key in (X, V, B):
-            last.push_back(key(n - 1))
-        try:
-            net, rest = gfg.eliminatePartialSequential(ordering)  # Cholesky where it can
-        except RuntimeError:
-            net, rest = gfg.eliminatePartialSequential(ordering, gtsam.EliminateQR)
-        h = np.asarray(rest.augmentedHessian(last))
-        cov = np.linalg.inv(h[:-1, :-1])
-        d = cov @ h[:-1, -1]
-        if not (np.isfinite(cov).all() and np.isfinite(d).all()):
-            raise np.linalg.LinAlgError("non-finite end-state marginal")
-        given = gtsam.VectorValues()
-        given.insert(X(n - 1), d[:6])
-        given.insert(V(n - 1), d[6:9])
-        given.insert(B(n - 1), d[9:])
-        step = net.optimize(given) if n > 1 else given
-        if not np.isfinite(step.vector()).all():
-            raise np.linalg.LinAlgError("non-finite Gauss-Newton step")
-        return step, (cov[:6, :6], cov[6:9, 6:9], cov[9:, 9:])
+        """The whole stride's Gauss-Newton step at ``values`` and the last state's marginal
+        covariances (pose, velocity, bias) from one elimination
+        (:mod:`graph_slam.backend.end_state`). Raises ``RuntimeError`` (GTSAM) or
+        ``LinAlgError`` when it fails."""
+        return end_state.end_state(self.graph, values, self.n_states)
