@@ -227,13 +227,15 @@ def estimate_normals(
     """
     import open3d as o3d
 
+    from graph_slam.frontend.kernels import eig3_smallest
+
     if len(cloud) == 0:
         return Cloud(cloud.points_m, cloud.colors, np.zeros((0, 3))), 0
     points = cloud.points_m
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.array(points)))
     pcd.estimate_covariances(o3d.geometry.KDTreeSearchParamHybrid(radius=radius_m, max_nn=max_nn))
-    values, vectors = np.linalg.eigh(np.asarray(pcd.covariances))
-    normals = vectors[:, :, 0]
+    # closed form, compiled: numpy's eigh was a sixth of the thesis baseline's time
+    values, normals = eig3_smallest(np.ascontiguousarray(np.asarray(pcd.covariances)))
     viewpoint = np.zeros(3) if viewpoint_m is None else np.asarray(viewpoint_m, dtype=float)
     normals[np.einsum("ij,ij->i", normals, viewpoint - points) < 0] *= -1.0
     defined = (values[:, 1] >= min_spread * values[:, 2]) & (
