@@ -144,7 +144,7 @@ def test_eig3_smallest_equals_eigh():
     eigenvalues to 1e-12 of the largest, the smallest's eigenvector to 1e-9 wherever it is
     separated from the next (where a normal is used); a zero and a diagonal matrix as
     ``eigh`` gives them."""
-    from graph_slam.frontend.kernels import eig3_smallest
+    from graph_slam.frontend.neighbourhood import eig3_smallest
 
     rng = np.random.default_rng(11)
     covs = []

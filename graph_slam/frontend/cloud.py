@@ -227,7 +227,7 @@ def estimate_normals(
     """
     import open3d as o3d
 
-    from graph_slam.frontend.kernels import eig3_smallest
+    from graph_slam.frontend.neighbourhood import eig3_smallest
 
     if len(cloud) == 0:
         return Cloud(cloud.points_m, cloud.colors, np.zeros((0, 3))), 0

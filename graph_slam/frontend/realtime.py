@@ -120,7 +120,7 @@ def intensity_gradients(
     """Intensity gradient in each point's tangent plane, by least squares over its k nearest
     neighbours (``neighbors``: N×k indices, the point itself first), with a weighted
     ``d·n = 0`` row: Open3D colored ICP's estimate (as
-    :func:`graph_slam.frontend.registration.color_gradients`, from a k-NN query)."""
+    :func:`graph_slam.frontend.neighbourhood.color_gradients`, from a k-NN query)."""
     nbr = neighbors[:, 1:].astype(np.intp)
     diff = points[nbr] - points[:, None, :]
     proj = diff - np.einsum("mkj,mj->mk", diff, normals)[..., None] * normals[:, None, :]

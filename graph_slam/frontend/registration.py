@@ -29,6 +29,7 @@ from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailur
 from graph_slam.frontend.cloud import Cloud, Pyramid, build_pyramid, voxel_pyramid
 from graph_slam.frontend.config import RegistrationConfig
 from graph_slam.frontend.degeneracy import DegeneracyReport
+from graph_slam.frontend.neighbourhood import color_gradients
 from graph_slam.frontend.objective import _analyse, _exp_left, _information, _Rows, _rows
 from graph_slam.session.records import check_pose
 
@@ -77,37 +78,6 @@ class RegistrationResult:
     def is_reliable(self) -> bool:
         """True when every direction of the motion is constrained (status OK)."""
         return self.status is RegistrationStatus.OK
-
-
-def color_gradients(target: Cloud, index: np.ndarray, radius_m: float, max_nn: int) -> np.ndarray:
-    """Intensity gradient in the tangent plane at ``target.points_m[index]``, as Open3D's
-    colored ICP computes it: least squares over the ≤ ``max_nn`` neighbours within
-    ``radius_m``, projected on the tangent plane, with a weighted ``d·n = 0`` row; zero where
-    fewer than 4 points (the point included) are found."""
-    from scipy.spatial import cKDTree
-
-    points, normals = target.points_m, target.normals
-    intensity = target.colors.mean(axis=1)
-    dist, nbr = cKDTree(points).query(
-        points[index], k=max_nn, distance_upper_bound=radius_m, workers=-1
-    )
-    found = np.isfinite(dist)
-    found[:, 0] = False  # the point itself
-    nbr = np.where(found, nbr, index[:, None])
-    n = normals[index]
-    diff = points[nbr] - points[index][:, None, :]
-    proj = (diff - np.einsum("mkj,mj->mk", diff, n)[..., None] * n[:, None, :]) * found[..., None]
-    b = (intensity[nbr] - intensity[index][:, None]) * found
-    count = found.sum(axis=1).astype(float)
-    ata = np.einsum("mki,mkj->mij", proj, proj) + (count**2)[:, None, None] * np.einsum(
-        "mi,mj->mij", n, n
-    )
-    atb = np.einsum("mki,mk->mi", proj, b)
-    usable = count + 1 >= 4
-    grad = np.zeros((len(index), 3))
-    ata_u = ata[usable] + 1e-12 * np.eye(3)
-    grad[usable] = np.linalg.solve(ata_u, atb[usable][..., None])[..., 0]
-    return grad
 
 
 def _open3d_rows(
