@@ -80,7 +80,7 @@ def contact_point_factor(
     )
 
     # GTSAM calls this at every relinearisation: contact_point_residual without its checks
-    # and allocations (a third of the time of linearising a stride at its close)
+    # and allocations (more than half of the time of linearising a stride at its close)
     def error(this: gtsam.CustomFactor, values: gtsam.Values, jac: list | None):
         pose = values.atPose3(this.keys()[0])
         rot = pose.rotation().matrix()
