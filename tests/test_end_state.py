@@ -148,3 +148,22 @@ def test_next_frame_end_state_matches_the_close():
     err = stride_errors_m(later, frames)[:-1]
     assert np.median(err[:, 1]) < 0.008 and np.max(err[:, 2]) < 0.020, err
     assert not any("marginals_failed" in s.flags for s in later.strides)
+
+
+def test_a_failed_piece_keeps_the_estimate_and_flags_it(open_stride, monkeypatch):
+    """GTSAM failing in the middle of the pieces: the estimate stays as it was, no
+    covariances are claimed, the stride is flagged ``marginals_failed``."""
+    from graph_slam.backend import end_state
+
+    def failing(graph, values, n_states, n_pieces=1):
+        yield None
+        raise RuntimeError("Indeterminant linear system")
+
+    g = open_stride
+    monkeypatch.setattr(end_state, "pieces", failing)
+    monkeypatch.setattr(g, "flags", set())
+    parts = list(g.settle_in_pieces(g.estimate, "end", step=True, pieces=3))
+    assert parts[0] is None and parts[-1] is not None
+    out = parts[-1]
+    assert out.end is None and out.values is g.estimate
+    assert "marginals_failed" in g.flags

@@ -285,12 +285,12 @@ class StrideGraph:
                 piece = next(work)
             except (RuntimeError, np.linalg.LinAlgError) as err:
                 self._marginals_failed(err)
-                piece = "failed"
+                piece = ()  # failed: ``values`` kept, no covariances
             spent += time.perf_counter() - t0
             if piece is None:
                 yield None
                 continue
-            if piece != "failed":
+            if piece:
                 delta, end = piece
                 out.values = values.retract(delta) if step else values
                 out.end = end if marginals == "end" else None
