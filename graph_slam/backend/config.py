@@ -191,7 +191,8 @@ class BackendConfig(ConfigModel):
         ge=1,
         description="with end_state next_frame: over how many frames after the strike's "
         "(the first half linearise slices of the factors, the rest eliminate ranges of "
-        "states: ~1-2 ms each at 424x240; graph_slam.backend.end_state)",
+        "states: 1-3 ms each at 424x240, the last 3-5 ms with the summary and the new priors; "
+        "graph_slam.backend.end_state)",
     )
     isam2_relinearize_threshold: float = Field(
         0.01,

@@ -7,7 +7,7 @@ then every state but the last is eliminated in time order (GTSAM's
 state's joint marginal information ``Λ`` and ``η``: its covariance is ``Λ⁻¹``, its step
 ``Λ⁻¹η``, and back-substitution through the eliminated conditionals gives every other state's
 step. Equal to an iSAM2 refactorised at the same estimate (``tests/test_end_state.py``) in
-about half the time.
+40–60 % of its time (10–15 → 4.5–9 ms on the 424×240 normal session's strides).
 
 The work splits at no cost: the linearisation by slices of the factors, the elimination by
 ranges of states (each partial elimination hands the next the factors that remain), so that a

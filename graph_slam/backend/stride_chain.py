@@ -301,9 +301,7 @@ class StrideChain:
             n = g.n_states
             last = g.nav(n - 1, smoothed.values)
             self._last_nav = (g.t_s[-1], last, *smoothed.end)
-            summary.smoothed_stride_T_camera = np.array(
-                [smoothed.values.atPose3(X(k)).matrix() for k in range(n)]
-            ) @ np.linalg.inv(self.camera_T_imu)
+            summary.smoothed_stride_T_camera = self._camera_poses(smoothed.values, n)
             summary.smoothed_covariances = self._camera_covariances(smoothed, n)
             summary.velocity_end_m_s = last.velocity_m_s
             summary.bias_end = np.asarray(last.bias.vector())
@@ -318,20 +316,21 @@ class StrideChain:
         summary's smoothed poses (and covariances, when asked for) are replaced by the batch
         solution and its graph is released; returns the strides updated."""
         done = []
-        inv_ext = np.linalg.inv(self.camera_T_imu)
         while len(self.deferred) > keep:
             summary, g = self.deferred.pop(0)
             smoothed = g.smooth(True, "all" if self.cfg.covariances else "none")
-            result = smoothed.values
-            summary.smoothed_stride_T_camera = np.array(
-                [result.atPose3(X(k)).matrix() @ inv_ext for k in range(g.n_states)]
-            )
+            summary.smoothed_stride_T_camera = self._camera_poses(smoothed.values, g.n_states)
             if smoothed.isam is not None:
                 summary.smoothed_covariances = self._camera_covariances(smoothed, g.n_states)
             summary.smoothing_s = smoothed.seconds
             summary.flags = tuple(sorted({*summary.flags, *g.flags} - {"smoothing_deferred"}))
             done.append(summary)
         return done
+
+    def _camera_poses(self, values: gtsam.Values, n: int) -> np.ndarray:
+        """``stride_T_camera`` of states ``0..n-1`` in ``values`` (n×4×4)."""
+        inv_ext = np.linalg.inv(self.camera_T_imu)
+        return np.array([values.atPose3(X(k)).matrix() @ inv_ext for k in range(n)])
 
     def _camera_covariances(self, smoothed: Smoothed, n: int) -> np.ndarray | None:
         """Every state's smoothed pose covariance, camera frame (``marginals="all"`` only)."""
@@ -348,7 +347,6 @@ class StrideChain:
 
     def _summary(self, result, covs, smoothing_s: float, last: NavEstimate) -> StrideSummary:
         g, c = self.graph, self._counts
-        inv_ext = np.linalg.inv(self.camera_T_imu)
         return StrideSummary(
             index=len(self.results.strides),
             t_start_s=g.t_s[0],
@@ -358,9 +356,7 @@ class StrideChain:
             frame_indices=[f.frame_index for f in self._frames],
             t_s=np.array(g.t_s),
             online_stride_T_camera=np.array([f.stride_T_camera for f in self._frames]),
-            smoothed_stride_T_camera=np.array(
-                [result.atPose3(X(k)).matrix() @ inv_ext for k in range(g.n_states)]
-            ),
+            smoothed_stride_T_camera=self._camera_poses(result, g.n_states),
             smoothed_covariances=covs,
             flags=tuple(sorted(g.flags)),
             n_icp_accepted=c["icp_ok"],

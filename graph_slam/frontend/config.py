@@ -227,8 +227,9 @@ class RegistrationConfig(ConstraintAnalysisConfig):
 
 
 # The covariance floor that makes the accurate preset's χ² honest on a real RGB-D camera (the
-# TUM fr1/xyz frames against their motion-capture truth: χ²/dof median 0.83; without it 663): millimetres of systematic error (calibration, depth bias, timing, and the
-# reference's own error) that the simulator does not render. docs/frontend.md.
+# TUM fr1/xyz frames against their motion-capture truth: χ²/dof median 0.83; without it 663):
+# millimetres of systematic error (calibration, depth bias, timing, and the reference's own
+# error) that the simulator does not render. docs/frontend.md.
 REAL_CAMERA_FLOOR_M = 0.0015
 REAL_CAMERA_FLOOR_RAD = 0.0035  # 0.2 deg
 
