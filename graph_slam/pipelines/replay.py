@@ -297,7 +297,8 @@ def frozen_heap(enabled: bool = True) -> Iterator[None]:
 
     With GTSAM, Open3D, numba and scipy loaded the process holds ~170k tracked objects, and
     every full (generation 2) collection walks all of them: 60–100 ms, measured on the
-    424×240 replays, during which 5–9 frames arrive and are skipped. Frozen, a full
+    424×240 replays, during which 5–9 frames arrive (the normal session skipped 9 with
+    one). Frozen, a full
     collection walks only the objects made since. A controller running a pipeline does the
     same once it is built: ``gc.collect(); gc.freeze()`` before the walk.
     """
