@@ -61,5 +61,11 @@ def test_scenarios_at_speeds_are_expanded_and_checked() -> None:
         ("boxes-pico-flexx@fast", "fast", "pico_flexx"),
     ]
     assert at_speeds(pico, None) == pico
+    # a scenario that is a speed itself is the textured box course at that speed: left out
+    expanded = [s.name for s in at_speeds(SCENARIOS, ("slow", "normal", "fast"))]
+    assert len(expanded) == 3 * (len(SCENARIOS) - 1) and not any(
+        "boxes-fast" in n for n in expanded
+    )
+    assert "boxes-textured@fast" in expanded
     with pytest.raises(ConfigError, match="walk"):
         at_speeds(pico, ("walk",))

@@ -21,6 +21,7 @@ from graph_slam.frontend.config import (
     thesis_registration,
 )
 from graph_slam.frontend.floor import FloorConfig
+from graph_slam.pipelines.keyframe import KeyframeConfig
 from graph_slam.strides.mount import MountEstimateConfig
 from graph_slam.terrain.builder import TerrainConfig
 from graph_slam.variants import Variant
@@ -110,7 +111,7 @@ class BaselineConfig(ConfigModel):
 
 
 class GraphFrontendConfig(ConfigModel):
-    """How the graph variants register frames (frame-to-frame, within a stride)."""
+    """How the graph variants register frames (against a keyframe of the same stride)."""
 
     registration: GraphRegistration = Field(
         default_factory=_graph_registration,
@@ -126,6 +127,11 @@ class GraphFrontendConfig(ConfigModel):
         "(StrideSLAM.predict_relative); falls back to constant velocity at a stride's start "
         "or across an IMU gap. None: on with the projective (realtime) registration, whose "
         "single scale needs a close guess, off otherwise",
+    )
+    keyframe: KeyframeConfig = Field(
+        default_factory=KeyframeConfig,
+        description="which earlier frame a frame registers against (interval_s 0: the "
+        "previous one)",
     )
     icp_in_swing: bool = Field(
         True,

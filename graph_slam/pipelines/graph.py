@@ -1,5 +1,6 @@
 """The factor-graph variants (``icp+imu``, ``imu+kin``, ``icp+imu+kin``): the front end's
-frame-to-frame registrations become :class:`IcpMeasurement` s for :class:`StrideSLAM`, fed
+registrations (each frame against the stride's keyframe, :mod:`graph_slam.pipelines.keyframe`)
+become :class:`IcpMeasurement` s for :class:`StrideSLAM`, fed
 together with the IMU, the encoders (through a :class:`kinematics.leg_model.LegModel`) and the
 load cell's foot-loaded state."""
 
@@ -21,6 +22,7 @@ from graph_slam.frontend.projective import prepare_depth, register_depth
 from graph_slam.frontend.realtime import prepare_frame, register_prepared
 from graph_slam.frontend.registration import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
+from graph_slam.pipelines.keyframe import Keyframes
 from graph_slam.pipelines.protocol import (
     frame_cloud,
     make_gravity,
@@ -106,7 +108,8 @@ class GraphPipeline:
         self.terrain = make_terrain(config, intrinsics)
         self.live_terrain = make_live_terrain(config, intrinsics)
         self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
-        self._prev: tuple[int, object, np.ndarray, float] | None = None  # index, target, pose, t
+        self.keys = Keyframes(config.graph.keyframe)
+        self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
 
@@ -177,14 +180,22 @@ class GraphPipeline:
                 return guess
         if self._prev2 is None or not self.cfg.graph.constant_velocity_guess:
             return np.eye(4)
-        _, _, pose1, t1 = self._prev
+        pose1, t1 = self._prev
         pose0, t0 = self._prev2
         xi = gtsam.Pose3.Logmap(gtsam.Pose3(np.linalg.inv(pose0) @ pose1))
         return gtsam.Pose3.Expmap(xi * (t_s - t1) / max(t1 - t0, 1e-6)).matrix()
 
+    def _target(self, t_s: float):
+        """``(keyframe index, its prepared target, keyframe_T_current guess)``, or None: a new
+        stride (or nothing registered yet) has nothing to register against."""
+        if self._prev is None or self._pending_strike is not None or self.keys.key is None:
+            return None
+        guess = self.keys.target_T_current(self._prev[0], self._guess(t_s))
+        return self.keys.key.index, self.keys.key.target, guess
+
     def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool, stages: dict):
-        """The frame's cloud, its registration to the previous frame (same stride) and its
-        pyramid (the next frame's target). Returns ``(cloud, icp, pyramid, fitness)``; each
+        """The frame's cloud, its registration to the keyframe (same stride) and its
+        pyramid (the next keyframe, perhaps). Returns ``(cloud, icp, pyramid, fitness)``; each
         step's time goes into ``stages``."""
         if not self.use_icp or not (self.cfg.graph.icp_in_swing or foot_loaded):
             return None, None, None, float("nan")
@@ -197,11 +208,10 @@ class GraphPipeline:
         t1 = time.perf_counter()
         stages["cloud"] = t1 - t0
         icp, fitness = None, float("nan")
-        if self._prev is not None and self._pending_strike is None:  # same stride
-            prev_index, prev_pyramid, _, _ = self._prev
-            guess = self._guess(frame.t_s)
+        if (key := self._target(frame.t_s)) is not None:
+            key_index, key_pyramid, guess = key
             icp, fitness = _measured(
-                lambda: register(cloud, prev_pyramid, self.registration, guess), index, prev_index
+                lambda: register(cloud, key_pyramid, self.registration, guess), index, key_index
             )
         t2 = time.perf_counter()
         stages["registration"] = t2 - t1
@@ -221,16 +231,15 @@ class GraphPipeline:
         cloud, _ = depth_to_cloud(frame, self.intrinsics, self.cfg.cloud, step)
         t1 = time.perf_counter()
         stages["cloud"] = t1 - t0
-        icp, fitness, target, guess = None, float("nan"), None, None
-        if self._prev is not None and self._pending_strike is None:  # same stride
-            target, guess = self._prev[1], self._guess(frame.t_s)
+        icp, fitness = None, float("nan")
+        key_index, target, guess = self._target(frame.t_s) or (None, None, None)
         grid_T_cloud = None if target is None else target.grid_T_cloud @ guess
         prepared = prepare_frame(cloud, cfg, grid_T_cloud)
         t2 = time.perf_counter()
         stages["preprocess"] = t2 - t1
         if target is not None:
             icp, fitness = _measured(
-                lambda: register_prepared(prepared, target, cfg, guess), index, self._prev[0]
+                lambda: register_prepared(prepared, target, cfg, guess), index, key_index
             )
         stages["registration"] = time.perf_counter() - t2
         return cloud, icp, prepared, fitness
@@ -241,9 +250,8 @@ class GraphPipeline:
         is, as the next target."""
         cfg = self.registration
         t0 = time.perf_counter()
-        icp, fitness, target, guess = None, float("nan"), None, None
-        if self._prev is not None and self._pending_strike is None:  # same stride
-            target, guess = self._prev[1], self._guess(frame.t_s)
+        icp, fitness = None, float("nan")
+        key_index, target, guess = self._target(frame.t_s) or (None, None, None)
         grid_T_cloud = None if target is None else target.grid_T_cloud @ guess
         prepared = prepare_depth(
             frame, self.intrinsics, cfg, self.cfg.cloud, grid_T_cloud, self.has_color
@@ -253,7 +261,7 @@ class GraphPipeline:
         stages["preprocess"] = t1 - t0 - stages["cloud"]
         if target is not None:
             icp, fitness = _measured(
-                lambda: register_depth(prepared, target, cfg, guess), index, self._prev[0]
+                lambda: register_depth(prepared, target, cfg, guess), index, key_index
             )
         stages["registration"] = time.perf_counter() - t1
         return Cloud(prepared.pixel_points_m), icp, prepared, fitness
@@ -309,6 +317,7 @@ class GraphPipeline:
             terrain_s=stages["terrain"],
             stages_s=stages,
             estimate=est,
+            registered_to=None if icp is None else icp.target_index,
             terrain=view,
         )
         self.results.frames.append(dataclasses.replace(out, terrain=None))
@@ -317,12 +326,14 @@ class GraphPipeline:
         return out
 
     def _remember(self, index: int, pyramid, est, t_s: float) -> None:
-        """The registration target and the constant-velocity history for the next frame."""
-        if est.stride_start:
-            self._prev2 = None
-        elif self._prev is not None:
-            self._prev2 = (self._prev[2], self._prev[3])
-        self._prev = (index, pyramid, est.stride_T_camera, t_s)
+        """The keyframe (the next frame's registration target) and the constant-velocity
+        history for the next frame."""
+        self._prev2 = None if est.stride_start else self._prev
+        self._prev = (est.stride_T_camera, t_s)
+        accepted = est.gate is not None and est.gate.accepted
+        self.keys.update(
+            index, pyramid, est.stride_T_camera, t_s, keep=accepted and not est.stride_start
+        )
         if pyramid is None:  # nothing to register the next frame against
             self._prev = None
             self._prev2 = None

@@ -48,6 +48,9 @@ class FrameOutput:
     frame). ``frontend_s`` and ``backend_s`` are the older two-way split of the same time."""
     estimate: FrameEstimate | None = None
     """The back end's own record of the frame (graph variants)."""
+    registered_to: int | None = None
+    """The frame this one was registered against (graph variants: the stride's keyframe,
+    :mod:`graph_slam.pipelines.keyframe`); None when no registration was tried."""
     terrain: TerrainView | None = None
     """The stride's elevation grid after this frame (stride frame; docs/terrain.md): on the
     output ``add_frame`` returns only (``PipelineResults.frames`` keep None: memory)."""

@@ -109,14 +109,16 @@ def write_frames_csv(path: Path, results) -> Path:
         w = csv.writer(handle)
         w.writerow(
             ["frame_index", "t_s", "stride", "status", "category", "foot_loaded", "fitness",
-             "gate", "floor", "flags"]
+             "registered_to", "gate", "floor", "flags"]
         )  # fmt: skip
         for f, category in zip(results.frames, categories, strict=True):
             gate = "" if f.estimate is None or f.estimate.gate is None else f.estimate.gate.reason
             floor = ";".join(x.split(":", 1)[1] for x in f.flags if x.startswith("floor:"))
             w.writerow(
                 [f.frame_index, f"{f.t_s:.9f}", f.stride_index, f.status, category,
-                 int(f.foot_loaded), f"{f.fitness:.6g}", gate, floor, ";".join(f.flags)]
+                 int(f.foot_loaded), f"{f.fitness:.6g}",
+                 "" if f.registered_to is None else f.registered_to, gate, floor,
+                 ";".join(f.flags)]
             )  # fmt: skip
     return path
 
