@@ -69,3 +69,15 @@ def test_scenarios_at_speeds_are_expanded_and_checked() -> None:
     assert "boxes-textured@fast" in expanded
     with pytest.raises(ConfigError, match="walk"):
         at_speeds(pico, ("walk",))
+
+
+def test_scenario_config_keeps_the_base_and_turns_the_maps_off() -> None:
+    from graph_slam.bench.scenarios import scenario_config
+    from graph_slam.pipelines import PipelineConfig
+
+    base = PipelineConfig.model_validate({"graph": {"keyframe": {"interval_s": 0.0}}})
+    for variant in ("icp", "icp+imu+kin"):
+        cfg = scenario_config(variant, base)
+        assert cfg.variant == variant and cfg.graph.keyframe.interval_s == 0.0
+        assert not cfg.terrain.enabled
+    assert scenario_config("icp+imu+kin").graph.keyframe.interval_s == 0.05

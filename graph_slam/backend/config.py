@@ -70,7 +70,9 @@ class GateConfig(ConfigModel):
         description="fewer constrained directions: rejected (the frame is bridged by the IMU "
         "and kinematics); a flat floor holds 3 (height, roll, pitch)",
     )
-    max_step_m: float = Field(0.3, gt=0, description="larger frame-to-frame motion: rejected")
+    max_step_m: float = Field(
+        0.3, gt=0, description="a larger motion between a frame and its target frame: rejected"
+    )
     max_step_rad: float = Field(0.5, gt=0)
     information_scale: float = Field(
         1.0, gt=0, description="multiplies the registration's information (<1: less trust)"

@@ -5,7 +5,7 @@ Rules, checked in this order (the first that fails is the recorded reason):
 1. ``registration_failed`` — the front end said ``ok=False`` (its reason is appended);
 2. ``nonfinite`` — NaN/inf in the transform or the information;
 3. ``low_fitness`` / ``high_rmse`` / ``few_correspondences`` — against :class:`GateConfig`;
-4. ``implausible_step`` — a frame-to-frame motion larger than ``max_step_m``/``max_step_rad``;
+4. ``implausible_step`` — a motion from the target frame larger than ``max_step_m``/``max_step_rad``;
 5. degeneracy: when the front end counted the constrained directions (``IcpMeasurement.dof``,
    its well-scaled test, docs/frontend.md), its information is already zero along the others
    and that count is the rank. Otherwise (a record without it) eigen-directions of the

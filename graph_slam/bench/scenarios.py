@@ -22,19 +22,17 @@ WRONG_POSE_M = 0.02
 
 @dataclass(frozen=True)
 class Scenario:
-    """One condition: a scene (a name under models/scenes, or a texture-free copy of one)
-    and the simulator's options."""
+    """One condition: a scene (a name under models/scenes) and the simulator's options."""
 
     name: str
     scene: str
-    textureless: bool = False
     camera: str = "d455"
     speed: str = "normal"
     sim: dict = field(default_factory=dict)
 
 
 SCENARIOS: tuple[Scenario, ...] = (
-    Scenario("flat-textureless", "flat-floor", textureless=True),
+    Scenario("flat-textureless", "flat-floor-textureless"),
     Scenario("boxes-textureless", "thesis-boxes-textureless"),
     Scenario("boxes-pico-flexx", "thesis-boxes", camera="pico_flexx"),
     Scenario("flat-textured", "flat-floor"),
@@ -80,29 +78,12 @@ HEADER = (
 )
 
 
-def _scene_path(scenario: Scenario, folder: Path) -> str:
-    """The scene's name, or a texture-free copy of its YAML written into ``folder``."""
-    if not scenario.textureless:
-        return scenario.scene
-    import yaml
-
-    from graph_slam.sim.config import load_model_config
-    from graph_slam.sim.scene import SceneSpec
-
-    spec, _ = load_model_config(SceneSpec, "scenes", "scene", scenario.scene)
-    data = spec.model_dump(mode="json")
-    data.update(name=f"{spec.name}-textureless", texture="none")
-    path = folder / f"{spec.name}-textureless.yaml"
-    path.write_text(yaml.safe_dump(data))
-    return str(path)
-
-
 def simulate_scenario(scenario: Scenario, folder: Path, strides: int, seed: int) -> Path:
     from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
     native = scenario.camera != "d455"
     cfg = SimConfig(
-        scene=_scene_path(scenario, folder),
+        scene=scenario.scene,
         speed_m_s=SPEEDS_M_S[scenario.speed],
         strides=strides,
         seed=seed,
@@ -131,9 +112,21 @@ def _categories(results) -> list[str]:
     return out
 
 
-def score_scenario(name: str, path: Path) -> ScenarioScore:
-    """The full graph and the baseline on one simulated session."""
-    from graph_slam.bench.accuracy import score, variant_config
+def scenario_config(variant: str, base=None):
+    """``base`` (a :class:`PipelineConfig`, the defaults when None) for ``variant``, without
+    terrain maps (this bench scores poses only)."""
+    from graph_slam.pipelines import PipelineConfig
+
+    data = (base or PipelineConfig()).model_dump(mode="json")
+    data["variant"] = variant
+    data["terrain"] = {**data["terrain"], "enabled": False}
+    return PipelineConfig.model_validate(data)
+
+
+def score_scenario(name: str, path: Path, base=None) -> ScenarioScore:
+    """The full graph and the baseline on one simulated session (``base``: the pipeline
+    configuration both start from, the defaults when None)."""
+    from graph_slam.bench.accuracy import score
     from graph_slam.pipelines import run_session
     from graph_slam.session import open_session
     from graph_slam.strides.kinematics import session_leg_model
@@ -142,8 +135,8 @@ def score_scenario(name: str, path: Path) -> ScenarioScore:
 
     session = open_session(path)
     leg, _ = session_leg_model(session)
-    graph = run_session(session, variant_config("icp+imu+kin"))
-    base = run_session(session, variant_config("icp"))
+    graph = run_session(session, scenario_config("icp+imu+kin", base))
+    baseline = run_session(session, scenario_config("icp", base))
     strides = score(session, graph, leg)
     cats = _categories(graph)
     events = session_streams(session, "load_cell").events
@@ -161,8 +154,11 @@ def score_scenario(name: str, path: Path) -> ScenarioScore:
                 counts[cats[i]] += 1
             if cats[i] == "registered" and not err <= WRONG_POSE_M:
                 wrong += 1
-    base_reg = sum(base.frames[i].status == "registered" for ref in refs for i in ref.frame_indices)
-    base_mm = np.array([_aligned_rmse_m(ref, base.online_stride_T_camera) for ref in refs]) * 1e3
+    base_reg = sum(
+        baseline.frames[i].status == "registered" for ref in refs for i in ref.frame_indices
+    )
+    base_mm = np.array([_aligned_rmse_m(ref, baseline.online_stride_T_camera) for ref in refs])
+    base_mm *= 1e3
     return ScenarioScore(
         name=name,
         frames=scored,
@@ -214,15 +210,17 @@ def run_scenarios(
     seed: int = 3,
     on_score=None,
     speeds: tuple[str, ...] | None = None,
+    base=None,
 ) -> list[ScenarioScore]:
-    """Simulate and score every scenario (or those named), at each of ``speeds`` when given;
-    ``on_score`` as each finishes."""
+    """Simulate and score every scenario (or those named), at each of ``speeds`` when given,
+    from the pipeline configuration ``base`` (defaults when None); ``on_score`` as each
+    finishes."""
     chosen = at_speeds([s for s in SCENARIOS if names is None or s.name in names], speeds)
     scores = []
     with tempfile.TemporaryDirectory() as tmp:
         for scenario in chosen:
             path = simulate_scenario(scenario, Path(tmp), strides, seed)
-            sc = score_scenario(scenario.name, path)
+            sc = score_scenario(scenario.name, path, base)
             scores.append(sc)
             if on_score is not None:
                 on_score(sc)

@@ -251,19 +251,28 @@ def scenarios_bench(
             "(default: each scenario's own)."
         ),
     ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option("--config", help="YAML of PipelineConfig overrides for both pipelines."),
+    ] = None,
 ) -> None:
     """Issue 20: a fixed list of scenes and conditions (flat floor and box course with and
     without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered
     / partial / bridged, smoothed and online per-stride RMSE, the baseline beside them."""
     from graph_slam.bench import scenarios as sc
+    from graph_slam.config import load_config
+    from graph_slam.pipelines import PipelineConfig
 
+    base = load_config(PipelineConfig, config)  # a bad file fails before any simulation
     names = None if only is None else tuple(n.strip() for n in only.split(",") if n.strip())
     known = {s.name for s in sc.SCENARIOS}
     if names and (unknown := [n for n in names if n not in known]):
         raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(sorted(known))}")
     chosen = None if speeds is None else tuple(v.strip() for v in speeds.split(",") if v.strip())
     typer.echo(sc.HEADER)
-    sc.run_scenarios(names, strides, seed, on_score=lambda s: typer.echo(s.line()), speeds=chosen)
+    sc.run_scenarios(
+        names, strides, seed, on_score=lambda s: typer.echo(s.line()), speeds=chosen, base=base
+    )
 
 
 @bench_app.command("calibration")

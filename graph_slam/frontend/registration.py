@@ -1,7 +1,7 @@
 """Registration: point-to-plane or colored ICP, coarse to fine, with an honest quality report.
 
 ``register(source, target, config, initial_target_T_source)`` aligns a source cloud (a frame,
-in its camera frame) to a target (the previous frame, or a local map) and returns a
+in its camera frame) to a target (an earlier frame, or a local map) and returns a
 :class:`RegistrationResult`: ``target_T_source``, fitness, inlier RMSE, correspondence count, the
 6×6 information matrix and a :class:`DegeneracyReport`. A registration that cannot be trusted
 at all raises :class:`~graph_slam.errors.RegistrationError` with a

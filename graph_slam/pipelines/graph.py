@@ -224,7 +224,7 @@ class GraphPipeline:
 
     def _register_realtime(self, frame: RgbdFrame, index: int, stages: dict):
         """:meth:`_register` with the real-time preset: the frame is prepared once (on the
-        previous frame's grid through the guess) and is kept, as it is, as the next target."""
+        keyframe's grid through the guess) and is kept, as it is, as a possible next target."""
         cfg = self.registration
         t0 = time.perf_counter()
         step = cfg.pixel_step_for(self.intrinsics)
@@ -246,8 +246,8 @@ class GraphPipeline:
 
     def _register_projective(self, frame: RgbdFrame, index: int, stages: dict):
         """:meth:`_register` with the projective preset: the frame is prepared once from its
-        organised depth image (on the previous frame's grid through the guess) and kept, as it
-        is, as the next target."""
+        organised depth image (on the keyframe's grid through the guess) and kept, as it is,
+        as a possible next target."""
         cfg = self.registration
         t0 = time.perf_counter()
         icp, fitness = None, float("nan")

@@ -13,7 +13,7 @@ after each frame's graph update, whether that frame replaces it (:class:`Keyfram
 * the online estimate moved farther than ``max_translation_m`` or ``max_rotation_rad`` from it
   (the overlap shrinks in fast swing).
 
-Online and causal: the decision uses this frame's online estimate only. docs/frontend.md
+Online and causal: the decision uses this frame's online estimate only. docs/pipelines.md
 ("Keyframes") gives the measured effect.
 """
 
