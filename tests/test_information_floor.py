@@ -51,3 +51,49 @@ def test_degenerate_floor_keeps_the_weak_directions_free() -> None:
     assert 1.0 / (z @ floored @ z) == pytest.approx(1.0 / 3e7 + 1e-6, rel=0.05)
     with pytest.raises(ValueError, match="target_T_source"):
         floor_information(projected, 1e-3, 0.0, report)
+
+
+def test_the_pipeline_floors_a_recorded_session_and_not_a_simulated_one() -> None:
+    """``graph.real_camera_floor`` None is decided per session (provenance), explicit values
+    and explicit floors are kept, and only the accurate registration gets a floor."""
+    from types import SimpleNamespace
+
+    from graph_slam.frontend.config import (
+        REAL_CAMERA_FLOOR_M,
+        REAL_CAMERA_FLOOR_RAD,
+        RegistrationConfig,
+        gicp_registration,
+        realtime_registration,
+    )
+    from graph_slam.pipelines import PipelineConfig
+    from graph_slam.pipelines.protocol import with_camera_floor
+    from graph_slam.pipelines.runner import for_session
+    from graph_slam.session.manifest import Provenance
+
+    def session(generator: str):
+        return SimpleNamespace(manifest=SimpleNamespace(provenance=Provenance(generator=generator)))
+
+    assert Provenance(generator="graph_slam.sim").synthetic
+    assert Provenance(generator="graph_slam.session.synthetic").synthetic
+    assert not Provenance(generator="graph_slam.session.adapters (tum)").synthetic
+    assert not Provenance().synthetic  # unknown: a recording
+    auto = PipelineConfig()
+    assert auto.graph.real_camera_floor is None
+    assert for_session(auto, session("graph_slam.sim")).graph.real_camera_floor is False
+    assert for_session(auto, session("graph_slam.session.adapters (tum)")).graph.real_camera_floor
+    off = PipelineConfig.model_validate({"graph": {"real_camera_floor": False}})
+    assert for_session(off, session("recorder")).graph.real_camera_floor is False
+
+    reg = RegistrationConfig()
+    floored = with_camera_floor(reg, None)  # None: a pipeline made without a session
+    assert (floored.information_floor_m, floored.information_floor_rad) == (
+        REAL_CAMERA_FLOOR_M,
+        REAL_CAMERA_FLOOR_RAD,
+    )
+    assert with_camera_floor(reg, False) is reg
+    own = reg.model_copy(update={"information_floor_m": 0.004})
+    assert with_camera_floor(own, True) is own  # a floor of its own wins
+    realtime = with_camera_floor(realtime_registration(), True)
+    assert realtime.information_floor_m == REAL_CAMERA_FLOOR_M  # the projective preset too
+    gicp = gicp_registration()
+    assert with_camera_floor(gicp, True) is gicp  # GICP has no floor

@@ -86,6 +86,7 @@ def test_the_graph_pipeline_registers_against_keyframes(tmp_path):
             }
         )
         res = run_session(out, cfg)
+        assert res.config["graph"]["real_camera_floor"] is False  # the simulator's session
         pairs = [(f.frame_index, f.registered_to, f.stride_index) for f in res.frames]
         targets = {p[1] for p in pairs if p[1] is not None}
         stride_of = {p[0]: p[2] for p in pairs}

@@ -104,6 +104,8 @@ class Dataset:
     intrinsics: CameraIntrinsics
     frames: tuple[RgbdFrame, ...]
     world_T_camera: np.ndarray
+    synthetic: bool = True
+    """Rendered from a model (no systematic sensor error), not recorded by a camera."""
 
 
 @dataclass(frozen=True)
@@ -333,7 +335,8 @@ def session_dataset(
         frames.append(RgbdFrame(frame.t_s, depth, color, frame.index))
     poses = truth.parent_T_child[start : start + len(frames)]
     name = f"{session.name}, {intrinsics.width_px}×{intrinsics.height_px}, {len(frames) - 1} pairs"
-    return Dataset(name, intrinsics, tuple(frames), poses)
+    synthetic = session.manifest.provenance.synthetic
+    return Dataset(name, intrinsics, tuple(frames), poses, synthetic)
 
 
 def synthetic_dataset(
@@ -398,7 +401,11 @@ def read_tum_sample(folder: str | Path, ids: Sequence[int] | None = None) -> Dat
         frames.append(RgbdFrame(float(index), depth, color, index))
         poses.append(np.asarray(entry["transformation"], dtype=float))
     return Dataset(
-        f"TUM fr1/xyz frames {keys[0]}–{keys[-1]}", TUM_INTRINSICS, tuple(frames), np.stack(poses)
+        f"TUM fr1/xyz frames {keys[0]}–{keys[-1]}",
+        TUM_INTRINSICS,
+        tuple(frames),
+        np.stack(poses),
+        synthetic=False,
     )
 
 

@@ -234,9 +234,10 @@ REAL_CAMERA_FLOOR_M = 0.0015
 REAL_CAMERA_FLOOR_RAD = 0.0035  # 0.2 deg
 
 
-def with_real_camera_floor(config: RegistrationConfig) -> RegistrationConfig:
-    """``config`` with the real-camera covariance floor (:data:`REAL_CAMERA_FLOOR_M`,
-    :data:`REAL_CAMERA_FLOOR_RAD`): for recorded sessions; the simulator needs the default."""
+def with_real_camera_floor(config: RegistrationConfig | ProjectiveConfig):
+    """``config`` (the accurate path's or the projective real-time preset's) with the
+    real-camera covariance floor (:data:`REAL_CAMERA_FLOOR_M`, :data:`REAL_CAMERA_FLOOR_RAD`):
+    for recorded sessions; the simulator needs the default."""
     return config.model_copy(
         update={
             "information_floor_m": REAL_CAMERA_FLOOR_M,
@@ -409,6 +410,12 @@ class ProjectiveConfig(PreparedFrameConfig):
         gt=0,
         description="multiplies JᵀWJ/σ² (calibrated on the simulator's box course, textured "
         "and not: χ²/dof median 0.56 and 1.47; docs/frontend.md)",
+    )
+    information_floor_m: float = Field(
+        0.0, ge=0, description="covariance floor per translation axis, as RegistrationConfig's"
+    )
+    information_floor_rad: float = Field(
+        0.0, ge=0, description="covariance floor per rotation axis, as RegistrationConfig's"
     )
     photometric: bool = Field(
         True,

@@ -255,7 +255,8 @@ def register_depth(
     t1 = time.perf_counter()
     information, sigma = _information(
         rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
-        config.information_scale,
+        config.information_scale, floor_m=config.information_floor_m,
+        floor_rad=config.information_floor_rad,
     )  # fmt: skip
     gap = rows.q - target.points_m[corr[:, 1]]
     return conclude(

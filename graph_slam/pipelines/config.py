@@ -133,6 +133,14 @@ class GraphFrontendConfig(ConfigModel):
         description="which earlier frame a frame registers against (interval_s 0: the "
         "previous one)",
     )
+    real_camera_floor: bool | None = Field(
+        None,
+        description="the ICP information's real-camera covariance floor (1.5 mm, 0.2 deg: "
+        "systematic errors no residual shows; docs/frontend.md 'Calibrated information') on "
+        "the accurate registration, unless graph.registration sets a floor of its own. None: "
+        "on, except on sessions the simulator or the synthetic generator wrote "
+        "(session.yaml provenance), which render no systematic error",
+    )
     icp_in_swing: bool = Field(
         True,
         description="False: no registration while the foot is unloaded, as if every swing "

@@ -29,6 +29,7 @@ from graph_slam.pipelines.protocol import (
     make_live_terrain,
     make_terrain,
     sensor_registration,
+    with_camera_floor,
 )
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
@@ -97,8 +98,9 @@ class GraphPipeline:
         self.variant = config.variant
         self.intrinsics = intrinsics
         self.use_icp = config.backend.factors["icp"]
-        self.registration = sensor_registration(
-            config.graph.registration, has_color, config.graph.depth_only
+        self.registration = with_camera_floor(
+            sensor_registration(config.graph.registration, has_color, config.graph.depth_only),
+            config.graph.real_camera_floor,
         )
         self.has_color = has_color
         self.imu_guess = self._imu_guess_for(config)

@@ -7,7 +7,13 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from graph_slam.frontend.config import CloudConfig, DepthOnlyConfig, RegistrationConfig
+from graph_slam.frontend.config import (
+    CloudConfig,
+    DepthOnlyConfig,
+    ProjectiveConfig,
+    RegistrationConfig,
+    with_real_camera_floor,
+)
 from graph_slam.pipelines.results import FrameOutput, PipelineResults
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.variants import Variant
@@ -25,6 +31,18 @@ def sensor_registration(
     if depth_only is not None:
         update.update(depth_only.model_dump())
     return reg.model_copy(update=update)
+
+
+def with_camera_floor(reg, on: bool | None):
+    """``reg`` with the real-camera covariance floor (``graph.real_camera_floor``; None counts
+    as on: a pipeline made without a session is a camera's) when it is the accurate (Open3D)
+    registration or the projective real-time preset and sets no floor of its own (GICP, the
+    ``realtime-gicp`` preset, has none)."""
+    if on is False or not isinstance(reg, RegistrationConfig | ProjectiveConfig):
+        return reg
+    if reg.information_floor_m > 0 or reg.information_floor_rad > 0:
+        return reg
+    return with_real_camera_floor(reg)
 
 
 def frame_cloud(

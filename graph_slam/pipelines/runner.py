@@ -60,6 +60,7 @@ def open_pipeline_mount(
         session = open_session(session)
     if session.intrinsics is None:
         raise SessionError(f"{session.path}: the session has no camera; pipelines need frames")
+    config = for_session(config, session)
     streams = session_streams(session, config.event_source)
     calib = session.calibration
     leg_model, mount = session_leg_model(
@@ -68,6 +69,17 @@ def open_pipeline_mount(
     has_color = bool(session.manifest.sensors.camera.has_color)
     pipe = factory(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
     return session, streams, pipe, mount
+
+
+def for_session(config: PipelineConfig, session) -> PipelineConfig:
+    """``config`` with what it leaves to the session decided: ``graph.real_camera_floor``
+    None becomes on for a recorded session, off for one the simulator or the synthetic
+    generator wrote (no systematic sensor error to model)."""
+    if config.graph.real_camera_floor is not None:
+        return config
+    real = not session.manifest.provenance.synthetic
+    graph = config.graph.model_copy(update={"real_camera_floor": real})
+    return config.model_copy(update={"graph": graph})
 
 
 def run_session(

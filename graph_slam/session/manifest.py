@@ -88,12 +88,23 @@ class FilesSpec(_Strict):
     scene: str | None = None
 
 
+#: Writers of sessions rendered from a model: no systematic sensor error (calibration, depth
+#: bias, timing), which is what the pipelines' real-camera covariance floor models.
+SYNTHETIC_GENERATORS = ("graph_slam.sim", "graph_slam.session.synthetic")
+
+
 class Provenance(_Strict):
     generator: str = "unknown"
     source: str | None = None
     seed: int | None = None
     created_utc: str | None = None
     notes: str | None = None
+
+    @property
+    def synthetic(self) -> bool:
+        """Written by the simulator or the synthetic generator (:data:`SYNTHETIC_GENERATORS`),
+        not recorded by a camera."""
+        return self.generator in SYNTHETIC_GENERATORS
 
 
 class Manifest(_Strict):
