@@ -137,7 +137,8 @@ class GraphFrontendConfig(ConfigModel):
         None,
         description="the ICP information's real-camera covariance floor (1.5 mm, 0.2 deg: "
         "systematic errors no residual shows; docs/frontend.md 'Calibrated information') on "
-        "the accurate registration, unless graph.registration sets a floor of its own. None: "
+        "the accurate registration and the projective real-time preset, unless "
+        "graph.registration sets a floor of its own. None: "
         "on, except on sessions the simulator or the synthetic generator wrote "
         "(session.yaml provenance), which render no systematic error",
     )
