@@ -81,3 +81,17 @@ def test_scenario_config_keeps_the_base_and_turns_the_maps_off() -> None:
         assert cfg.variant == variant and cfg.graph.keyframe.interval_s == 0.0
         assert not cfg.terrain.enabled
     assert scenario_config("icp+imu+kin").graph.keyframe.interval_s == 0.05
+
+
+def test_rows_at_several_speeds_are_pooled() -> None:
+    from graph_slam.bench.scenarios import ScenarioScore, pooled
+
+    def row(name, smoothed):
+        arr = np.array(smoothed)
+        return ScenarioScore(name, 10, 10, 0, 9, 0, 0, arr, arr + 1, 0, arr * 100)
+
+    rows = [row("pico@slow", [8.0, 9.3]), row("pico@fast", [5.4]), row("flat", [1.0])]
+    (all_speeds,) = pooled(rows)
+    assert all_speeds.name == "pico@all" and all_speeds.frames == 20 and all_speeds.partial == 18
+    np.testing.assert_array_equal(all_speeds.smoothed_mm, [8.0, 9.3, 5.4])
+    assert "8.0/9.3" in all_speeds.line() and pooled(rows[2:]) == []

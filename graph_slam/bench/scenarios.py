@@ -70,6 +70,32 @@ class ScenarioScore:
         )
 
 
+def pooled(scores: list[ScenarioScore]) -> list[ScenarioScore]:
+    """One score per scenario run at several speeds (``<name>@<speed>`` rows): counts summed,
+    per-stride RMSE pooled over the speeds, named ``<name>@all`` (the issue's targets are over
+    the three speeds)."""
+    groups: dict[str, list[ScenarioScore]] = {}
+    for sc in scores:
+        name, at, _ = sc.name.partition("@")
+        if at:
+            groups.setdefault(name, []).append(sc)
+    out = []
+    for name, group in groups.items():
+        if len(group) < 2:
+            continue
+        total = {
+            k: sum(getattr(g, k) for g in group)
+            for k in ("frames", "with_pose", "registered", "partial", "bridged",
+                      "wrong_registered", "baseline_registered")
+        }  # fmt: skip
+        arrays = {
+            k: np.concatenate([getattr(g, k) for g in group])
+            for k in ("smoothed_mm", "online_mm", "baseline_mm")
+        }
+        out.append(ScenarioScore(name=f"{name}@all", **total, **arrays))
+    return out
+
+
 HEADER = (
     f"{'scenario':24s} {'posed':>9s} {'reg':>4s} {'part':>4s} {'brid':>4s} {'wrong':>4s}   "
     f"{'smoothed mm':>11s} {'online mm':>11s}   {'base':>4s} {'baseline mm':>13s}\n"

@@ -270,9 +270,11 @@ def scenarios_bench(
         raise typer.BadParameter(f"unknown {unknown}; choose from {', '.join(sorted(known))}")
     chosen = None if speeds is None else tuple(v.strip() for v in speeds.split(",") if v.strip())
     typer.echo(sc.HEADER)
-    sc.run_scenarios(
+    scores = sc.run_scenarios(
         names, strides, seed, on_score=lambda s: typer.echo(s.line()), speeds=chosen, base=base
     )
+    for score in sc.pooled(scores):  # the targets are over the speeds
+        typer.echo(score.line())
 
 
 @bench_app.command("calibration")
