@@ -36,7 +36,7 @@ from graph_slam.frontend.projective import (
     prepare_depth,
     register_depth,
 )
-from graph_slam.frontend.registration import RegistrationStatus
+from graph_slam.frontend.result import RegistrationStatus
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import RgbdFrame
 from graph_slam.session.synthetic import render_frame

@@ -25,7 +25,7 @@ from graph_slam.frontend.realtime import (
     register_prepared,
     register_realtime,
 )
-from graph_slam.frontend.registration import RegistrationStatus
+from graph_slam.frontend.result import RegistrationStatus
 from graph_slam.pipelines.config import PipelineConfig
 from tests.numerics import numerical_hessian
 

@@ -22,13 +22,10 @@ from graph_slam.frontend.config import (
     refined_colored_registration,
     thesis_registration,
 )
+from graph_slam.frontend.degeneracy import DegeneracyReport
 from graph_slam.frontend.local_map import LocalMap
-from graph_slam.frontend.registration import (
-    DegeneracyReport,
-    RegistrationResult,
-    RegistrationStatus,
-    register,
-)
+from graph_slam.frontend.registration import register
+from graph_slam.frontend.result import RegistrationResult, RegistrationStatus
 
 __all__ = [
     "Cloud",

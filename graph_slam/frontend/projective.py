@@ -39,7 +39,7 @@ from graph_slam.errors import RecordError, RegistrationFailure
 from graph_slam.frontend import kernels
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
 from graph_slam.frontend.objective import _analyse, _exp_left, _information, _Rows, kernel_weights
-from graph_slam.frontend.registration import (
+from graph_slam.frontend.result import (
     RegistrationResult,
     conclude,
     gate_correspondences,

@@ -28,7 +28,7 @@ from graph_slam.frontend.cloud import Cloud, voxel_downsample
 from graph_slam.frontend.config import GicpConfig
 from graph_slam.frontend.degeneracy import DegeneracyReport, project_information
 from graph_slam.frontend.objective import _analyse, _exp_left, _information, _rows
-from graph_slam.frontend.registration import (
+from graph_slam.frontend.result import (
     RegistrationResult,
     conclude,
     fail_if_degenerate,
