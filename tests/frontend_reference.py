@@ -11,7 +11,7 @@ import numpy as np
 from graph_slam.errors import RecordError
 from graph_slam.frontend.cloud import voxel_groups, voxel_index
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
-from graph_slam.frontend.objective import _Rows, kernel_weights
+from graph_slam.frontend.objective import Rows, kernel_weights
 from graph_slam.frontend.projective import DepthFrame
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame, check_pose
 
@@ -209,8 +209,8 @@ def rows_reference(
     corr: np.ndarray,
     target_T_source: np.ndarray,
     config: ProjectiveConfig,
-) -> _Rows:
-    """Colored ICP's rows (as :func:`graph_slam.frontend.objective._rows`, which takes
+) -> Rows:
+    """Colored ICP's rows (as :func:`graph_slam.frontend.objective.cloud_rows`, which takes
     clouds): point-to-plane ``√λ · n·(q − p)`` and, with intensities on both frames,
     ``√(1−λ) · (I_s − (I_t + d·(q_proj − p)))``; Jacobian for a left perturbation about the
     target origin; Tukey weights at ``kernel_scale · voxel_m``."""
@@ -240,7 +240,7 @@ def rows_reference(
         r = np.concatenate([r, r_pho])
     k = config.kernel_scale * config.voxel_m
     w = kernel_weights(r, "tukey", k)
-    return _Rows(r, jac, w, q, np.full(len(q), geo), len(q), pho if color else 0.0)
+    return Rows(r, jac, w, q, np.full(len(q), geo), len(q), pho if color else 0.0)
 
 
 def _cross_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
@@ -265,7 +265,7 @@ def significant_reference(
     rows, along: np.ndarray, vectors, center, length: float, norm: float, config
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per eigen-direction ``v`` of an objective's ``rows`` (:class:`graph_slam.frontend.
-    objective._Rows`; ``along``: each row's Jacobian in ``(L·ω, t)`` times the
+    objective.Rows`; ``along``: each row's Jacobian in ``(L·ω, t)`` times the
     eigenvectors), the normalised stiffness of the rows that hold it significantly:
     point-to-plane rows whose normal is aligned with the point's displacement ``δ`` under
     ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric rows whose intensity

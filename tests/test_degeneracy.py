@@ -18,7 +18,7 @@ import pytest
 
 from graph_slam.frontend.config import RegistrationConfig
 from graph_slam.frontend.degeneracy import project_information
-from graph_slam.frontend.objective import _analyse, _rows
+from graph_slam.frontend.objective import analyse, cloud_rows
 from graph_slam.session.records import Cloud
 
 CONFIG = RegistrationConfig(method="point_to_plane")
@@ -52,10 +52,10 @@ def _report(parts, colors=None, gradients=None, config=CONFIG):
     cloud = Cloud(points, colors, normals)
     corr = np.column_stack([np.arange(len(points))] * 2)
     lam = config.lambda_geometric if gradients is not None else 1.0
-    rows = _rows(cloud, cloud, corr, np.eye(4), geo_scale=np.sqrt(lam),
+    rows = cloud_rows(cloud, cloud, corr, np.eye(4), geo_scale=np.sqrt(lam),
                  pho_scale=np.sqrt(1.0 - lam) if gradients is not None else 0.0,
                  kernel="none", k=1.0, gradients=gradients)  # fmt: skip
-    return _analyse(rows, config).degeneracy
+    return analyse(rows, config).degeneracy
 
 
 FLOOR = ((0, 0, -1), (0, 0, 1.0), (1, 0, 0), (0, 1, 0))  # z = 1 m, facing the camera
@@ -143,8 +143,8 @@ def test_significance_pass_equals_the_numpy_formulation() -> None:
     photometric, some of zero weight; the displacement written with ``np.cross`` there)."""
     from types import SimpleNamespace
 
-    from graph_slam.frontend.degeneracy import _significant, _unit_coordinates
-    from graph_slam.frontend.objective import _Rows
+    from graph_slam.frontend.degeneracy import significant_stiffness, unit_coordinates
+    from graph_slam.frontend.objective import Rows
     from tests.frontend_reference import displacement_norms, significant_reference
 
     rng = np.random.default_rng(7)
@@ -156,13 +156,13 @@ def test_significance_pass_equals_the_numpy_formulation() -> None:
     n = 400
     w = rng.uniform(0, 1, 2 * n)
     w[::9] = 0.0
-    rows = _Rows(rng.normal(size=2 * n), rng.normal(size=(2 * n, 6)), w,
+    rows = Rows(rng.normal(size=2 * n), rng.normal(size=(2 * n, 6)), w,
                  rng.normal(size=(n, 3)), np.full(n, 0.9), n, 0.4)  # fmt: skip
     config = SimpleNamespace(degeneracy_min_alignment=0.5, degeneracy_min_gradient=1.0)
     center, length, norm = rows.q.mean(axis=0), 1.3, 17.0
     vectors = np.linalg.qr(rng.normal(size=(6, 6)))[0]
-    along_map = _unit_coordinates(center, length) @ vectors
-    ours = _significant(rows, along_map, vectors, center, length, norm, config)
+    along_map = unit_coordinates(center, length) @ vectors
+    ours = significant_stiffness(rows, along_map, vectors, center, length, norm, config)
     ref = significant_reference(rows, rows.jac @ along_map, vectors, center, length, norm, config)
     every_row = w.sum() / w[:n].sum()  # the share if every row counted
     assert ours[1].min() > 0 and ours[1].max() < every_row  # some rows count, not all

@@ -21,7 +21,7 @@ from test_frontend_registration import K
 from graph_slam.errors import RecordError
 from graph_slam.frontend import kernels
 from graph_slam.frontend.config import ProjectiveConfig
-from graph_slam.frontend.objective import _analyse
+from graph_slam.frontend.objective import analyse
 from graph_slam.frontend.projective import associated_rows, prepare_depth
 from graph_slam.session.records import RgbdFrame
 from tests.frontend_reference import (
@@ -82,7 +82,7 @@ def test_rows_of_one_iteration_equal_the_numpy_formulation() -> None:
         np.testing.assert_allclose(getattr(rows, name), getattr(ref, name), rtol=0, atol=1e-12)
     assert (rows.n_geo, rows.pho_scale) == (ref.n_geo, ref.pho_scale)
     # the Gauss-Newton step from the one-pass sums, against the sums written with numpy
-    report = _analyse(rows, config)
+    report = analyse(rows, config)
     to_unit = report.degeneracy.to_origin()
     jac_n = ref.jac @ to_unit
     norm = float(np.sum(ref.w[: ref.n_geo] * ref.geo_scale**2))
@@ -129,10 +129,10 @@ def test_exp_left_is_the_rotation_vector_exponential(scale) -> None:
     """Rodrigues' formula (and its second-order form below 1e-8 rad) against scipy."""
     from scipy.spatial.transform import Rotation
 
-    from graph_slam.frontend.objective import _exp_left
+    from graph_slam.frontend.objective import exp_left
 
     xi = np.random.default_rng(int(scale * 1e6) + 1).normal(size=6) * scale
-    delta = _exp_left(xi)
+    delta = exp_left(xi)
     np.testing.assert_allclose(delta[:3, :3], Rotation.from_rotvec(xi[:3]).as_matrix(), atol=1e-15)
     np.testing.assert_array_equal(delta[:3, 3], xi[3:])
     np.testing.assert_array_equal(delta[3], [0, 0, 0, 1])

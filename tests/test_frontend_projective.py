@@ -40,7 +40,7 @@ from graph_slam.frontend.result import RegistrationStatus
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import RgbdFrame
 from graph_slam.session.synthetic import render_frame
-from tests.frontend_reference import rows_reference as _rows
+from tests.frontend_reference import rows_reference as cloud_rows
 from tests.numerics import numerical_hessian
 
 #: The preset's 2 cm voxels; at 128×96 (≈ 1 pixel per cm at 0.6 m) normals from every pixel
@@ -202,11 +202,11 @@ def _cost(source: DepthFrame, target: DepthFrame, solution: np.ndarray, config):
     """``E(ξ) = ½ Σ wᵢ rᵢ(T·Exp(ξ))²`` (GTSAM's Expmap, right perturbation), correspondences
     and kernel weights fixed at the solution, and the weighted residual scale σ²."""
     corr = associate(source, target, solution, config)
-    rows = _rows(source, target, corr, solution, config)
+    rows = cloud_rows(source, target, corr, solution, config)
     weights = kernel_weights(rows.r, "tukey", config.kernel_scale * config.voxel_m)
 
     def cost(xi: np.ndarray) -> float:
-        r = _rows(source, target, corr, solution @ gtsam.Pose3.Expmap(xi).matrix(), config).r
+        r = cloud_rows(source, target, corr, solution @ gtsam.Pose3.Expmap(xi).matrix(), config).r
         return 0.5 * float(np.sum(weights * r**2))
 
     sigma2 = float(np.sum(weights * rows.r**2) / weights.sum())

@@ -24,8 +24,8 @@ from graph_slam.frontend import (
     fast_point_to_plane,
     register,
 )
-from graph_slam.frontend.objective import _information, kernel_weights
-from graph_slam.frontend.registration import _open3d_rows
+from graph_slam.frontend.objective import kernel_weights, rows_information
+from graph_slam.frontend.registration import open3d_rows
 from graph_slam.session.synthetic import (
     WORLD_R_CAMERA_LEVEL,
     SyntheticConfig,
@@ -268,12 +268,12 @@ def test_information_is_jtj_of_a_right_perturbation_in_gtsam_order(method: str) 
         [rng.choice(len(source), 300, replace=False), rng.choice(len(target), 300)]
     )
     pose = truth
-    rows = _open3d_rows(source, target, corr, pose, config)
-    info, sigma = _information(rows, pose, 1e-9)
+    rows = open3d_rows(source, target, corr, pose, config)
+    info, sigma = rows_information(rows, pose, 1e-9)
 
     def residuals(xi: np.ndarray) -> np.ndarray:
         moved = pose @ gtsam.Pose3.Expmap(xi).matrix()
-        return _open3d_rows(source, target, corr, moved, config).r
+        return open3d_rows(source, target, corr, moved, config).r
 
     jac = _numeric_jacobian(residuals)
     if method == "colored":  # the projected colour is linear in the point: still exact

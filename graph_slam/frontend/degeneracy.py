@@ -3,7 +3,7 @@
 :class:`DegeneracyReport` (the unit-free Hessian's eigen-structure and, per eigen-direction,
 the stiffness and weight share of the rows that hold it significantly),
 :func:`project_information` (the information kept on the constrained directions only) and
-the significance test itself. :func:`graph_slam.frontend.objective._analyse` builds the
+the significance test itself. :func:`graph_slam.frontend.objective.analyse` builds the
 report from an objective's rows; docs/frontend.md ("Degeneracy report") explains the test and
 its measured margins.
 """
@@ -84,7 +84,7 @@ class DegeneracyReport:
 
     def to_origin(self) -> np.ndarray:
         """``U``: a left twist about the target origin ``(ω, t)`` = ``U · (L·ω, t about c)``."""
-        return _unit_coordinates(self.center_m, self.length_m)
+        return unit_coordinates(self.center_m, self.length_m)
 
     def projector(self, target_T_source: np.ndarray) -> np.ndarray:
         """``M``, 6×6: a right twist (source frame, GTSAM's ``BetweenFactor`` tangent) → its
@@ -123,7 +123,7 @@ class DegeneracyReport:
         return lines
 
 
-def _unit_coordinates(center_m: np.ndarray, length_m: float) -> np.ndarray:
+def unit_coordinates(center_m: np.ndarray, length_m: float) -> np.ndarray:
     """``U`` with origin twist ``(ω, t) = U · (L·ω, t about the centre)``."""
     unit = np.eye(6)
     unit[3:, :3] = skew(center_m)
@@ -131,11 +131,11 @@ def _unit_coordinates(center_m: np.ndarray, length_m: float) -> np.ndarray:
     return unit
 
 
-def _significant(
+def significant_stiffness(
     rows, along_map: np.ndarray, vectors, center, length: float, norm: float, config
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per eigen-direction ``v`` of an objective's ``rows`` (:class:`graph_slam.frontend.
-    objective._Rows`; ``along_map``: ``U·vectors``, a row's stiffness along ``v`` in
+    objective.Rows`; ``along_map``: ``U·vectors``, a row's stiffness along ``v`` in
     ``(L·ω, t)`` is its Jacobian times a column), the normalised stiffness of the rows that
     hold it significantly: point-to-plane rows whose normal is aligned with the point's
     displacement ``δ`` under ``v`` (``|n·δ| ≥ degeneracy_min_alignment · |δ|``), photometric

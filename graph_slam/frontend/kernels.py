@@ -357,7 +357,7 @@ def significance(
 ):  # fmt: skip
     """Per eigen-direction ``v`` (the columns of ``vectors``, coordinates ``(L·ω, t)``): the
     weighted squared stiffness ``Σ w (J·v)²`` and the weight ``Σ w`` of the rows that hold
-    ``v`` significantly (:func:`graph_slam.frontend.degeneracy._significant`). ``along_map``:
+    ``v`` significantly (:func:`graph_slam.frontend.degeneracy.significant_stiffness`). ``along_map``:
     ``U·vectors``, so that a row's stiffness along ``v`` is ``J·along_map[:, j]``; a row's
     point moves by ``|ω × (q − c)/L + t|`` under ``v``. A point-to-plane row (the first
     ``n_geo``) counts when ``|J·v| ≥ min_alignment · geo_scale · |δ|``, a photometric one (row

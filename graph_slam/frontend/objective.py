@@ -3,15 +3,15 @@
 Every registration path (Open3D's colored ICP in :mod:`graph_slam.frontend.registration`, the
 projective preset in :mod:`graph_slam.frontend.projective`, small_gicp's GICP in
 :mod:`graph_slam.frontend.realtime`) ends with the same three steps on the rows of the
-objective it minimised (:class:`_Rows`: point-to-plane and photometric residuals, their
+objective it minimised (:class:`Rows`: point-to-plane and photometric residuals, their
 Jacobians for a left perturbation about the target origin, the robust kernel's weights):
 
-* :func:`_analyse`: the Gauss-Newton system in a unit-free parameterisation, its
+* :func:`analyse`: the Gauss-Newton system in a unit-free parameterisation, its
   eigen-analysis and the degeneracy report (:mod:`graph_slam.frontend.degeneracy`), and the
   step restricted to the constrained directions (:func:`restricted_step`);
-* :func:`_information`: ``scale · JᵀWJ / σ²`` in GTSAM's tangent space, kept on the
+* :func:`rows_information`: ``scale · JᵀWJ / σ²`` in GTSAM's tangent space, kept on the
   constrained directions, plus the optional covariance floor;
-* :func:`_exp_left`: applying a step.
+* :func:`exp_left`: applying a step.
 
 The sums are compiled (:func:`graph_slam.frontend.kernels.normal_equations`).
 """
@@ -26,10 +26,10 @@ import numpy as np
 from graph_slam.frontend import kernels
 from graph_slam.frontend.degeneracy import (
     DegeneracyReport,
-    _significant,
-    _unit_coordinates,
     floor_information,
     project_information,
+    significant_stiffness,
+    unit_coordinates,
 )
 from kinematics.conversions import adjoint_rot_first, skew
 
@@ -52,7 +52,7 @@ def kernel_weights(residuals: np.ndarray, kernel: str, k: float) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class _Rows:
+class Rows:
     """Weighted residuals of an ICP objective at a pose, for fixed correspondences.
 
     ``jac`` is the Jacobian for a left perturbation about the target origin, ``(ω, t)``;
@@ -69,7 +69,7 @@ class _Rows:
     pho_scale: float = 0.0
 
 
-def _rows(
+def cloud_rows(
     source: Cloud,
     target: Cloud,
     corr: np.ndarray,
@@ -80,7 +80,7 @@ def _rows(
     kernel: str,
     k: float,
     gradients: np.ndarray | None,
-) -> _Rows:
+) -> Rows:
     """Point-to-plane rows (``geo_scale · n·(q - p)``) and, when ``gradients`` (intensity
     gradients of the target points) are given, Open3D colored ICP's photometric rows
     (``pho_scale · (I_s - C_p(proj q))``), with the robust kernel's weights."""
@@ -100,18 +100,18 @@ def _rows(
         d_m = -(d - np.einsum("ij,ij->i", d, n)[:, None] * n)  # -(I - n nᵀ) d
         j_pho = pho_scale * np.hstack([np.cross(q, d_m), d_m])
         r, jac = np.concatenate([r, r_pho]), np.vstack([jac, j_pho])
-    return _Rows(r, jac, kernel_weights(r, kernel, k), q, geo_scale, len(q), float(pho_scale))
+    return Rows(r, jac, kernel_weights(r, kernel, k), q, geo_scale, len(q), float(pho_scale))
 
 
 @dataclass(frozen=True, eq=False)
-class _Analysis:
+class Analysis:
     degeneracy: DegeneracyReport
     step_origin: np.ndarray  # Gauss-Newton step (ω, t) about the target origin
     step_m: float
     step_rad: float
 
 
-def _analyse(rows: _Rows, config, significance: bool = True) -> _Analysis:
+def analyse(rows: Rows, config, significance: bool = True) -> Analysis:
     """Eigen-analysis of the unit-free Hessian, the significant stiffness of each direction
     (see :class:`DegeneracyReport`; ``config``: any config with ``degeneracy_threshold``,
     ``degeneracy_min_alignment``, ``degeneracy_min_share`` and ``degeneracy_min_gradient``)
@@ -121,14 +121,14 @@ def _analyse(rows: _Rows, config, significance: bool = True) -> _Analysis:
     iterations; the solution's report is made with it)."""
     center = rows.q.mean(axis=0)
     length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
-    to_unit = _unit_coordinates(center, length)
+    to_unit = unit_coordinates(center, length)
     norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
     hess, grad = kernels.normal_equations(rows.jac, rows.r, rows.w)
     values, vectors = np.linalg.eigh(to_unit.T @ hess @ to_unit / norm)
     grad_n = to_unit.T @ grad / norm
     significant = share = None
     if significance:
-        significant, share = _significant(
+        significant, share = significant_stiffness(
             rows, to_unit @ vectors, vectors, center, length, norm, config
         )
     report = DegeneracyReport(
@@ -136,7 +136,7 @@ def _analyse(rows: _Rows, config, significance: bool = True) -> _Analysis:
         config.degeneracy_min_share,
     )  # fmt: skip
     step_n = restricted_step(values, vectors, grad_n, config.degeneracy_threshold)
-    return _Analysis(
+    return Analysis(
         degeneracy=report,
         step_origin=to_unit @ step_n,
         step_m=float(np.linalg.norm(step_n[3:])),
@@ -153,8 +153,8 @@ def restricted_step(
     return -vectors[:, strong] @ ((vectors[:, strong].T @ grad_n) / values[strong])
 
 
-def _information(
-    rows: _Rows,
+def rows_information(
+    rows: Rows,
     target_T_source: np.ndarray,
     min_sigma_m: float,
     degeneracy: DegeneracyReport | None = None,
@@ -180,7 +180,7 @@ def _information(
     return info, float(sigma)
 
 
-def _exp_left(xi: np.ndarray) -> np.ndarray:
+def exp_left(xi: np.ndarray) -> np.ndarray:
     """The update ``[Exp(ω) | t]`` of a step ``(ω, t)`` about the target origin (Rodrigues'
     formula: scipy's ``Rotation`` took 0.2 ms per call, a tenth of a real-time registration)."""
     delta = np.eye(4)

@@ -38,7 +38,7 @@ import numpy as np
 from graph_slam.errors import RecordError, RegistrationFailure
 from graph_slam.frontend import kernels
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
-from graph_slam.frontend.objective import _analyse, _exp_left, _information, _Rows, kernel_weights
+from graph_slam.frontend.objective import Rows, analyse, exp_left, kernel_weights, rows_information
 from graph_slam.frontend.result import (
     RegistrationResult,
     conclude,
@@ -186,9 +186,9 @@ def associate(
 
 def associated_rows(
     source: DepthFrame, target: DepthFrame, target_T_source: np.ndarray, config: ProjectiveConfig
-) -> tuple[np.ndarray, _Rows]:
+) -> tuple[np.ndarray, Rows]:
     """The correspondences (:func:`associate`) and colored ICP's rows at them (as
-    :func:`graph_slam.frontend.objective._rows`, which takes clouds): point-to-plane
+    :func:`graph_slam.frontend.objective.cloud_rows`, which takes clouds): point-to-plane
     ``√λ · n·(q − p)`` and, with intensities on both frames, ``√(1−λ) · (I_s − (I_t +
     d·(q_proj − p)))``; Jacobian for a left perturbation about the target origin; Tukey
     weights at ``kernel_scale · voxel_m``. One compiled pass
@@ -205,7 +205,7 @@ def associated_rows(
         color, geo, pho,
     )  # fmt: skip
     w = kernel_weights(r, "tukey", config.kernel_scale * config.voxel_m)
-    return corr, _Rows(r, jac, w, q, np.full(len(q), geo), len(q), pho)
+    return corr, Rows(r, jac, w, q, np.full(len(q), geo), len(q), pho)
 
 
 _fail = registration_failure
@@ -231,7 +231,7 @@ def register_depth(
 ) -> RegistrationResult:
     """Gauss-Newton on colored ICP's objective (point-to-plane only without colours) with
     projective association, re-associated every iteration, steps restricted to the
-    well-constrained directions (the accurate path's ``_analyse``). The information is
+    well-constrained directions (the accurate path's ``analyse``). The information is
     ``JᵀWJ / σ²`` at the solution in the house's convention (rotation first, right
     perturbation in the source frame), σ the weighted rms residual floored at
     ``information_min_sigma_m``. Raises :class:`RegistrationError` on failure."""
@@ -241,19 +241,19 @@ def register_depth(
     for iteration in range(config.max_iterations + 1):
         corr, rows = associated_rows(source, target, target_T_source, config)
         _gate(config, corr, len(source))
-        step = _analyse(rows, config, significance=False).step_origin
+        step = analyse(rows, config, significance=False).step_origin
         # converged: this pose is the solution, its rows the final ones (the step, below
         # min_step, is reported and not taken); else at most max_iterations steps
         if np.linalg.norm(step) < config.min_step:
             break
         if iteration == config.max_iterations:
             break
-        target_T_source = _exp_left(step) @ target_T_source
+        target_T_source = exp_left(step) @ target_T_source
         if not np.isfinite(target_T_source).all():
             raise _fail(RegistrationFailure.NUMERICAL, "non-finite transform")
-    analysis = _analyse(rows, config)  # the solution's report, with the significance test
+    analysis = analyse(rows, config)  # the solution's report, with the significance test
     t1 = time.perf_counter()
-    information, sigma = _information(
+    information, sigma = rows_information(
         rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
         config.information_scale, floor_m=config.information_floor_m,
         floor_rad=config.information_floor_rad,

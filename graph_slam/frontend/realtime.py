@@ -27,7 +27,7 @@ from graph_slam.errors import RegistrationFailure
 from graph_slam.frontend.cloud import Cloud, voxel_downsample
 from graph_slam.frontend.config import GicpConfig
 from graph_slam.frontend.degeneracy import DegeneracyReport, project_information
-from graph_slam.frontend.objective import _analyse, _exp_left, _information, _rows
+from graph_slam.frontend.objective import analyse, cloud_rows, exp_left, rows_information
 from graph_slam.frontend.result import (
     RegistrationResult,
     conclude,
@@ -174,7 +174,7 @@ def _photometric(
     lam = config.lambda_geometric
 
     def rows_at(corr: np.ndarray, pose: np.ndarray):
-        return _rows(src, tgt, corr, pose, geo_scale=np.sqrt(lam), pho_scale=np.sqrt(1.0 - lam),
+        return cloud_rows(src, tgt, corr, pose, geo_scale=np.sqrt(lam), pho_scale=np.sqrt(1.0 - lam),
                      kernel="tukey", k=k, gradients=target.gradients)  # fmt: skip
 
     corr = np.zeros((0, 2), dtype=int)
@@ -184,13 +184,13 @@ def _photometric(
         found = np.flatnonzero(sq_dist[:, 0] <= config.photometric_max_correspondence_m**2)
         corr = np.column_stack([found, nearest[found, 0].astype(np.intp)])
         gate_correspondences(config, len(corr) / len(src), len(corr))
-        step = _analyse(rows_at(corr, target_T_source), config, significance=False).step_origin
-        target_T_source = _exp_left(step) @ target_T_source
+        step = analyse(rows_at(corr, target_T_source), config, significance=False).step_origin
+        target_T_source = exp_left(step) @ target_T_source
         if np.linalg.norm(step) < config.refine_min_step:
             break
     rows = rows_at(corr, target_T_source)
-    analysis = _analyse(rows, config)
-    information, sigma = _information(
+    analysis = analyse(rows, config)
+    information, sigma = rows_information(
         rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
         config.information_scale,
     )  # fmt: skip

@@ -27,32 +27,32 @@ from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailur
 from graph_slam.frontend.cloud import Cloud, Pyramid, build_pyramid, voxel_pyramid
 from graph_slam.frontend.config import RegistrationConfig
 from graph_slam.frontend.neighbourhood import color_gradients
-from graph_slam.frontend.objective import _analyse, _exp_left, _information, _Rows, _rows
+from graph_slam.frontend.objective import Rows, analyse, cloud_rows, exp_left, rows_information
 from graph_slam.frontend.result import RegistrationResult, conclude, gate_correspondences
 from graph_slam.session.records import check_pose
 
 
-def _open3d_rows(
+def open3d_rows(
     source, target, corr, target_T_source, config: RegistrationConfig, k: float | None = None
-) -> _Rows:
+) -> Rows:
     """The rows of the objective Open3D minimised at the finest level (Tukey/Huber/Cauchy
     parameter ``k``; default the level's ``kernel_scale · voxel_m``)."""
     k = config.kernel_scale * config.levels[-1].voxel_m if k is None else k
     if config.method == "point_to_plane":
-        return _rows(source, target, corr, target_T_source, geo_scale=1.0, pho_scale=0.0,
+        return cloud_rows(source, target, corr, target_T_source, geo_scale=1.0, pho_scale=0.0,
                      kernel=config.kernel, k=k, gradients=None)  # fmt: skip
     lam = config.lambda_geometric
     gradients = np.zeros((len(target), 3))
     used = np.unique(corr[:, 1])
     radius_m = 2.0 * config.levels[-1].max_correspondence_m  # Open3D: 2 × max_distance, 30 NN
     gradients[used] = color_gradients(target, used, radius_m, 30)
-    return _rows(source, target, corr, target_T_source, geo_scale=np.sqrt(lam),
+    return cloud_rows(source, target, corr, target_T_source, geo_scale=np.sqrt(lam),
                  pho_scale=np.sqrt(1.0 - lam), kernel=config.kernel, k=k, gradients=gradients)  # fmt: skip
 
 
 def _refine(
     source: Cloud, target: Cloud, target_T_source: np.ndarray, config: RegistrationConfig
-) -> tuple[np.ndarray, np.ndarray, Callable[[np.ndarray, np.ndarray], _Rows]]:
+) -> tuple[np.ndarray, np.ndarray, Callable[[np.ndarray, np.ndarray], Rows]]:
     """Depth-noise-weighted Gauss-Newton (see :class:`RefineConfig`); returns the pose, the
     final correspondences and the function giving the objective's rows."""
     from scipy.spatial import cKDTree
@@ -65,8 +65,8 @@ def _refine(
         gradients = color_gradients(target, np.arange(len(target)), radius_m, 30)
     sigma_m = refine.depth_sigma_at_1m_m * source.points_m[:, 2] ** 2
 
-    def rows_at(corr: np.ndarray, pose: np.ndarray) -> _Rows:
-        return _rows(source, target, corr, pose, geo_scale=1.0 / sigma_m[corr[:, 0]],
+    def rows_at(corr: np.ndarray, pose: np.ndarray) -> Rows:
+        return cloud_rows(source, target, corr, pose, geo_scale=1.0 / sigma_m[corr[:, 0]],
                      pho_scale=1.0 / refine.color_sigma, kernel="tukey",
                      k=refine.kernel_sigmas, gradients=gradients)  # fmt: skip
 
@@ -81,8 +81,8 @@ def _refine(
         corr = np.column_stack([found, nearest[found]])
         if len(corr) < config.min_correspondences:
             break
-        step = _analyse(rows_at(corr, target_T_source), config, significance=False).step_origin
-        target_T_source = _exp_left(step) @ target_T_source
+        step = analyse(rows_at(corr, target_T_source), config, significance=False).step_origin
+        target_T_source = exp_left(step) @ target_T_source
         if np.linalg.norm(step) < refine.min_step:
             break
     return target_T_source, corr, rows_at
@@ -249,7 +249,7 @@ def register(
 
     if config.refine is None:
         t0 = time.perf_counter()
-        rows = _open3d_rows(source_level, target.finest, corr, target_T_source, config, kernel_k)
+        rows = open3d_rows(source_level, target.finest, corr, target_T_source, config, kernel_k)
     else:
         t0 = time.perf_counter()
         source_level = source_levels[-1]
@@ -264,8 +264,8 @@ def register(
         moved = source_level.points_m[corr[:, 0]] @ target_T_source[:3, :3].T
         gap = moved + target_T_source[:3, 3] - target.finest.points_m[corr[:, 1]]
         inlier_rmse_m = float(np.sqrt(np.mean(np.sum(gap**2, axis=1))))
-    analysis = _analyse(rows, config)
-    information, sigma = _information(
+    analysis = analyse(rows, config)
+    information, sigma = rows_information(
         rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,
         config.information_scale, floor_m=config.information_floor_m,
         floor_rad=config.information_floor_rad,
