@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_frontend_gicp import off
 from test_frontend_projective import JUMP, A, frame_at, pair
-from test_frontend_realtime import off
 from test_frontend_registration import K
 
 from graph_slam.errors import RecordError

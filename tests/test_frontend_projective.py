@@ -12,7 +12,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 import pytest
-from test_frontend_realtime import off
+from test_frontend_gicp import off
 from test_frontend_registration import (
     BOXES,
     A,

@@ -50,8 +50,8 @@ from graph_slam.frontend.config import (
     gicp_registration,
     realtime_registration,
 )
+from graph_slam.frontend.gicp import prepare_frame, register_prepared
 from graph_slam.frontend.projective import prepare_depth, register_depth
-from graph_slam.frontend.realtime import prepare_frame, register_prepared
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 STAGES = ("cloud", "voxel", "normals", "icp", "information")

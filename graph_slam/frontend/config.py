@@ -8,7 +8,7 @@ robust kernel), :func:`colored_registration` (the default: the same with a Tukey
 :func:`fast_point_to_plane` (depth only, one 2 cm level); :func:`with_real_camera_floor` puts
 the covariance floor of a real camera on any of them. :class:`GicpConfig` and
 :func:`realtime_registration`: the real-time front end (small_gicp's GICP on one fixed-grid
-scale, each frame prepared once: :mod:`graph_slam.frontend.realtime`).
+scale, each frame prepared once: :mod:`graph_slam.frontend.gicp`).
 """
 
 from __future__ import annotations
@@ -321,7 +321,7 @@ class PreparedFrameConfig(ConstraintAnalysisConfig):
 class GicpConfig(PreparedFrameConfig):
     """The real-time front end: GICP (small_gicp) on one fixed-grid voxel scale.
 
-    Every frame is prepared once (:func:`graph_slam.frontend.realtime.prepare_frame`): the
+    Every frame is prepared once (:func:`graph_slam.frontend.gicp.prepare_frame`): the
     depth image decimated by ``pixel_step``, voxel means on a fixed grid, per-point covariances
     from ``covariance_neighbors`` neighbours, a k-d tree; it is the source of this frame's
     registration and, unchanged, the target of the next one. One scale: the initial guess

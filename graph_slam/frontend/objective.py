@@ -2,7 +2,7 @@
 
 Every registration path (Open3D's colored ICP in :mod:`graph_slam.frontend.registration`, the
 projective preset in :mod:`graph_slam.frontend.projective`, small_gicp's GICP in
-:mod:`graph_slam.frontend.realtime`) ends with the same three steps on the rows of the
+:mod:`graph_slam.frontend.gicp`) ends with the same three steps on the rows of the
 objective it minimised (:class:`Rows`: point-to-plane and photometric residuals, their
 Jacobians for a left perturbation about the target origin, the robust kernel's weights):
 

@@ -49,7 +49,7 @@ def _graph_registration() -> RegistrationConfig:
 #: thesis's), ``realtime`` (organised normals, projective association, colored ICP's objective
 #: on 2 cm voxels, each frame prepared once: :mod:`graph_slam.frontend.projective`; it turns
 #: the IMU guess on, see ``GraphFrontendConfig.imu_guess``), ``realtime-gicp`` (small_gicp's
-#: GICP + the photometric stage: :mod:`graph_slam.frontend.realtime`). See docs/frontend.md.
+#: GICP + the photometric stage: :mod:`graph_slam.frontend.gicp`). See docs/frontend.md.
 REGISTRATION_PRESETS = {
     "accurate": _graph_registration,
     "thesis": thesis_registration,

@@ -18,8 +18,8 @@ from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import Cloud, build_pyramid, depth_to_cloud, register
 from graph_slam.frontend.config import GicpConfig, ProjectiveConfig
+from graph_slam.frontend.gicp import prepare_frame, register_prepared
 from graph_slam.frontend.projective import prepare_depth, register_depth
-from graph_slam.frontend.realtime import prepare_frame, register_prepared
 from graph_slam.frontend.result import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.keyframe import Keyframes

@@ -1,7 +1,7 @@
-"""The real-time front end: GICP (small_gicp) on one fixed-grid scale, each frame prepared once.
+"""GICP (small_gicp, the ``realtime-gicp`` preset) on one fixed-grid scale, each frame prepared once.
 
 ``prepare_frame(cloud, config, grid_T_cloud)`` turns a frame's cloud into a
-:class:`PreparedFrame`: voxel means on a grid with a fixed origin (small_gicp's
+:class:`GicpFrame`: voxel means on a grid with a fixed origin (small_gicp's
 ``voxelgrid_sampling`` buckets by ``floor(p / voxel)`` in the frame it is given, i.e. its grid
 is fixed at that frame's origin), per-point covariances (``estimate_covariances``: k
 neighbours, regularised to the plane shape ``diag(1e-3, 1, 1)``) and a ``KdTree``. The frame is
@@ -46,7 +46,7 @@ PLANE_EPSILON = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
-class PreparedFrame:
+class GicpFrame:
     """A frame ready to register and to be registered against.
 
     ``points_m``: voxel means in the cloud's own frame (N×3); ``cloud``: the same points with
@@ -72,7 +72,7 @@ class PreparedFrame:
 
 def prepare_frame(
     cloud: Cloud | np.ndarray, config: GicpConfig, grid_T_cloud: np.ndarray | None = None
-) -> PreparedFrame:
+) -> GicpFrame:
     """Voxelise ``cloud`` (its own frame) on the grid fixed in frame ``grid``
     (``grid_T_cloud``; the cloud's own frame by default), then covariances and a k-d tree."""
     import small_gicp
@@ -109,7 +109,7 @@ def prepare_frame(
             gradients = intensity_gradients(means, colors.mean(axis=1), normals, nbr)
             colored = Cloud(means, colors, normals)
     timing = {"voxel": t1 - t0, "covariances": time.perf_counter() - t1}
-    return PreparedFrame(
+    return GicpFrame(
         means, sg_cloud, tree, grid_T_cloud, config.voxel_m, colored, gradients, timing
     )
 
@@ -162,7 +162,7 @@ _fail = registration_failure
 
 
 def _photometric(
-    source: PreparedFrame, target: PreparedFrame, target_T_source: np.ndarray, config: GicpConfig
+    source: GicpFrame, target: GicpFrame, target_T_source: np.ndarray, config: GicpConfig
 ) -> RegistrationResult:
     """Gauss-Newton on colored ICP's objective (the accurate preset's, Open3D's: point-to-plane
     and intensity rows, ``λ`` and ``1 − λ``, Tukey kernel) from GICP's result, nearest
@@ -202,8 +202,8 @@ def _photometric(
 
 
 def register_prepared(
-    source: PreparedFrame,
-    target: PreparedFrame,
+    source: GicpFrame,
+    target: GicpFrame,
     config: GicpConfig,
     initial_target_T_source: np.ndarray | None = None,
 ) -> RegistrationResult:
@@ -298,9 +298,9 @@ def register_prepared(
     )
 
 
-def register_realtime(
-    source: Cloud | PreparedFrame,
-    target: Cloud | PreparedFrame,
+def register_gicp(
+    source: Cloud | GicpFrame,
+    target: Cloud | GicpFrame,
     config: GicpConfig | None = None,
     initial_target_T_source: np.ndarray | None = None,
 ) -> RegistrationResult:
@@ -308,8 +308,8 @@ def register_realtime(
     its own grid, a source cloud on the target's grid through the initial guess."""
     config = config or GicpConfig()
     init = np.eye(4) if initial_target_T_source is None else np.asarray(initial_target_T_source)
-    if not isinstance(target, PreparedFrame):
+    if not isinstance(target, GicpFrame):
         target = prepare_frame(target, config)
-    if not isinstance(source, PreparedFrame):
+    if not isinstance(source, GicpFrame):
         source = prepare_frame(source, config, target.grid_T_cloud @ init)
     return register_prepared(source, target, config, init)

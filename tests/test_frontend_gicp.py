@@ -18,12 +18,12 @@ from graph_slam.config import config_from_dict
 from graph_slam.errors import ConfigError, RegistrationError, RegistrationFailure
 from graph_slam.frontend import Cloud, depth_to_cloud, voxel_downsample
 from graph_slam.frontend.config import GicpConfig, gicp_registration, realtime_registration
-from graph_slam.frontend.realtime import (
+from graph_slam.frontend.gicp import (
     PLANE_EPSILON,
-    PreparedFrame,
+    GicpFrame,
     prepare_frame,
+    register_gicp,
     register_prepared,
-    register_realtime,
 )
 from graph_slam.frontend.result import RegistrationStatus
 from graph_slam.pipelines.config import PipelineConfig
@@ -53,7 +53,7 @@ def off(pose: np.ndarray, dt_m=(0.006, -0.004, 0.003), yaw_deg: float = 1.5) -> 
 # --------------------------------------------------------------------------- known answers
 def test_small_motion_is_recovered_from_identity() -> None:
     target, source, truth = pair(A, SMALL, color=False)
-    result = register_realtime(source, target, CFG)
+    result = register_gicp(source, target, CFG)
     t_mm, r_deg = errors(result.target_T_source, truth)
     assert t_mm < 0.5 and r_deg < 0.05  # measured 0.13 mm, 0.006°
     assert result.fitness > 0.8 and result.correspondences > 5000
@@ -64,7 +64,7 @@ def test_swing_jump_with_a_guess_8_mm_and_1p5_deg_off() -> None:
     target, source, truth = pair(A, camera_pose(0.045, 0.015, 0.52, 50.0, 2.0), color=False)
     guess = off(truth)
     assert errors(guess, truth)[0] > 7.0
-    result = register_realtime(source, target, CFG, guess)
+    result = register_gicp(source, target, CFG, guess)
     t_mm, r_deg = errors(result.target_T_source, truth)
     assert t_mm < 1.0 and r_deg < 0.1
 
@@ -75,7 +75,7 @@ def test_the_preset_itself() -> None:
     target, source, truth = pair(A, SMALL)
     config = gicp_registration()
     assert config.pixel_step_for(K) == 1  # 12k pixels, below the preset's 100k
-    result = register_realtime(source, target, config)
+    result = register_gicp(source, target, config)
     t_mm, r_deg = errors(result.target_T_source, truth)
     assert t_mm < 1.0 and r_deg < 0.1
 
@@ -88,24 +88,24 @@ def test_colour_holds_a_textured_floor_that_geometry_leaves_free() -> None:
     target, source = cloud_at(world_T_a, boxes=()), cloud_at(world_T_b, boxes=(), seed=3)
     truth = np.linalg.solve(world_T_a, world_T_b)
     guess = off(truth, (0.006, -0.004, 0.0), 0.5)
-    result = register_realtime(source, target, CFG, guess)
+    result = register_gicp(source, target, CFG, guess)
     t_mm, r_deg = errors(result.target_T_source, truth)
     assert t_mm < 1.0 and r_deg < 0.1
     assert result.status is RegistrationStatus.OK
-    geometry = register_realtime(Cloud(source.points_m), Cloud(target.points_m), CFG, guess)
+    geometry = register_gicp(Cloud(source.points_m), Cloud(target.points_m), CFG, guess)
     assert geometry.status is RegistrationStatus.DEGENERATE
 
 
 def test_colour_on_the_box_scene_with_a_guess_off() -> None:
     target, source, truth = pair(A, camera_pose(0.045, 0.015, 0.52, 50.0, 2.0))
-    result = register_realtime(source, target, CFG, off(truth))
+    result = register_gicp(source, target, CFG, off(truth))
     t_mm, r_deg = errors(result.target_T_source, truth)
     assert t_mm < 1.0 and r_deg < 0.1
     assert result.is_reliable
 
 
 # --------------------------------------------------------------------------- information
-def _gicp_cost(source: PreparedFrame, target: PreparedFrame, solution: np.ndarray, max_m: float):
+def _gicp_cost(source: GicpFrame, target: GicpFrame, solution: np.ndarray, max_m: float):
     """``E(ξ) = ½ Σ rᵢᵀ (C_Bᵢ + R C_Aᵢ Rᵀ)⁻¹ rᵢ`` with ``rᵢ = bᵢ − T·Exp(ξ)·aᵢ`` (GTSAM's
     Expmap, right perturbation), correspondences fixed at the solution (nearest neighbour
     within ``max_m``), as small_gicp's GICP factor defines it."""
@@ -234,10 +234,10 @@ def test_empty_clouds_fail_with_their_reason() -> None:
     cloud = cloud_at(A, color=False)
     empty = Cloud(np.zeros((0, 3)))
     with pytest.raises(RegistrationError) as err:
-        register_realtime(empty, cloud, CFG)
+        register_gicp(empty, cloud, CFG)
     assert err.value.reason is RegistrationFailure.EMPTY_SOURCE
     with pytest.raises(RegistrationError) as err:
-        register_realtime(cloud, Cloud(cloud.points_m[:5]), CFG)
+        register_gicp(cloud, Cloud(cloud.points_m[:5]), CFG)
     assert err.value.reason is RegistrationFailure.EMPTY_TARGET
 
 
@@ -245,7 +245,7 @@ def test_no_overlap_fails_instead_of_returning_the_guess() -> None:
     target, source, _ = pair(A, SMALL, color=False)
     far = Cloud(source.points_m + np.array([5.0, 0.0, 0.0]))
     with pytest.raises(RegistrationError) as err:
-        register_realtime(far, target, CFG)
+        register_gicp(far, target, CFG)
     assert err.value.reason is RegistrationFailure.NO_OVERLAP
     assert err.value.correspondences == 0
 
@@ -254,11 +254,11 @@ def test_little_overlap_fails_on_correspondences_or_fitness() -> None:
     target, source, _ = pair(A, SMALL, color=False)
     sliver = Cloud(source.points_m[source.points_m[:, 0] > 0.25])
     with pytest.raises(RegistrationError) as err:
-        register_realtime(sliver, target, CFG.model_copy(update={"min_correspondences": 5000}))
+        register_gicp(sliver, target, CFG.model_copy(update={"min_correspondences": 5000}))
     assert err.value.reason is RegistrationFailure.TOO_FEW_CORRESPONDENCES
     shifted = Cloud(source.points_m + np.array([0.4, 0.0, 0.0]))
     with pytest.raises(RegistrationError) as err:
-        register_realtime(shifted, target, CFG.model_copy(update={"max_iterations": 3}))
+        register_gicp(shifted, target, CFG.model_copy(update={"max_iterations": 3}))
     assert err.value.reason in (RegistrationFailure.LOW_FITNESS, RegistrationFailure.NOT_CONVERGED)
 
 
@@ -266,10 +266,10 @@ def test_running_out_of_iterations_is_not_converged() -> None:
     target, source, truth = pair(A, camera_pose(0.045, 0.015, 0.52, 50.0, 2.0), color=False)
     config = CFG.model_copy(update={"max_iterations": 1})
     with pytest.raises(RegistrationError) as err:
-        register_realtime(source, target, config, off(truth))
+        register_gicp(source, target, config, off(truth))
     assert err.value.reason is RegistrationFailure.NOT_CONVERGED
     loose = config.model_copy(update={"check_convergence": False})
-    assert register_realtime(source, target, loose, off(truth)).final_step_m > 1e-4
+    assert register_gicp(source, target, loose, off(truth)).final_step_m > 1e-4
 
 
 def test_flat_floor_sliding_sideways_is_degenerate() -> None:
@@ -278,14 +278,14 @@ def test_flat_floor_sliding_sideways_is_degenerate() -> None:
     world_T_a = camera_pose(0.0, 0.0, 0.5, 40.0)
     world_T_b = camera_pose(0.0, 0.03, 0.5, 40.0)  # 3 cm sideways
     target, source = cloud_at(world_T_a, boxes=(), color=False), cloud_at(world_T_b, boxes=(), seed=3, color=False)  # fmt: skip
-    result = register_realtime(source, target, CFG)
+    result = register_gicp(source, target, CFG)
     assert result.status is RegistrationStatus.DEGENERATE
     assert result.degeneracy.weak.sum() >= 2
     sideways = np.linalg.solve(world_T_a, world_T_b)[:3, 3]
     stiffness = result.degeneracy.stiffness(translation=sideways / np.linalg.norm(sideways))
     assert stiffness < CFG.degeneracy_threshold
     with pytest.raises(RegistrationError) as err:
-        register_realtime(source, target, CFG.model_copy(update={"fail_on_degenerate": True}))
+        register_gicp(source, target, CFG.model_copy(update={"fail_on_degenerate": True}))
     assert err.value.reason is RegistrationFailure.DEGENERATE
 
 
