@@ -335,7 +335,8 @@ def test_running_out_of_iterations_is_not_converged() -> None:
 
 # --------------------------------------------------------------------------- config
 def test_the_realtime_preset_is_projective_and_turns_the_imu_guess_on() -> None:
-    from graph_slam.pipelines.graph import GraphPipeline
+    from graph_slam.frontend import make_registration
+    from graph_slam.pipelines.graph import imu_guess_on
 
     cfg = config_from_dict(PipelineConfig, {"graph": {"registration": "realtime"}})
     assert isinstance(cfg.graph.registration, ProjectiveConfig)
@@ -345,7 +346,12 @@ def test_the_realtime_preset_is_projective_and_turns_the_imu_guess_on() -> None:
     assert gicp.graph.registration.method == "gicp"
     custom = {"graph": {"registration": {"method": "projective", "voxel_m": 0.03}}}
     assert config_from_dict(PipelineConfig, custom).graph.registration.voxel_m == 0.03
-    assert GraphPipeline._imu_guess_for(cfg) is True
-    assert GraphPipeline._imu_guess_for(gicp) is False
+
+    def on(c):
+        return imu_guess_on(c, make_registration(c.graph.registration, K))
+
+    assert on(cfg) is True
+    assert on(gicp) is False
+    assert on(PipelineConfig()) is False
     off_cfg = config_from_dict(PipelineConfig, {"graph": {"registration": "realtime", "imu_guess": False}})  # fmt: skip
-    assert GraphPipeline._imu_guess_for(off_cfg) is False
+    assert on(off_cfg) is False

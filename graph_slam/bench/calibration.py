@@ -62,36 +62,26 @@ def relative_error(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def chi2_of_pairs(data, config, cloud_config=None, name: str | None = None) -> Chi2Report:
     """χ² of every consecutive pair of ``data`` (a :class:`graph_slam.bench.registration.
-    Dataset`) registered with ``config`` (the accurate path's :class:`RegistrationConfig`
-    or the projective preset's :class:`ProjectiveConfig`) from the identity."""
-    from graph_slam.frontend import build_pyramid, depth_to_cloud, register
-    from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
-    from graph_slam.frontend.projective import prepare_depth, register_depth
+    Dataset`) registered with the method ``config`` names
+    (:func:`graph_slam.frontend.make_registration`) from the identity, each frame prepared on
+    its own grid."""
+    from graph_slam.frontend import make_registration
 
-    cloud_config = cloud_config or CloudConfig()
-    projective = isinstance(config, ProjectiveConfig)
+    method = make_registration(config, data.intrinsics, cloud_config)
     chi2, dof, failed, target = [], [], 0, None
     for k, frame in enumerate(data.frames):
-        if projective:
-            source = prepare_depth(frame, data.intrinsics, config, cloud_config)
-        else:
-            source, _ = depth_to_cloud(frame, data.intrinsics, cloud_config)
-            if config.method == "point_to_plane":
-                source = type(source)(source.points_m)
+        source = method.prepare(frame)
         if target is not None:
             truth = np.linalg.solve(data.world_T_camera[k - 1], data.world_T_camera[k])
             try:
-                if projective:
-                    result = register_depth(source, target, config)
-                else:
-                    result = register(source, target, config)
+                result = method.register(source, target)
             except RegistrationError:
                 failed += 1
             else:
                 xi = relative_error(result.target_T_source, truth)
                 chi2.append(float(xi @ result.information @ xi))
                 dof.append(result.degeneracy.dof)
-        target = source if projective else build_pyramid(source, config)
+        target = source
     return Chi2Report(name or data.name, np.array(chi2), np.array(dof, dtype=int), failed)
 
 

@@ -8,8 +8,8 @@ Per pair (target = frame k, source = frame k+1), as a frame-to-frame pipeline pa
 new frame: ``cloud`` (depth → points), ``voxel`` (the new frame's target pyramid and its
 voxelisation on the previous frame's grid), ``normals`` (target pyramid), ``icp`` (Open3D levels
 and the optional refinement), ``information`` (information matrix, degeneracy, convergence gate).
-For the real-time presets each frame is prepared once, on the previous frame's grid through the
-guess, and kept as the next pair's target, as the pipeline does. ``realtime``
+Each frame is prepared once (:func:`graph_slam.frontend.make_registration`), on the previous
+frame's grid through the guess, and kept as the next pair's target, as the pipeline does. ``realtime``
 (:class:`ProjectiveConfig`): ``cloud`` (organised points), ``normals`` (pixel normals and
 intensity gradients), ``voxel`` (their voxel means), ``icp`` (projective Gauss-Newton),
 ``information``. ``realtime-gicp`` (:class:`GicpConfig`): ``cloud`` (decimated), ``voxel``,
@@ -36,12 +36,10 @@ from graph_slam.errors import RegistrationError, SessionError
 from graph_slam.frontend import (
     CloudConfig,
     RegistrationConfig,
-    build_pyramid,
     colored_registration,
-    depth_to_cloud,
     fast_point_to_plane,
+    make_registration,
     refined_colored_registration,
-    register,
     thesis_registration,
 )
 from graph_slam.frontend.config import (
@@ -50,8 +48,6 @@ from graph_slam.frontend.config import (
     gicp_registration,
     realtime_registration,
 )
-from graph_slam.frontend.gicp import prepare_frame, register_prepared
-from graph_slam.frontend.projective import prepare_depth, register_depth
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 STAGES = ("cloud", "voxel", "normals", "icp", "information")
@@ -179,36 +175,26 @@ def initial_guess(data: Dataset, k: int, guess: str) -> np.ndarray:
 
 def run_config(
     name: str,
-    config: RegistrationConfig | GicpConfig,
+    config: RegistrationConfig | GicpConfig | ProjectiveConfig,
     data: Dataset,
     cloud_config: CloudConfig | None = None,
     guess: str = "identity",
 ) -> ConfigSummary:
-    """Register every consecutive pair of ``data`` and time each stage."""
-    if isinstance(config, GicpConfig):
-        return _run_realtime(name, config, data, cloud_config, guess)
-    if isinstance(config, ProjectiveConfig):
-        return _run_projective(name, config, data, cloud_config, guess)
+    """Register every consecutive pair of ``data`` and time each stage: each frame prepared
+    once (:func:`graph_slam.frontend.make_registration`; on the previous frame's grid through
+    the guess) and kept as the next pair's target, as the pipeline does."""
+    method = make_registration(config, data.intrinsics, cloud_config)
     tally = _Tally.start()
-    clouds = []
-    for frame in data.frames:
-        t0 = time.perf_counter()
-        clouds.append(depth_to_cloud(frame, data.intrinsics, cloud_config)[0])
-        tally.stage_s["cloud"] += time.perf_counter() - t0
-    tally.stage_s["cloud"] *= (len(clouds) - 1) / len(clouds)  # one new frame per pair
-    for k in range(len(clouds) - 1):
-        pyramid = build_pyramid(clouds[k], config)
-        tally.stage_s["voxel"] += pyramid.timing_s["voxel"]
-        tally.stage_s["normals"] += pyramid.timing_s["normals"]
-        tally.pair(
-            lambda k=k, pyramid=pyramid: register(
-                clouds[k + 1], pyramid, config, initial_guess(data, k, guess)
-            ),
-            data,
-            k,
-            ("voxel", "icp", "information"),
-        )
-    return tally.summary(name, len(clouds) - 1)
+    target = None
+    for k, frame in enumerate(data.frames):
+        init = None if k == 0 else initial_guess(data, k - 1, guess)
+        source = method.prepare(frame, None if k == 0 else target.grid_T_cloud @ init)
+        if k > 0:  # the first frame's preparation is not a pair's cost
+            for stage, seconds in source.timing_s.items():
+                tally.stage_s[stage] += seconds
+            tally.pair(lambda s=source, t=target, i=init: method.register(s, t, i), data, k - 1)
+        target = source
+    return tally.summary(name, len(data.frames) - 1)
 
 
 @dataclass
@@ -224,7 +210,7 @@ class _Tally:
     def start(cls) -> _Tally:
         return cls(dict.fromkeys(STAGES, 0.0), [], [], Counter())
 
-    def pair(self, register_now, data: Dataset, k: int, stages=("icp", "information")) -> None:
+    def pair(self, register_now, data: Dataset, k: int) -> None:
         """Register pair ``k`` (frame ``k + 1`` onto frame ``k``) and count it."""
         t0 = time.perf_counter()
         try:
@@ -233,8 +219,8 @@ class _Tally:
             self.stage_s["icp"] += time.perf_counter() - t0
             self.statuses[f"failed {err.reason.value}"] += 1
             return
-        for stage in stages:
-            self.stage_s[stage] += result.timing_s[stage]
+        for stage, seconds in result.timing_s.items():
+            self.stage_s[stage] += seconds
         self.statuses[result.status.value] += 1
         t, r = pose_error(result.target_T_source, relative_truth(data.world_T_camera, k))
         self.t_err.append(t * 1e3)
@@ -249,65 +235,6 @@ class _Tally:
             rotation_err_deg=np.asarray(self.r_err),
             statuses=self.statuses,
         )
-
-
-def _run_prepared(name: str, data: Dataset, guess: str, prepare, register_pair) -> ConfigSummary:
-    """:func:`run_config` for a real-time preset: each frame prepared once
-    (``prepare(frame, grid_T_cloud) -> (prepared, {stage: s})``, on the previous frame's grid
-    through the guess) and kept as the next pair's target."""
-    tally = _Tally.start()
-    target = None
-    for k, frame in enumerate(data.frames):
-        init = None if k == 0 else initial_guess(data, k - 1, guess)
-        source, stages = prepare(frame, None if k == 0 else target.grid_T_cloud @ init)
-        if k > 0:  # the first frame's preparation is not a pair's cost
-            for stage, seconds in stages.items():
-                tally.stage_s[stage] += seconds
-            tally.pair(lambda s=source, t=target, i=init: register_pair(s, t, i), data, k - 1)
-        target = source
-    return tally.summary(name, len(data.frames) - 1)
-
-
-def _run_realtime(
-    name: str, config: GicpConfig, data: Dataset, cloud_config: CloudConfig | None, guess: str
-) -> ConfigSummary:
-    """The GICP preset (``realtime-gicp``): ``cloud``, ``voxel``, ``normals`` (covariances)."""
-    step = config.pixel_step_for(data.intrinsics)
-
-    def prepare(frame, grid_T_cloud):
-        t0 = time.perf_counter()
-        cloud, _ = depth_to_cloud(frame, data.intrinsics, cloud_config, step)
-        t1 = time.perf_counter()
-        source = prepare_frame(cloud, config, grid_T_cloud)
-        timing = source.timing_s
-        return source, {
-            "cloud": t1 - t0,
-            "voxel": timing["voxel"],
-            "normals": timing["covariances"],
-        }
-
-    return _run_prepared(
-        name, data, guess, prepare, lambda s, t, i: register_prepared(s, t, config, i)
-    )
-
-
-def _run_projective(
-    name: str,
-    config: ProjectiveConfig,
-    data: Dataset,
-    cloud_config: CloudConfig | None,
-    guess: str,
-) -> ConfigSummary:
-    """The projective preset (``realtime``): ``cloud`` (organised points), ``normals`` (pixel
-    normals and gradients), ``voxel`` (their voxel means)."""
-
-    def prepare(frame, grid_T_cloud):
-        source = prepare_depth(frame, data.intrinsics, config, cloud_config, grid_T_cloud)
-        return source, {stage: source.timing_s[stage] for stage in ("cloud", "normals", "voxel")}
-
-    return _run_prepared(
-        name, data, guess, prepare, lambda s, t, i: register_depth(s, t, config, i)
-    )
 
 
 # --------------------------------------------------------------------------- datasets

@@ -1,6 +1,8 @@
 """The registration front end: depth → cloud → fixed-grid voxel pyramid and normals →
 point-to-plane or colored ICP (frame-to-frame or frame-to-local-map) → a result with its quality
-report (information matrix, degeneracy), or a typed failure. See docs/frontend.md."""
+report (information matrix, degeneracy), or a typed failure; ``make_registration`` builds the
+method a config names (Open3D ICP, GICP, projective) behind one interface. See
+docs/frontend.md."""
 
 from graph_slam.errors import RegistrationError, RegistrationFailure
 from graph_slam.frontend.cloud import (
@@ -24,6 +26,7 @@ from graph_slam.frontend.config import (
 )
 from graph_slam.frontend.degeneracy import DegeneracyReport
 from graph_slam.frontend.local_map import LocalMap
+from graph_slam.frontend.methods import PreparedFrame, Registration, make_registration
 from graph_slam.frontend.registration import register
 from graph_slam.frontend.result import RegistrationResult, RegistrationStatus
 
@@ -34,8 +37,10 @@ __all__ = [
     "DegeneracyReport",
     "LevelConfig",
     "LocalMap",
+    "PreparedFrame",
     "Pyramid",
     "RefineConfig",
+    "Registration",
     "RegistrationConfig",
     "RegistrationError",
     "RegistrationFailure",
@@ -46,6 +51,7 @@ __all__ = [
     "depth_to_cloud",
     "estimate_normals",
     "fast_point_to_plane",
+    "make_registration",
     "refined_colored_registration",
     "register",
     "thesis_registration",

@@ -16,15 +16,11 @@ import numpy as np
 from graph_slam.backend import StrideSLAM
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
-from graph_slam.frontend import Cloud, build_pyramid, depth_to_cloud, register
-from graph_slam.frontend.config import GicpConfig, ProjectiveConfig
-from graph_slam.frontend.gicp import prepare_frame, register_prepared
-from graph_slam.frontend.projective import prepare_depth, register_depth
+from graph_slam.frontend import Registration, make_registration
 from graph_slam.frontend.result import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.keyframe import Keyframes
 from graph_slam.pipelines.protocol import (
-    frame_cloud,
     make_gravity,
     make_live_terrain,
     make_terrain,
@@ -83,6 +79,14 @@ def _measured(register_now, source_index: int, target_index: int):
     return icp_measurement(r, source_index, target_index), r.fitness
 
 
+def imu_guess_on(config: PipelineConfig, registration: Registration) -> bool:
+    """``graph.imu_guess``; unset (None): on when the method needs a good guess (the
+    projective, realtime, preset: one scale and a tight correspondence distance)."""
+    if config.graph.imu_guess is not None:
+        return config.graph.imu_guess
+    return registration.needs_guess
+
+
 class GraphPipeline:
     """Front end + :class:`StrideSLAM` + the up vector at foot strikes + the terrain maps."""
 
@@ -98,12 +102,16 @@ class GraphPipeline:
         self.variant = config.variant
         self.intrinsics = intrinsics
         self.use_icp = config.backend.factors["icp"]
-        self.registration = with_camera_floor(
-            sensor_registration(config.graph.registration, has_color, config.graph.depth_only),
-            config.graph.real_camera_floor,
+        self.registration = make_registration(
+            with_camera_floor(
+                sensor_registration(config.graph.registration, has_color, config.graph.depth_only),
+                config.graph.real_camera_floor,
+            ),
+            intrinsics,
+            config.cloud,
+            has_color,
         )
-        self.has_color = has_color
-        self.imu_guess = self._imu_guess_for(config)
+        self.imu_guess = imu_guess_on(config, self.registration)
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.gravity = make_gravity(config)
@@ -114,14 +122,6 @@ class GraphPipeline:
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
-
-    @staticmethod
-    def _imu_guess_for(config: PipelineConfig) -> bool:
-        """``graph.imu_guess``; unset (None): on with the projective (realtime) registration,
-        whose one scale and tight correspondence distance need the IMU's guess."""
-        if config.graph.imu_guess is not None:
-            return config.graph.imu_guess
-        return isinstance(config.graph.registration, ProjectiveConfig)
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
@@ -196,77 +196,26 @@ class GraphPipeline:
         return self.keys.key.index, self.keys.key.target, guess
 
     def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool, stages: dict):
-        """The frame's cloud, its registration to the keyframe (same stride) and its
-        pyramid (the next keyframe, perhaps). Returns ``(cloud, icp, pyramid, fitness)``; each
-        step's time goes into ``stages``."""
+        """The frame prepared once (on the keyframe's grid through the guess: its cloud, and
+        the next keyframe perhaps) and registered to the keyframe (same stride). Returns
+        ``(prepared, icp, fitness)``; each step's time goes into ``stages``."""
         if not self.use_icp or not (self.cfg.graph.icp_in_swing or foot_loaded):
-            return None, None, None, float("nan")
-        if isinstance(self.registration, GicpConfig):
-            return self._register_realtime(frame, index, stages)
-        if isinstance(self.registration, ProjectiveConfig):
-            return self._register_projective(frame, index, stages)
+            return None, None, float("nan")
+        key = self._target(frame.t_s)
         t0 = time.perf_counter()
-        cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
-        t1 = time.perf_counter()
-        stages["cloud"] = t1 - t0
-        icp, fitness = None, float("nan")
-        if (key := self._target(frame.t_s)) is not None:
-            key_index, key_pyramid, guess = key
-            icp, fitness = _measured(
-                lambda: register(cloud, key_pyramid, self.registration, guess), index, key_index
-            )
-        t2 = time.perf_counter()
-        stages["registration"] = t2 - t1
-        try:
-            pyramid = build_pyramid(cloud, self.registration)
-        except RegistrationError:
-            pyramid = None
-        stages["preprocess"] = time.perf_counter() - t2
-        return cloud, icp, pyramid, fitness
-
-    def _register_realtime(self, frame: RgbdFrame, index: int, stages: dict):
-        """:meth:`_register` with the real-time preset: the frame is prepared once (on the
-        keyframe's grid through the guess) and is kept, as it is, as a possible next target."""
-        cfg = self.registration
-        t0 = time.perf_counter()
-        step = cfg.pixel_step_for(self.intrinsics)
-        cloud, _ = depth_to_cloud(frame, self.intrinsics, self.cfg.cloud, step)
-        t1 = time.perf_counter()
-        stages["cloud"] = t1 - t0
-        icp, fitness = None, float("nan")
-        key_index, target, guess = self._target(frame.t_s) or (None, None, None)
-        grid_T_cloud = None if target is None else target.grid_T_cloud @ guess
-        prepared = prepare_frame(cloud, cfg, grid_T_cloud)
-        t2 = time.perf_counter()
-        stages["preprocess"] = t2 - t1
-        if target is not None:
-            icp, fitness = _measured(
-                lambda: register_prepared(prepared, target, cfg, guess), index, key_index
-            )
-        stages["registration"] = time.perf_counter() - t2
-        return cloud, icp, prepared, fitness
-
-    def _register_projective(self, frame: RgbdFrame, index: int, stages: dict):
-        """:meth:`_register` with the projective preset: the frame is prepared once from its
-        organised depth image (on the keyframe's grid through the guess) and kept, as it is,
-        as a possible next target."""
-        cfg = self.registration
-        t0 = time.perf_counter()
-        icp, fitness = None, float("nan")
-        key_index, target, guess = self._target(frame.t_s) or (None, None, None)
-        grid_T_cloud = None if target is None else target.grid_T_cloud @ guess
-        prepared = prepare_depth(
-            frame, self.intrinsics, cfg, self.cfg.cloud, grid_T_cloud, self.has_color
-        )
+        grid_T_cloud = None if key is None else key[1].grid_T_cloud @ key[2]
+        prepared = self.registration.prepare(frame, grid_T_cloud)
         t1 = time.perf_counter()
         stages["cloud"] = prepared.timing_s["cloud"]
         stages["preprocess"] = t1 - t0 - stages["cloud"]
-        if target is not None:
+        icp, fitness = None, float("nan")
+        if key is not None:
+            key_index, target, guess = key
             icp, fitness = _measured(
-                lambda: register_depth(prepared, target, cfg, guess), index, key_index
+                lambda: self.registration.register(prepared, target, guess), index, key_index
             )
         stages["registration"] = time.perf_counter() - t1
-        return Cloud(prepared.pixel_points_m), icp, prepared, fitness
+        return prepared, icp, fitness
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
@@ -274,7 +223,8 @@ class GraphPipeline:
         t0 = time.perf_counter()
         index = self.results.n_frames
         stages: dict[str, float] = {}
-        cloud, icp, pyramid, fitness = self._register(frame, index, foot_loaded, stages)
+        prepared, icp, fitness = self._register(frame, index, foot_loaded, stages)
+        cloud = None if prepared is None else prepared.cloud
         floor_flag: tuple[str, ...] = ()
         if self._pending_strike is not None:
             t_floor = time.perf_counter()
@@ -286,7 +236,7 @@ class GraphPipeline:
         est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
         t2 = time.perf_counter()
         stages["graph"] = t2 - t1  # a missed strike's smoothing included
-        self._remember(index, pyramid, est, frame.t_s)
+        self._remember(index, prepared, est, frame.t_s)
         self._close_strides()  # those closed by this frame (a strike, or a missed one)
         if (keep := self.cfg.backend.max_deferred_strides) is not None:
             self._smooth_deferred(keep)  # the oldest queued strides, beyond the bound
@@ -327,16 +277,17 @@ class GraphPipeline:
         self.slam.results.release_frames(self.cfg.keep_frames)
         return out
 
-    def _remember(self, index: int, pyramid, est, t_s: float) -> None:
+    def _remember(self, index: int, prepared, est, t_s: float) -> None:
         """The keyframe (the next frame's registration target) and the constant-velocity
         history for the next frame."""
         self._prev2 = None if est.stride_start else self._prev
         self._prev = (est.stride_T_camera, t_s)
         accepted = est.gate is not None and est.gate.accepted
+        target = prepared if prepared is not None and prepared.is_target else None
         self.keys.update(
-            index, pyramid, est.stride_T_camera, t_s, keep=accepted and not est.stride_start
+            index, target, est.stride_T_camera, t_s, keep=accepted and not est.stride_start
         )
-        if pyramid is None:  # nothing to register the next frame against
+        if target is None:  # nothing to register the next frame against
             self._prev = None
             self._prev2 = None
 
