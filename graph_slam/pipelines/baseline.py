@@ -16,9 +16,7 @@ reason. A failed registration is never reported as a pose.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,8 +24,9 @@ import numpy as np
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import LocalMap, build_pyramid, register
 from graph_slam.pipelines.config import PipelineConfig
-from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
+from graph_slam.pipelines.protocol import PipelineBase, frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
+from graph_slam.pipelines.stages import StageTimer
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.strides.joints import JointBuffer
 from graph_slam.strides.kinematics import imu_up_in_model
@@ -50,10 +49,8 @@ class _OpenStride:
     """The last registered ``stride_T_camera`` (the next registration's initial guess)."""
 
 
-class ThesisBaseline:
+class ThesisBaseline(PipelineBase):
     """Variant ``icp``: the thesis's reset-and-register pipeline (see the module docstring)."""
-
-    variant = Variant.ICP
 
     def __init__(
         self,
@@ -63,23 +60,16 @@ class ThesisBaseline:
         leg_model,
         has_color: bool = True,
     ) -> None:
-        self.cfg = config
-        bc = config.baseline
-        reg = sensor_registration(bc.registration, has_color)
-        self.registration = reg
-        self.intrinsics = intrinsics
-        self.camera_T_imu = np.asarray(camera_T_imu, float)
+        # the baseline's stride frames are not linked (its world frame restarts at every
+        # reset): no carry across the strike; no covariance (depth noise + fallback pose σ);
+        # no smoothed poses, so no clouds kept for a re-fusion
+        super().__init__(
+            config, Variant.ICP, intrinsics, camera_T_imu, link_strides=False, refuse=False
+        )
+        self.registration = sensor_registration(config.baseline.registration, has_color)
         self.leg_model = leg_model
         self.has_color = has_color
-        from graph_slam.pipelines.protocol import make_gravity, make_live_terrain, make_terrain
-
-        self.gravity = make_gravity(config)
-        self.terrain = make_terrain(config, intrinsics)
-        # the baseline's stride frames are not linked (its world frame restarts at every
-        # reset): no carry across the strike; no covariance (depth noise + fallback pose σ)
-        self.live_terrain = make_live_terrain(config, intrinsics, link_strides=False, refuse=False)
         self.joints = JointBuffer(leg_model)
-        self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self._map: LocalMap | None = None
         self._stride: _OpenStride | None = None
         self._pending_strike = False
@@ -123,18 +113,48 @@ class ThesisBaseline:
 
     # ------------------------------------------------------------------ frames
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
-        t0 = time.perf_counter()
         index = self.results.n_frames
-        cloud = frame_cloud(
-            frame, self.intrinsics, self.cfg.cloud, self.has_color, self.cfg.baseline.pixel_step
+        timer = StageTimer()
+        with timer("cloud"):
+            cloud = frame_cloud(
+                frame, self.intrinsics, self.cfg.cloud, self.has_color, self.cfg.baseline.pixel_step
+            )
+        with timer("registration"):  # reset or map pyramid + ICP + fusion
+            pose, status, fitness = self._pose(index, frame.t_s, cloud)
+        frontend_s = timer.total_s
+        stride_index = len(self.results.strides) if self._stride is not None else -1
+        view = None
+        with timer("terrain"):
+            if self._stride is not None:
+                self.terrain.add_frame(index, frame)
+                with timer("terrain_online"):
+                    view = self.live_terrain.frame(index, frame, stride_index, pose, pose, None)
+        out = FrameOutput(
+            frame_index=index,
+            stride_index=stride_index,
+            t_s=float(frame.t_s),
+            stride_T_camera=pose,
+            world_T_camera=None if pose is None else self._world_T_stride @ pose,
+            status=status,
+            foot_loaded=foot_loaded,
+            frontend_s=frontend_s,
+            backend_s=0.0,
+            fitness=fitness,
+            terrain_s=timer.get("terrain"),
+            stages_s=timer.stages_s,
+            terrain=view,
         )
-        t_cloud = time.perf_counter()
+        return self._record(out)
+
+    def _pose(self, index: int, t_s: float, cloud) -> tuple[np.ndarray | None, str, float]:
+        """The frame's pose (the reset at a new stride, else its registration to the map),
+        its status and fitness; the frame joins the open stride."""
         pose: np.ndarray | None = None
         fitness = float("nan")
         if self._pending_strike:
             self._pending_strike = False
-            self._start_stride(frame.t_s)
-            pose, status = self._reset_pose(frame.t_s)
+            self._start_stride(t_s)
+            pose, status = self._reset_pose(t_s)
             if pose is None:
                 self._stride.stop_reason = f"no odometry reset ({status})"
                 status = f"not_registered: {self._stride.stop_reason}"
@@ -152,38 +172,8 @@ class ThesisBaseline:
         if self._stride is not None:
             self._stride.frames.append(index)
             self._stride.poses.append(np.full((4, 4), np.nan) if pose is None else pose)
-        self.gravity.drop_before(frame.t_s - self.gravity.keep_s)
-        t1 = time.perf_counter()
-        stride_index = len(self.results.strides) if self._stride is not None else -1
-        view = None
-        if self._stride is not None:
-            self.terrain.add_frame(index, frame)
-            t_online = time.perf_counter()
-            view = self.live_terrain.frame(index, frame, stride_index, pose, pose, None)
-            t_online = time.perf_counter() - t_online
-        out = FrameOutput(
-            frame_index=index,
-            stride_index=stride_index,
-            t_s=float(frame.t_s),
-            stride_T_camera=pose,
-            world_T_camera=None if pose is None else self._world_T_stride @ pose,
-            status=status,
-            foot_loaded=foot_loaded,
-            frontend_s=t1 - t0,
-            backend_s=0.0,
-            fitness=fitness,
-            terrain_s=time.perf_counter() - t1,
-            stages_s={
-                "cloud": t_cloud - t0,
-                "registration": t1 - t_cloud,  # reset or map pyramid + ICP + fusion
-                "terrain": time.perf_counter() - t1,
-                **({} if view is None else {"terrain_online": t_online}),
-            },
-            terrain=view,
-        )
-        self.results.frames.append(dataclasses.replace(out, terrain=None))
-        self.results.release_frames(self.cfg.keep_frames)
-        return out
+        self.gravity.drop_before(t_s - self.gravity.keep_s)
+        return pose, status, fitness
 
     def _register(self, cloud) -> tuple[np.ndarray | None, str, float]:
         bc = self.cfg.baseline

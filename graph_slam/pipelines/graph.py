@@ -6,7 +6,6 @@ load cell's foot-loaded state."""
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import time
 
@@ -20,14 +19,9 @@ from graph_slam.frontend import Registration, make_registration
 from graph_slam.frontend.result import RegistrationResult
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.keyframe import Keyframes
-from graph_slam.pipelines.protocol import (
-    make_gravity,
-    make_live_terrain,
-    make_terrain,
-    sensor_registration,
-    with_camera_floor,
-)
+from graph_slam.pipelines.protocol import PipelineBase, sensor_registration, with_camera_floor
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
+from graph_slam.pipelines.stages import StageTimer
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 log = logging.getLogger(__name__)
@@ -87,7 +81,7 @@ def imu_guess_on(config: PipelineConfig, registration: Registration) -> bool:
     return registration.needs_guess
 
 
-class GraphPipeline:
+class GraphPipeline(PipelineBase):
     """Front end + :class:`StrideSLAM` + the up vector at foot strikes + the terrain maps."""
 
     def __init__(
@@ -98,10 +92,7 @@ class GraphPipeline:
         leg_model,
         has_color: bool = True,
     ) -> None:
-        self.cfg = config
-        self.variant = config.variant
-        self.intrinsics = intrinsics
-        self.use_icp = config.backend.factors["icp"]
+        super().__init__(config, config.variant, intrinsics, camera_T_imu)
         self.registration = make_registration(
             with_camera_floor(
                 sensor_registration(config.graph.registration, has_color, config.graph.depth_only),
@@ -112,12 +103,7 @@ class GraphPipeline:
             has_color,
         )
         self.imu_guess = imu_guess_on(config, self.registration)
-        self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
-        self.gravity = make_gravity(config)
-        self.terrain = make_terrain(config, intrinsics)
-        self.live_terrain = make_live_terrain(config, intrinsics)
-        self.results = PipelineResults(variant=self.variant, config=config.model_dump(mode="json"))
         self.keys = Keyframes(config.graph.keyframe)
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
@@ -195,63 +181,57 @@ class GraphPipeline:
         guess = self.keys.target_T_current(self._prev[0], self._guess(t_s))
         return self.keys.key.index, self.keys.key.target, guess
 
-    def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool, stages: dict):
+    def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool, timer: StageTimer):
         """The frame prepared once (on the keyframe's grid through the guess: its cloud, and
         the next keyframe perhaps) and registered to the keyframe (same stride). Returns
-        ``(prepared, icp, fitness)``; each step's time goes into ``stages``."""
-        if not self.use_icp or not (self.cfg.graph.icp_in_swing or foot_loaded):
+        ``(prepared, icp, fitness)``; stages ``cloud``, ``preprocess``, ``registration``."""
+        if not self.cfg.backend.factors["icp"] or not (self.cfg.graph.icp_in_swing or foot_loaded):
             return None, None, float("nan")
         key = self._target(frame.t_s)
-        t0 = time.perf_counter()
-        grid_T_cloud = None if key is None else key[1].grid_T_cloud @ key[2]
-        prepared = self.registration.prepare(frame, grid_T_cloud)
-        t1 = time.perf_counter()
-        stages["cloud"] = prepared.timing_s["cloud"]
-        stages["preprocess"] = t1 - t0 - stages["cloud"]
+        with timer("preprocess"):
+            grid_T_cloud = None if key is None else key[1].grid_T_cloud @ key[2]
+            prepared = self.registration.prepare(frame, grid_T_cloud)
+        timer.add("cloud", prepared.timing_s["cloud"])
+        timer.add("preprocess", -prepared.timing_s["cloud"])
         icp, fitness = None, float("nan")
-        if key is not None:
-            key_index, target, guess = key
-            icp, fitness = _measured(
-                lambda: self.registration.register(prepared, target, guess), index, key_index
-            )
-        stages["registration"] = time.perf_counter() - t1
+        with timer("registration"):
+            if key is not None:
+                key_index, target, guess = key
+                icp, fitness = _measured(
+                    lambda: self.registration.register(prepared, target, guess), index, key_index
+                )
         return prepared, icp, fitness
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
         map cloud; strides the back end closed get their terrain maps."""
-        t0 = time.perf_counter()
         index = self.results.n_frames
-        stages: dict[str, float] = {}
-        prepared, icp, fitness = self._register(frame, index, foot_loaded, stages)
-        cloud = None if prepared is None else prepared.cloud
+        timer = StageTimer()
+        prepared, icp, fitness = self._register(frame, index, foot_loaded, timer)
         floor_flag: tuple[str, ...] = ()
         if self._pending_strike is not None:
-            t_floor = time.perf_counter()
-            fit = self._strike_with_up(frame.t_s, cloud, stages)
-            stages["floor"] = time.perf_counter() - t_floor - stages["stride_close"]
+            cloud = None if prepared is None else prepared.cloud
+            with timer("floor"):
+                fit = self._strike_with_up(frame.t_s, cloud, timer.stages_s)
+            timer.add("floor", -timer.get("stride_close"))  # the smoothing: its own stage
             if fit is not None:
                 floor_flag = (f"floor:{fit.reason}",)
-        t1 = time.perf_counter()
-        est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
-        t2 = time.perf_counter()
-        stages["graph"] = t2 - t1  # a missed strike's smoothing included
+        frontend_s = timer.total_s
+        with timer("graph"):  # a missed strike's smoothing included
+            est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)
         self._remember(index, prepared, est, frame.t_s)
-        self._close_strides()  # those closed by this frame (a strike, or a missed one)
-        if (keep := self.cfg.backend.max_deferred_strides) is not None:
-            self._smooth_deferred(keep)  # the oldest queued strides, beyond the bound
-        t3 = time.perf_counter()
+        with timer("stride_close") as lap:  # the maps of the strides this frame closed
+            closed = self._close_strides()
+            lap.keep = closed + self._smooth_deferred(self.cfg.backend.max_deferred_strides) > 0
         self.gravity.drop_before(frame.t_s - self.gravity.keep_s)
-        self.terrain.add_frame(index, frame)
-        t4 = time.perf_counter()
-        view = self.live_terrain.frame(
-            index, frame, est.stride_index, est.stride_T_camera, est.world_T_camera,
-            est.covariance,
-        )  # fmt: skip
-        stages["terrain_online"] = time.perf_counter() - t4
-        stages["terrain"] = time.perf_counter() - t3
-        if t3 - t2 > 1e-4:  # the terrain maps of a stride that closed
-            stages["stride_close"] = stages.get("stride_close", 0.0) + t3 - t2
+        with timer("terrain"):
+            self.terrain.add_frame(index, frame)
+            with timer("terrain_online"):
+                view = self.live_terrain.frame(
+                    index, frame, est.stride_index, est.stride_T_camera, est.world_T_camera,
+                    est.covariance,
+                )  # fmt: skip
+        icp_flag = (f"icp:{est.gate.reason}",) if est.gate is not None else ()
         out = FrameOutput(
             frame_index=index,
             stride_index=est.stride_index,
@@ -260,22 +240,18 @@ class GraphPipeline:
             world_T_camera=est.world_T_camera,
             status="reset" if est.stride_start else "estimated",
             foot_loaded=foot_loaded,
-            frontend_s=t1 - t0,
-            backend_s=t2 - t1,
+            frontend_s=frontend_s,
+            backend_s=timer.get("graph"),
             fitness=fitness,
-            flags=est.flags
-            + floor_flag
-            + ((f"icp:{est.gate.reason}",) if est.gate is not None else ()),
-            terrain_s=stages["terrain"],
-            stages_s=stages,
+            flags=est.flags + floor_flag + icp_flag,
+            terrain_s=timer.get("terrain"),
+            stages_s=timer.stages_s,
             estimate=est,
             registered_to=None if icp is None else icp.target_index,
             terrain=view,
         )
-        self.results.frames.append(dataclasses.replace(out, terrain=None))
-        self.results.release_frames(self.cfg.keep_frames)
         self.slam.results.release_frames(self.cfg.keep_frames)
-        return out
+        return self._record(out)
 
     def _remember(self, index: int, prepared, est, t_s: float) -> None:
         """The keyframe (the next frame's registration target) and the constant-velocity
@@ -291,9 +267,11 @@ class GraphPipeline:
             self._prev = None
             self._prev2 = None
 
-    def _close_strides(self) -> None:
-        """A :class:`StrideOutput` (with its terrain) for every stride the back end closed."""
-        for s in self.slam.results.strides[len(self.results.strides) :]:
+    def _close_strides(self) -> int:
+        """A :class:`StrideOutput` (with its terrain) for every stride the back end closed;
+        returns how many."""
+        closed = self.slam.results.strides[len(self.results.strides) :]
+        for s in closed:
             deferred = "smoothing_deferred" in s.flags
             terrain = self.terrain.close_stride(
                 s.index,
@@ -320,6 +298,7 @@ class GraphPipeline:
                 )
             )
         self.results.release_grids(self.live_terrain.cfg.keep_stride_grids)
+        return len(closed)
 
     def _final_grid(self, s, online_grid):
         """The stride's grid re-fused from its smoothed poses; without kept clouds
@@ -331,16 +310,21 @@ class GraphPipeline:
             return online_grid
         return grid
 
-    def _smooth_deferred(self, keep: int = 0) -> None:
+    def _smooth_deferred(self, keep: int | None) -> int:
         """The batch smoothing of strides closed in real time (``backend.defer_smoothing``),
-        oldest first until ``keep`` wait, and their maps from the smoothed poses."""
-        for s in self.slam.smooth_deferred(keep):
+        oldest first until ``keep`` wait (None: none now), and their maps from the smoothed
+        poses; returns how many were smoothed."""
+        if keep is None:
+            return 0
+        smoothed = self.slam.smooth_deferred(keep)
+        for s in smoothed:
             out = self.results.strides[s.index]
             out.smoothed_stride_T_camera = s.smoothed_stride_T_camera
             out.flags = s.flags
             if out.terrain is not None:
                 out.terrain = self.terrain.fuse_smoothed(out.terrain, s.smoothed_stride_T_camera)
             out.smoothed_grid = self._final_grid(s, out.online_grid)
+        return len(smoothed)
 
     def finish(self) -> PipelineResults:
         if self._pending_strike is not None:  # a strike after the last frame
@@ -348,7 +332,7 @@ class GraphPipeline:
             self._pending_strike = None
         res = self.slam.finish()
         self._close_strides()
-        self._smooth_deferred()
+        self._smooth_deferred(0)
         self.results.backend = res
         if self.cfg.backend.covariances:
             self.results.covariances = np.array(

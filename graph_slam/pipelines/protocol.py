@@ -3,6 +3,7 @@ way: the sensor's registration, the frame's cloud, the up-vector and terrain com
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -120,3 +121,35 @@ def make_live_terrain(
         config.cloud.max_depth_m,
         link_strides=link_strides,
     )
+
+
+class PipelineBase:
+    """What both pipelines build and keep the same way: the up-vector component
+    (:func:`make_gravity`), each stride's terrain maps (:func:`make_terrain`), the per-frame
+    grid (:func:`make_live_terrain`; ``link_strides`` and ``refuse`` as there) and the results,
+    which keep every frame's record without its grid (memory: ``keep_frames``)."""
+
+    def __init__(
+        self,
+        config,
+        variant: Variant,
+        intrinsics: CameraIntrinsics,
+        camera_T_imu: np.ndarray,
+        *,
+        link_strides: bool = True,
+        refuse: bool = True,
+    ) -> None:
+        self.cfg = config
+        self.variant = variant
+        self.intrinsics = intrinsics
+        self.camera_T_imu = np.asarray(camera_T_imu, float)
+        self.gravity = make_gravity(config)
+        self.terrain = make_terrain(config, intrinsics)
+        self.live_terrain = make_live_terrain(config, intrinsics, link_strides, refuse)
+        self.results = PipelineResults(variant=variant, config=config.model_dump(mode="json"))
+
+    def _record(self, out: FrameOutput) -> FrameOutput:
+        """Keep the frame's record (without its grid) and return the output."""
+        self.results.frames.append(dataclasses.replace(out, terrain=None))
+        self.results.release_frames(self.cfg.keep_frames)
+        return out
