@@ -64,6 +64,11 @@ class StrideSummary:
         return self.world_T_stride @ self.smoothed_stride_T_camera
 
     @property
+    def n_registered(self) -> int:
+        """Frames whose registration the gate accepted (``StrideOutput.n_registered``)."""
+        return self.n_icp_accepted
+
+    @property
     def flagged(self) -> bool:
         return bool(self.flags)
 

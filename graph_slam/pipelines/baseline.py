@@ -25,7 +25,12 @@ from graph_slam.errors import RegistrationError
 from graph_slam.frontend import LocalMap, build_pyramid, register
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import PipelineBase, frame_cloud, sensor_registration
-from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
+from graph_slam.pipelines.results import (
+    BaselineStride,
+    FrameOutput,
+    PipelineResults,
+    StrideOutput,
+)
 from graph_slam.pipelines.stages import StageTimer
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.strides.joints import JointBuffer
@@ -211,17 +216,19 @@ class ThesisBaseline(PipelineBase):
         grid = self.live_terrain.close(index)
         self.results.strides.append(
             StrideOutput(
-                index=index,
-                start="foot_strike",
-                world_T_stride=self._world_T_stride.copy(),
-                frame_indices=list(s.frames),
-                smoothed_stride_T_camera=poses,
-                n_registered=s.n_registered,
-                flags=("registration_stopped",) if s.stop_reason else (),
-                stop_reason=s.stop_reason,
+                BaselineStride(
+                    index=index,
+                    start="foot_strike",
+                    world_T_stride=self._world_T_stride.copy(),
+                    frame_indices=list(s.frames),
+                    smoothed_stride_T_camera=poses,
+                    flags=("registration_stopped",) if s.stop_reason else (),
+                    n_registered=s.n_registered,
+                ),
                 terrain=self.terrain.close_stride(index, s.frames, poses, None),
                 online_grid=grid,
                 smoothed_grid=grid,  # the baseline's smoothed poses are its online ones
+                stop_reason=s.stop_reason,
             )
         )
         self.results.release_grids(self.live_terrain.cfg.keep_stride_grids)

@@ -283,19 +283,7 @@ class GraphPipeline(PipelineBase):
             online_grid = self.live_terrain.close(s.index)
             smoothed_grid = None if deferred else self._final_grid(s, online_grid)
             self.results.strides.append(
-                StrideOutput(
-                    index=s.index,
-                    start=s.start,
-                    world_T_stride=s.world_T_stride,
-                    frame_indices=list(s.frame_indices),
-                    smoothed_stride_T_camera=s.smoothed_stride_T_camera,
-                    n_registered=s.n_icp_accepted,
-                    flags=s.flags,
-                    terrain=terrain,
-                    summary=s,
-                    online_grid=online_grid,
-                    smoothed_grid=smoothed_grid,
-                )
+                StrideOutput(s, terrain, online_grid=online_grid, smoothed_grid=smoothed_grid)
             )
         self.results.release_grids(self.live_terrain.cfg.keep_stride_grids)
         return len(closed)
@@ -313,14 +301,12 @@ class GraphPipeline(PipelineBase):
     def _smooth_deferred(self, keep: int | None) -> int:
         """The batch smoothing of strides closed in real time (``backend.defer_smoothing``),
         oldest first until ``keep`` wait (None: none now), and their maps from the smoothed
-        poses; returns how many were smoothed."""
+        poses (the stride's record, the back end's, holds them); returns how many."""
         if keep is None:
             return 0
         smoothed = self.slam.smooth_deferred(keep)
         for s in smoothed:
             out = self.results.strides[s.index]
-            out.smoothed_stride_T_camera = s.smoothed_stride_T_camera
-            out.flags = s.flags
             if out.terrain is not None:
                 out.terrain = self.terrain.fuse_smoothed(out.terrain, s.smoothed_stride_T_camera)
             out.smoothed_grid = self._final_grid(s, out.online_grid)

@@ -67,29 +67,68 @@ class FrameOutput:
 
 
 @dataclass(eq=False)
-class StrideOutput:
-    """One stride: its frames, smoothed poses (graph variants; the baseline's are its online
-    ones) and its terrain maps."""
+class BaselineStride:
+    """The thesis baseline's own record of a stride (it has no back end): what
+    :class:`StrideOutput` reads, as the graph variants' :class:`StrideSummary` holds it."""
 
     index: int
     start: str
     world_T_stride: np.ndarray
     frame_indices: list[int]
     smoothed_stride_T_camera: np.ndarray
-    """len(frame_indices)×4×4; NaN where the pipeline has no pose."""
+    """Its online poses (the baseline has no smoother); NaN where it has no pose."""
+    flags: tuple[str, ...]
     n_registered: int
-    flags: tuple[str, ...] = ()
-    stop_reason: str | None = None
-    """Baseline: why registration stopped in this stride (None: it did not)."""
+
+
+@dataclass(eq=False)
+class StrideOutput:
+    """One stride: the pipeline's record of it, read through (the back end's
+    :class:`StrideSummary` for the graph variants, updated in place when a deferred or
+    settling smoothing finishes; :class:`BaselineStride` for the baseline), its terrain maps
+    and grids."""
+
+    summary: StrideSummary | BaselineStride
+    """The stride's own record (graph variants: the back end's)."""
     terrain: StrideTerrain | None = None
     """The stride's terrain maps from its online and smoothed poses (``terrain.enabled``)."""
-    summary: StrideSummary | None = None
-    """The back end's own record of the stride (graph variants)."""
     online_grid: TerrainView | None = None
     """The per-frame elevation grid as it stood at the stride's last frame."""
     smoothed_grid: TerrainView | None = None
     """The stride's final grid: re-fused from the smoothed poses; the online grid when no
     clouds were kept for it (``terrain.online.keep_clouds: false``) and for the baseline."""
+    stop_reason: str | None = None
+    """Baseline: why registration stopped in this stride (None: it did not)."""
+
+    @property
+    def index(self) -> int:
+        return self.summary.index
+
+    @property
+    def start(self) -> str:
+        return self.summary.start
+
+    @property
+    def world_T_stride(self) -> np.ndarray:
+        return self.summary.world_T_stride
+
+    @property
+    def frame_indices(self) -> list[int]:
+        return self.summary.frame_indices
+
+    @property
+    def smoothed_stride_T_camera(self) -> np.ndarray:
+        """len(frame_indices)×4×4; NaN where the pipeline has no pose."""
+        return self.summary.smoothed_stride_T_camera
+
+    @property
+    def flags(self) -> tuple[str, ...]:
+        return self.summary.flags
+
+    @property
+    def n_registered(self) -> int:
+        """Frames with a registration taken (graph variants: accepted by the gate)."""
+        return self.summary.n_registered
 
 
 @dataclass(eq=False)
