@@ -1,7 +1,7 @@
 """``graph-slam bench terrain``: the per-frame elevation grid against the scene's truth.
 
 Each row (``VARIANT``, ``VARIANT:PRESET``; a ``/nocarry`` suffix turns the carry off) runs a
-session frame by frame (as ``run_session``: causal), reads ``FrameOutput.terrain`` at every
+session through ``run_session`` (causal), reads ``FrameOutput.terrain`` at every
 frame and measures, over the session's complete strides (true stride frames from
 :func:`graph_slam.strides.reference.stride_references`; boxes from the scene):
 
@@ -33,9 +33,11 @@ import numpy as np
 from graph_slam.evaluation.boxes import truth_boxes_in_stride
 from graph_slam.evaluation.terrain_deadline import obstacle_deadlines, summarise_deadlines
 from graph_slam.pipelines import PipelineConfig
-from graph_slam.pipelines.runner import open_pipeline
+from graph_slam.pipelines.runner import run_session
+from graph_slam.session import open_session
 from graph_slam.strides.kinematics import session_leg_model
 from graph_slam.strides.reference import stride_references
+from graph_slam.strides.streams import session_streams
 
 EDGE_MARGIN_M = 0.03
 MATCH_MARGIN_M = 0.05
@@ -147,32 +149,25 @@ def _cells(view):
     return np.column_stack([xx.ravel(), yy.ravel()])
 
 
-def _feed(session, streams, pipe, keep: Callable[[int, float], bool]):
-    """Run the pipeline frame by frame (as run_session); per frame its obstacles and update
-    time; the views of the frames ``keep(index, t)`` asks for."""
-    if streams.imu_t_s is not None:
-        pipe.add_imu(streams.imu_t_s, streams.gyro_rad_s, streams.accel_m_s2)
-    if streams.joints_t_s is not None:
-        pipe.add_joints(streams.joints_t_s, streams.knee_rad, streams.ankle_rad)
-    strikes = list(streams.foot_strikes_s)
+def _recorder(keep: Callable[[int, float], bool]):
+    """An ``on_frame`` for :func:`~graph_slam.pipelines.runner.run_session` and what it
+    records: per frame its obstacles and update time; the views of the frames ``keep(index,
+    t)`` asks for and of each stride's first frame. Returns ``(frames, views, on_frame)``."""
     frames: list[_Frame] = []
     views: dict[int, Any] = {}
-    t_prev, prev_stride = -np.inf, None
-    for i, frame in enumerate(session.iter_frames(0, session.n_frames)):
-        for t_strike in (t for t in strikes if t_prev < t <= frame.t_s):
-            pipe.foot_strike(t_strike)
-        out = pipe.add_frame(frame, streams.foot_loaded(frame.t_s))
-        t_prev = frame.t_s
+
+    def on_frame(out) -> None:
+        prev_stride = frames[-1].stride_index if frames else None
         view = out.terrain
         rec = _Frame(out.t_s, out.stride_index, out.stages_s.get("terrain_online", np.nan) * 1e3)
         if view is not None:
             m = view.obstacle_map
             rec.obstacles = () if m is None else m.complete
-            if keep(i, out.t_s) or out.stride_index != prev_stride:
-                views[i] = view
-        prev_stride = out.stride_index
+            if keep(out.frame_index, out.t_s) or out.stride_index != prev_stride:
+                views[out.frame_index] = view
         frames.append(rec)
-    return frames, views, pipe.finish()
+
+    return frames, views, on_frame
 
 
 def _first_known(frames: Sequence[_Frame], idx: np.ndarray, toe_x_m: float) -> float:
@@ -188,14 +183,16 @@ def run_terrain_row(
 ) -> TerrainRow:
     """One row on one session (see the module docstring)."""
     cfg = row_config(row, base, covariances)
-    session, streams, pipe = open_pipeline(session_path, cfg)
+    session = open_session(session_path)
+    streams = session_streams(session, cfg.event_source)
     scene = session.scene
     toe_offs = np.asarray(streams.events.toe_offs_s)
 
     def keep(_i: int, t: float) -> bool:  # the last frame before each toe-off
         return bool(np.any((toe_offs >= t) & (toe_offs < t + 0.03)))
 
-    frames, views, res = _feed(session, streams, pipe, keep)
+    frames, views, on_frame = _recorder(keep)
+    res = run_session(session, cfg, on_frame=on_frame)
     t_frames = np.array([f.t_s for f in frames])
     leg, _ = session_leg_model(session, cfg.mount_pitch_deg, cfg.mount_estimate, streams=streams)
     refs = stride_references(session, t_frames, res.strides, streams.events, leg)
