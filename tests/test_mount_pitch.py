@@ -15,9 +15,10 @@ from graph_slam.session.records import Calibration
 from graph_slam.sim import SimConfig
 from graph_slam.sim.recording import prepare
 from graph_slam.sim.sensors import load_cell_events, simulate_encoders, simulate_imu
+from graph_slam.strides.events import stride_events
 from graph_slam.strides.kinematics import estimate_from_streams, session_leg_model
 from graph_slam.strides.mount import MountEstimateConfig, estimate_mount_pitch
-from graph_slam.strides.streams import Streams, stride_events
+from graph_slam.strides.streams import Streams
 
 STRIDES = 6
 

@@ -249,7 +249,8 @@ def test_a_frame_is_ready_when_the_sensors_cover_its_time_stamp():
     """The estimator interpolates the IMU and the joints to the frame's time: a frame waits for
     the first sample at or after its stamp in each stream (never for a stream that ended)."""
     from graph_slam.pipelines.replay import ready_times
-    from graph_slam.strides.streams import Streams, StrideEvents
+    from graph_slam.strides.events import StrideEvents
+    from graph_slam.strides.streams import Streams
 
     imu_t = np.arange(0.0, 0.1, 0.0025)  # 400 Hz
     joint_t = np.arange(0.0, 0.05, 0.002)  # 500 Hz, ends at 0.048

@@ -10,9 +10,9 @@ import pytest
 
 from graph_slam.errors import EvaluationError, SessionError
 from graph_slam.session.records import GaitEvents
+from graph_slam.strides.events import stride_events
 from graph_slam.strides.gravity import GravityEstimator, rotated_mean_accel
 from graph_slam.strides.reference import stride_references, truth_world_T_stride
-from graph_slam.strides.streams import stride_events
 
 
 def _spinning_imu(rate_hz=200.0, duration_s=2.0, omega=(0.0, 0.0, 2.0), up=(0.0, 0.0, 9.81)):

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from graph_slam.errors import SessionError
+from graph_slam.strides.events import StrideEvents
 from graph_slam.strides.online_events import ONLINE_SOURCE, online_stride_events
-from graph_slam.strides.streams import StrideEvents, session_streams
+from graph_slam.strides.streams import session_streams
 from kinematics.gait_synth import random_mounting, thigh_imu_from_reference
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from graph_slam.frontend.cloud import Cloud
+from graph_slam.session.records import Cloud
 
 
 @numba.njit(cache=True, nogil=True)

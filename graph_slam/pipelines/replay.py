@@ -45,7 +45,8 @@ from graph_slam.pipelines.protocol import Pipeline
 from graph_slam.pipelines.results import PipelineResults
 from graph_slam.pipelines.runner import make_pipeline, open_pipeline, open_pipeline_mount
 from graph_slam.pipelines.schedule import Schedule, pick_frame, schedule
-from graph_slam.strides.streams import Streams, StrideEvents
+from graph_slam.strides.events import StrideEvents
+from graph_slam.strides.streams import Streams
 
 log = logging.getLogger(__name__)
 

@@ -29,8 +29,8 @@ def preflight(
     :class:`EvaluationError` when scoring needs evo and it is missing (``scoring``: a session
     has ground truth and will be scored; ``run`` never scores); return the caveats."""
     from graph_slam.evaluation._evo import require_evo
+    from graph_slam.strides.events import stride_events
     from graph_slam.strides.online_events import ONLINE_SOURCE
-    from graph_slam.strides.streams import stride_events
 
     if scoring and any(s.ground_truth is not None for s in sessions):
         require_evo()  # the optional extra, before minutes of work rather than after

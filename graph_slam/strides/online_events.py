@@ -17,7 +17,7 @@ import logging
 
 import numpy as np
 
-from graph_slam.strides.streams import StrideEvents
+from graph_slam.strides.events import StrideEvents
 
 log = logging.getLogger(__name__)
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from graph_slam.errors import EvaluationError
+from graph_slam.strides.events import StrideEvents
 from graph_slam.strides.joints import interp_q
-from graph_slam.strides.streams import StrideEvents
 
 
 def truth_world_T_stride(world_T_camera: np.ndarray, foot_T_camera: np.ndarray) -> np.ndarray:
