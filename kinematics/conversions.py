@@ -33,18 +33,33 @@ def as_matrix4(a_T_b: Any) -> np.ndarray:
     return check_matrix4(a_T_b)
 
 
+def not_rigid(a_T_b: Any, atol: float = 1e-6) -> np.ndarray:
+    """The one rigid-transform check: per 4x4 of ``a_T_b`` (4x4 or Nx4x4), True where it is
+    not a homogeneous rigid transform: an entry NaN or inf, the 3x3 block not orthonormal or
+    its determinant not +1, the last row not 0 0 0 1 (each within ``atol``). Callers raise
+    their own error from it (:func:`check_matrix4`; ``graph_slam.session.records.check_pose``)."""
+    poses = np.asarray(a_T_b, dtype=float).reshape(-1, 4, 4)
+    finite = np.isfinite(poses).all(axis=(1, 2))
+    poses = np.where(finite[:, None, None], poses, np.eye(4))
+    rot = poses[:, :3, :3]
+    ortho_err = np.abs(np.einsum("nij,nkj->nik", rot, rot) - np.eye(3)).max(axis=(1, 2))
+    det_err = np.abs(np.linalg.det(rot) - 1.0)
+    bottom_err = np.abs(poses[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1)
+    return ~finite | (ortho_err > atol) | (det_err > atol) | (bottom_err > atol)
+
+
 def check_matrix4(a_T_b: Any, name: str = "pose", atol: float = 1e-6) -> np.ndarray:
-    """Validate a 4x4 homogeneous transform (finite, orthonormal rotation, last row 0 0 0 1)."""
+    """Validate a 4x4 homogeneous transform (:func:`not_rigid`)."""
     m = np.asarray(a_T_b, dtype=float)
     if m.shape != (4, 4):
         raise KinematicsError(f"{name}: expected a 4x4 homogeneous matrix, got shape {m.shape}")
     if not np.all(np.isfinite(m)):
         raise KinematicsError(f"{name}: contains NaN or inf")
-    if not np.allclose(m[3], [0.0, 0.0, 0.0, 1.0], atol=atol):
-        raise KinematicsError(f"{name}: last row must be [0, 0, 0, 1], got {m[3].tolist()}")
-    r = m[:3, :3]
-    if not np.allclose(r.T @ r, np.eye(3), atol=atol) or np.linalg.det(r) < 0:
-        raise KinematicsError(f"{name}: the 3x3 block is not a rotation (orthonormal, det +1)")
+    if not_rigid(m, atol)[0]:
+        raise KinematicsError(
+            f"{name}: not a rigid transform (the 3x3 block is not a rotation: orthonormal, "
+            f"det +1; or the last row is not [0, 0, 0, 1], got {m[3].tolist()})"
+        )
     return m
 
 

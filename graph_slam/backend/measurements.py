@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graph_slam.errors import EstimationError
-from graph_slam.strides.measurements import KinematicMeasurement, _rigid
+from graph_slam.strides.measurements import KinematicMeasurement, rigid_pose
 
 __all__ = ["IcpMeasurement", "KinematicMeasurement"]
 
@@ -55,7 +55,9 @@ class IcpMeasurement:
         if not self.ok:
             return
         object.__setattr__(
-            self, "target_T_source", _rigid("IcpMeasurement.target_T_source", self.target_T_source)
+            self,
+            "target_T_source",
+            rigid_pose("IcpMeasurement.target_T_source", self.target_T_source),
         )
         info = np.asarray(self.information, float)
         if info.shape != (6, 6):

@@ -17,6 +17,7 @@ import numpy as np
 
 from graph_slam.errors import RecordError, SessionError
 from kinematics import imu as kinematics_imu
+from kinematics.conversions import not_rigid
 
 GaitEventKind = Literal["foot_strike", "toe_off"]
 GAIT_EVENT_KINDS: tuple[str, ...] = ("foot_strike", "toe_off")
@@ -66,17 +67,13 @@ def check_increasing(record: str, t_s: np.ndarray) -> None:
 
 
 def check_pose(record: str, name: str, pose: np.ndarray, tol: float = 1e-6) -> None:
-    """A 4×4 (or N×4×4) homogeneous rigid transform: orthonormal rotation, last row 0 0 0 1."""
-    poses = pose.reshape(-1, 4, 4)
-    rot = poses[:, :3, :3]
-    ortho_err = np.abs(np.einsum("nij,nkj->nik", rot, rot) - np.eye(3)).max(axis=(1, 2))
-    det = np.linalg.det(rot)
-    bottom_err = np.abs(poses[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1)
-    bad = np.flatnonzero((ortho_err > tol) | (np.abs(det - 1.0) > tol) | (bottom_err > tol))
+    """A 4×4 (or N×4×4) homogeneous rigid transform: finite, orthonormal rotation with det +1,
+    last row 0 0 0 1 (:func:`kinematics.conversions.not_rigid`)."""
+    bad = np.flatnonzero(not_rigid(pose, tol))
     if bad.size:
         raise RecordError(
-            f"{record}.{name}: {bad.size} transform(s) are not rigid (rotation not orthonormal "
-            f"with det +1, or last row not 0 0 0 1), first at index {int(bad[0])}"
+            f"{record}.{name}: {bad.size} transform(s) are not rigid (not finite, rotation not "
+            f"orthonormal with det +1, or last row not 0 0 0 1), first at index {int(bad[0])}"
         )
 
 

@@ -8,19 +8,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from graph_slam.errors import EstimationError
+from kinematics.conversions import not_rigid
 
 
-def _rigid(name: str, a_T_b: np.ndarray) -> np.ndarray:
+def rigid_pose(name: str, a_T_b: np.ndarray) -> np.ndarray:
+    """``a_T_b`` as a 4×4 float array, checked (:func:`kinematics.conversions.not_rigid`):
+    an :class:`EstimationError` naming ``name`` when it is not a finite rigid transform."""
     m = np.asarray(a_T_b, float)
-    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-        raise EstimationError(f"{name}: must be a finite 4×4 matrix, got shape {m.shape}")
-    r = m[:3, :3]
-    if (
-        np.abs(r @ r.T - np.eye(3)).max() > 1e-6
-        or abs(np.linalg.det(r) - 1) > 1e-6
-        or np.abs(m[3] - [0, 0, 0, 1]).max() > 1e-9
-    ):
-        raise EstimationError(f"{name}: not a rigid transform (rotation orthonormal, det +1)")
+    if m.shape != (4, 4) or not_rigid(m)[0]:
+        raise EstimationError(
+            f"{name}: not a finite rigid 4×4 transform (rotation orthonormal, det +1, last row "
+            f"0 0 0 1), got shape {m.shape}"
+        )
     return m
 
 
@@ -39,7 +38,7 @@ class KinematicMeasurement:
         object.__setattr__(
             self,
             "stride_T_camera",
-            _rigid("KinematicMeasurement.stride_T_camera", self.stride_T_camera),
+            rigid_pose("KinematicMeasurement.stride_T_camera", self.stride_T_camera),
         )
         cov = np.asarray(self.covariance, float)
         if cov.shape != (6, 6) or not np.all(np.isfinite(cov)):
