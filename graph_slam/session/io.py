@@ -244,6 +244,21 @@ def _write_tum_rows(
         )
 
 
+def read_text(
+    path: Path,
+    missing: type[Exception] = StreamError,
+    unreadable: type[Exception] = StreamError,
+) -> str:
+    """The UTF-8 text of ``path``; ``missing`` when the file is absent, ``unreadable`` for any
+    other OS or decoding error, each naming the path."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise missing(f"{path}: file is missing") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise unreadable(f"{path}: cannot read ({err})") from None
+
+
 def read_tum(path: Path | TextIO) -> tuple[np.ndarray, np.ndarray]:
     """Read a TUM trajectory file → (t_s, N×4×4). Quaternions are normalised only if their
     norm is within 1e-3 of one; otherwise the row is an error (nothing silently repaired).
@@ -254,12 +269,7 @@ def read_tum(path: Path | TextIO) -> tuple[np.ndarray, np.ndarray]:
 
     if isinstance(path, Path | str):
         path = Path(path)
-        try:
-            lines = path.read_text(encoding="utf-8").splitlines()
-        except FileNotFoundError:
-            raise StreamError(f"{path}: file is missing") from None
-        except (OSError, UnicodeDecodeError) as err:
-            raise StreamError(f"{path}: cannot read ({err})") from None
+        lines = read_text(path).splitlines()
     else:
         lines = path.read().splitlines()
         path = Path(str(getattr(path, "name", "<stream>")))

@@ -45,12 +45,7 @@ def _rows(path: Path, n_fields: int, what: str) -> tuple[np.ndarray, np.ndarray]
 
     At least ``n_fields`` fields per row (extra ones are ignored).
     """
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise MissingStreamError(f"{path}: file is missing") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConversionError(f"{path}: cannot read ({err})") from None
+    lines = io.read_text(path, MissingStreamError, ConversionError).splitlines()
     if not lines or not lines[0].startswith("#"):
         raise ConversionError(f"{path}: the first line must be the '#timestamp [ns],...' header")
     stamps: list[int] = []

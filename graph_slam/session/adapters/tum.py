@@ -72,12 +72,7 @@ class TumList:
 
 def read_tum_list(path: Path) -> TumList:
     """Read ``timestamp filename`` lines (``#`` comments); stamps must strictly increase."""
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise MissingStreamError(f"{path}: file is missing") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ConversionError(f"{path}: cannot read ({err})") from None
+    lines = io.read_text(path, MissingStreamError, ConversionError).splitlines()
     times: list[float] = []
     files: list[str] = []
     for line_no, line in enumerate(lines, start=1):
