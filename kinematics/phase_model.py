@@ -39,10 +39,6 @@ class PhaseReference:
     std_rad: np.ndarray
     stance_fraction: np.ndarray
 
-    def speed_at_rate(self, rate_cyc_s: float) -> float:
-        """Walking speed whose stride rate is ``rate_cyc_s`` (clamped to the grid)."""
-        return float(np.interp(rate_cyc_s, self.rates_cyc_s, self.speeds_m_s))
-
     def coefficients(self, rate_cyc_s: float) -> tuple[np.ndarray, np.ndarray]:
         """(cos, sin) coefficients at the speed of ``rate_cyc_s`` (linear in speed)."""
         pos = float(np.interp(rate_cyc_s, self.rates_cyc_s, np.arange(self.speeds_m_s.size)))

@@ -21,7 +21,7 @@ import resource
 import signal
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -160,7 +160,3 @@ def task_summary(state: dict[str, Any]) -> dict[str, Any]:
     """The fields of a task's state that study.json keeps."""
     keys = ("id", "session", "variant", "configuration", "hash", "status", "error", "wall_s")
     return {k: state.get(k) for k in (*keys, "peak_rss_mib", "attempts")}
-
-
-def as_dict(task: Task) -> dict[str, Any]:
-    return asdict(task)

@@ -219,13 +219,6 @@ class RegistrationConfig(ConstraintAnalysisConfig):
         voxels = tuple(level.voxel_m for level in self.levels)
         return voxels if self.refine is None else (*voxels, self.refine.voxel_m)
 
-    @property
-    def final_max_correspondence_m(self) -> float:
-        """Correspondence distance of the last stage (refinement, else the finest level)."""
-        if self.refine is not None:
-            return self.refine.max_correspondence_m
-        return self.levels[-1].max_correspondence_m
-
 
 # The covariance floor that makes the accurate preset's χ² honest on a real RGB-D camera (the
 # TUM fr1/xyz frames against their motion-capture truth: χ²/dof median 0.83; without it 663):

@@ -85,10 +85,6 @@ class LegState:
     heel_xz: np.ndarray  # (n, 2)
     toe_xz: np.ndarray  # (n, 2)
 
-    @property
-    def lowest_z(self) -> np.ndarray:
-        return np.minimum(self.heel_xz[:, 1], self.toe_xz[:, 1])
-
 
 def leg_state(phase: np.ndarray, speed_m_s: float, leg: LegParams, cfg: MotionConfig) -> LegState:
     """Angles and sole points of a leg at gait ``phase`` (cycles) — the URDF's geometry."""

@@ -103,11 +103,6 @@ def sdk_tf_topics(topics: Mapping[str, str | None]) -> tuple[str, ...]:
     return tuple(sorted(t for t, m in topics.items() if SDK_TF.match(t) and m == TRANSFORM))
 
 
-def sdk_info_topic(image_topic: str) -> str:
-    """The SDK's camera_info next to an image stream."""
-    return image_topic.replace("/image/data", "/info/camera_info")
-
-
 def sdk_imu_intrinsic_topics(
     topics: Mapping[str, str | None], streams: dict[str, str | None]
 ) -> dict[str, str]:
