@@ -21,7 +21,7 @@ Assumptions (documented in docs/kinematics.md):
 
 * Speed bins -> adult speeds. The bins are defined on non-dimensional speed (speed / sqrt(g *
   leg length)), which the JSON does not carry. We assign them to 0.6, 0.9, 1.2, 1.5 and
-  1.8 m/s, equally spaced over the issue's validity range, so that "Free" (1.2 m/s) sits near
+  1.8 m/s, equally spaced over the model's validity range, so that "Free" (1.2 m/s) sits near
   the adult comfortable speed (1.2-1.4 m/s). This is a modelling choice, not a published
   mapping.
 * Amplitudes. The children's sagittal ranges at "Free" (hip 42 deg, knee peak 59 deg, ankle

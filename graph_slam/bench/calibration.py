@@ -6,7 +6,7 @@ sample), every registration that returns is compared with the true relative pose
 information's coordinates) and ``χ² = ξᵀ I ξ``. ``I`` is zero along the directions the
 degeneracy test found free, so the χ² has ``dof`` (the constrained directions) degrees of
 freedom. An honest information gives ``median(χ²/dof)`` near 1 (the χ²_6 median is 5.3);
-the issue's target is 0.5–2. :func:`calibration_scale` is the factor that would put the
+the target is 0.5–2. :func:`calibration_scale` is the factor that would put the
 median at 1. Documented in docs/frontend.md ("Calibrated information").
 """
 

@@ -72,8 +72,8 @@ class ScenarioScore:
 
 def pooled(scores: list[ScenarioScore]) -> list[ScenarioScore]:
     """One score per scenario run at several speeds (``<name>@<speed>`` rows): counts summed,
-    per-stride RMSE pooled over the speeds, named ``<name>@all`` (the issue's targets are over
-    the three speeds)."""
+    per-stride RMSE pooled over the speeds, named ``<name>@all`` (the targets are over the three
+    speeds)."""
     groups: dict[str, list[ScenarioScore]] = {}
     for sc in scores:
         name, at, _ = sc.name.partition("@")

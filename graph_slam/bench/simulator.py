@@ -1,5 +1,5 @@
-"""Simulator benchmark: wall time of ``simulate`` for the issue-4 target (25 strides of D455 at
-90 Hz nominal must take under 3 minutes on 2 cores)."""
+"""Simulator benchmark: wall time of ``simulate`` against its target (25 strides of D455 at
+90 Hz nominal under 3 minutes on 2 cores)."""
 
 from __future__ import annotations
 
