@@ -192,7 +192,7 @@ class GraphPipeline(PipelineBase):
             grid_T_cloud = None if key is None else key[1].grid_T_cloud @ key[2]
             prepared = self.registration.prepare(frame, grid_T_cloud)
         timer.add("cloud", prepared.timing_s["cloud"])
-        timer.add("preprocess", -prepared.timing_s["cloud"])
+        timer.exclude("preprocess", "cloud")
         icp, fitness = None, float("nan")
         with timer("registration"):
             if key is not None:
@@ -213,7 +213,7 @@ class GraphPipeline(PipelineBase):
             cloud = None if prepared is None else prepared.cloud
             with timer("floor"):
                 fit = self._strike_with_up(frame.t_s, cloud, timer.stages_s)
-            timer.add("floor", -timer.get("stride_close"))  # the smoothing: its own stage
+            timer.exclude("floor", "stride_close")
             if fit is not None:
                 floor_flag = (f"floor:{fit.reason}",)
         frontend_s = timer.total_s

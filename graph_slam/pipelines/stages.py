@@ -44,6 +44,12 @@ class StageTimer:
     def add(self, stage: str, seconds: float) -> None:
         self.stages_s[stage] = self.stages_s.get(stage, 0.0) + seconds
 
+    def exclude(self, stage: str, inner: str) -> None:
+        """``stage`` less the time of ``inner``, which was timed inside it as a stage of its
+        own (the frame's cloud inside its preparation, a stride's smoothing inside the floor
+        fit's block)."""
+        self.stages_s[stage] -= self.get(inner)
+
     def get(self, stage: str) -> float:
         return self.stages_s.get(stage, 0.0)
 
