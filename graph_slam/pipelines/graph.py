@@ -103,6 +103,13 @@ class GraphPipeline:
             config.graph.real_camera_floor,
         )
         self.has_color = has_color
+        # A frame recorded without a colour image (colour slower than depth, or missing) is
+        # registered with the depth-only settings, as is any frame whose keyframe has none.
+        self.registration_depth_only = with_camera_floor(
+            sensor_registration(config.graph.registration, False, config.graph.depth_only),
+            config.graph.real_camera_floor,
+        )
+        self._uncoloured: set[int] = set()
         self.imu_guess = self._imu_guess_for(config)
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
@@ -206,23 +213,36 @@ class GraphPipeline:
         if isinstance(self.registration, ProjectiveConfig):
             return self._register_projective(frame, index, stages)
         t0 = time.perf_counter()
-        cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, self.has_color)
+        key = self._target(frame.t_s)
+        coloured = self._coloured(frame, index, None if key is None else key[0])
+        reg = self.registration if coloured else self.registration_depth_only
+        cloud = frame_cloud(frame, self.intrinsics, self.cfg.cloud, coloured)
         t1 = time.perf_counter()
         stages["cloud"] = t1 - t0
         icp, fitness = None, float("nan")
-        if (key := self._target(frame.t_s)) is not None:
+        if key is not None:
             key_index, key_pyramid, guess = key
             icp, fitness = _measured(
-                lambda: register(cloud, key_pyramid, self.registration, guess), index, key_index
+                lambda: register(cloud, key_pyramid, reg, guess), index, key_index
             )
         t2 = time.perf_counter()
         stages["registration"] = t2 - t1
         try:
-            pyramid = build_pyramid(cloud, self.registration)
+            pyramid = build_pyramid(cloud, reg)
         except RegistrationError:
             pyramid = None
         stages["preprocess"] = time.perf_counter() - t2
         return cloud, icp, pyramid, fitness
+
+    def _coloured(self, frame: RgbdFrame, index: int, key_index: int | None) -> bool:
+        """Whether frame ``index`` registers with colour: the session has colour, the frame
+        has its colour image and so has its keyframe (``key_index``; None: no keyframe)."""
+        if not self.has_color:
+            return False
+        if frame.color_rgb is None or key_index in self._uncoloured:
+            self._uncoloured.add(index)  # its cloud has no colour: a target without colour
+            return False
+        return True
 
     def _register_realtime(self, frame: RgbdFrame, index: int, stages: dict):
         """:meth:`_register` with the real-time preset: the frame is prepared once (on the
@@ -255,8 +275,9 @@ class GraphPipeline:
         icp, fitness = None, float("nan")
         key_index, target, guess = self._target(frame.t_s) or (None, None, None)
         grid_T_cloud = None if target is None else target.grid_T_cloud @ guess
+        coloured = self._coloured(frame, index, key_index)
         prepared = prepare_depth(
-            frame, self.intrinsics, cfg, self.cfg.cloud, grid_T_cloud, self.has_color
+            frame, self.intrinsics, cfg, self.cfg.cloud, grid_T_cloud, coloured
         )
         t1 = time.perf_counter()
         stages["cloud"] = prepared.timing_s["cloud"]

@@ -111,24 +111,32 @@ def pair_frames(
             (color_ns[c_order.keep] - ns0) * 1e-9,
             max_dt,
         )
-        frames_dropped[f"no colour image within {max_dt} s"] = depth_kept.size - i_d.size
-        depth_kept = depth_kept[i_d]
-        color_pos = c_order.keep[i_c]
+        # Every depth frame is kept: one without a colour image within max_dt is written
+        # depth-only (position -1), counted; the pipeline registers it without colour.
+        color_pos = np.full(depth_kept.size, -1, dtype=np.int64)
+        color_pos[i_d] = c_order.keep[i_c]
+        depth_only = depth_kept.size - i_d.size
         report.add(
             StreamReport(
                 "color",
                 choice.color,
                 color_ns.size,
-                color_pos.size,
+                int(i_c.size),
                 {
                     "duplicate stamp": c_order.duplicates,
-                    f"no depth frame within {max_dt} s": c_order.keep.size - color_pos.size,
+                    f"no depth frame within {max_dt} s": c_order.keep.size - i_c.size,
                 },
             )
         )
     frames_report = report.add(
         StreamReport("frames", choice.depth, depth_ns.size, depth_kept.size, frames_dropped)
     )
+    if color_pos is not None and depth_only:
+        frames_report.notes.append(
+            f"{depth_only} depth frame(s) without a colour image within "
+            f"{config.association.max_color_dt_s} s kept depth-only"
+        )
+        frames_report.depth_only = depth_only
     return depth_kept, color_pos, frames_report
 
 
@@ -189,7 +197,12 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
     choice, plan = src.choice, src.plan
     frame_of_depth = {int(p): k for k, p in enumerate(src.depth_pos)}
     frame_of_color = (
-        {} if src.color_pos is None else {int(p): k for k, p in enumerate(src.color_pos)}
+        {}
+        if src.color_pos is None
+        else {int(p): k for k, p in enumerate(src.color_pos) if p >= 0}
+    )
+    depth_only = (
+        set() if src.color_pos is None else {k for k, p in enumerate(src.color_pos) if p < 0}
     )
     rays = pixel_rays(plan.depth_model) if plan.align else None
     with_color = src.color_pos is not None and choice.color is not None
@@ -207,7 +220,9 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
             if topic == choice.color and pos in frame_of_color:
                 color_ready[frame_of_color[pos]] = _decoded(src, msg, topic, pos, "color")
             k = counts.written
-            while k < src.n_frames and k in depth_ready and (not with_color or k in color_ready):
+            while k < src.n_frames and k in depth_ready and (
+                not with_color or k in color_ready or k in depth_only
+            ):
                 yield _frame(src, k, depth_ready.pop(k), color_ready.pop(k, None), rays, counts)
                 k = counts.written = k + 1
 

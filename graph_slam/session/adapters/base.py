@@ -37,6 +37,8 @@ class StreamReport:
     used: int
     dropped: dict[str, int] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: frames used without colour (no colour image close enough in time): kept depth-only
+    depth_only: int = 0
 
     @property
     def balanced(self) -> bool:
@@ -50,6 +52,7 @@ class StreamReport:
             "used": int(self.used),
             "dropped": {k: int(v) for k, v in self.dropped.items() if v},
             "notes": list(self.notes),
+            **({"depth_only": int(self.depth_only)} if self.depth_only else {}),
         }
 
 
