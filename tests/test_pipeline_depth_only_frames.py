@@ -65,6 +65,7 @@ def test_graph_registers_colourless_frames_with_the_depth_only_settings(
     assert len(colourless) >= 5 and len(ok) >= len(colourless) // 2
     assert all(np.isfinite(f.fitness) and f.fitness > 0.3 for f in ok)
 
+
 def test_thesis_baseline_runs_a_session_with_colourless_frames(walk: Path) -> None:
     _drop_colour(walk, 3)
     config = PipelineConfig(variant="icp", max_frames=FRAMES)

@@ -197,9 +197,7 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
     choice, plan = src.choice, src.plan
     frame_of_depth = {int(p): k for k, p in enumerate(src.depth_pos)}
     frame_of_color = (
-        {}
-        if src.color_pos is None
-        else {int(p): k for k, p in enumerate(src.color_pos) if p >= 0}
+        {} if src.color_pos is None else {int(p): k for k, p in enumerate(src.color_pos) if p >= 0}
     )
     depth_only = (
         set() if src.color_pos is None else {k for k, p in enumerate(src.color_pos) if p < 0}
@@ -220,8 +218,10 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
             if topic == choice.color and pos in frame_of_color:
                 color_ready[frame_of_color[pos]] = _decoded(src, msg, topic, pos, "color")
             k = counts.written
-            while k < src.n_frames and k in depth_ready and (
-                not with_color or k in color_ready or k in depth_only
+            while (
+                k < src.n_frames
+                and k in depth_ready
+                and (not with_color or k in color_ready or k in depth_only)
             ):
                 yield _frame(src, k, depth_ready.pop(k), color_ready.pop(k, None), rays, counts)
                 k = counts.written = k + 1
