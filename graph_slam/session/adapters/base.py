@@ -68,6 +68,8 @@ class ConversionReport:
     clock_offset: Any = None
     #: calibration name → {"source": "bag (topic…)" | "config" | "default", "value": …}
     calibration: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: the recording device (RealSense SDK: product, serial, firmware) when the source says
+    device: dict[str, str] = field(default_factory=dict)
 
     def add(self, stream: StreamReport) -> StreamReport:
         self.streams.append(stream)
@@ -89,6 +91,7 @@ class ConversionReport:
             "notes": list(self.notes),
             **({"clock_offset": self.clock_offset.to_dict()} if self.clock_offset else {}),
             "calibration": {k: dict(v) for k, v in self.calibration.items()},
+            **({"device": dict(self.device)} if self.device else {}),
         }
 
 
