@@ -199,9 +199,7 @@ def first_pass(
     return out
 
 
-def sdk_metadata_topics(
-    choice: TopicChoice, msgtypes: Mapping[str, str | None]
-) -> dict[str, str]:
+def sdk_metadata_topics(choice: TopicChoice, msgtypes: Mapping[str, str | None]) -> dict[str, str]:
     """The SDK's per-frame metadata topic of each image / IMU stream chosen (ROS 2 SDK
     recordings: ``<stream>/image/metadata``, ``<stream>/imu/metadata``) → the stream's role."""
     out = {}

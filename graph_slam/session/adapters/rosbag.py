@@ -136,7 +136,10 @@ def _scan(path: Path, config: ConvertConfig, report: ConversionReport) -> _Scan:
     cfg = config.bag
     with Bag(path) as bag:
         topics, counts, is_ros2 = bag.topics(), bag.counts(), bag.is_ros2
-        choice = resolve_topics(topics, cfg)
+        try:
+            choice = resolve_topics(topics, cfg)
+        except ConversionError as err:  # the topic errors name the file too
+            raise type(err)(f"{path}: {err}") from None
         if choice.camera_info is None and cfg.intrinsics is None:
             raise MissingStreamError(
                 f"{path}: no camera_info topic for {choice.depth}; set bag.camera_info_topic "
