@@ -244,6 +244,17 @@ class GraphPipeline:
             return False
         return True
 
+    def _waits_for_colour(self, index: int, t_s: float) -> bool:
+        """Frame ``index`` has no colour but the keyframe has: the keyframe is kept until a
+        frame with colour replaces it, for at most twice the keyframe interval."""
+        key = self.keys.key
+        return (
+            index in self._uncoloured
+            and key is not None
+            and key.index not in self._uncoloured
+            and t_s - key.t_s < 2 * self.keys.config.interval_s
+        )
+
     def _register_realtime(self, frame: RgbdFrame, index: int, stages: dict):
         """:meth:`_register` with the real-time preset: the frame is prepared once (on the
         keyframe's grid through the guess) and is kept, as it is, as a possible next target."""
@@ -354,9 +365,11 @@ class GraphPipeline:
         self._prev2 = None if est.stride_start else self._prev
         self._prev = (est.stride_T_camera, t_s)
         accepted = est.gate is not None and est.gate.accepted
-        self.keys.update(
-            index, pyramid, est.stride_T_camera, t_s, keep=accepted and not est.stride_start
-        )
+        keep = accepted and not est.stride_start
+        if keep and pyramid is not None and self._waits_for_colour(index, t_s):
+            return  # the coloured keyframe stays the target (a colourless one would make
+            # the frames after it register without colour too)
+        self.keys.update(index, pyramid, est.stride_T_camera, t_s, keep=keep)
         if pyramid is None:  # nothing to register the next frame against
             self._prev = None
             self._prev2 = None
