@@ -23,22 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from graph_slam.errors import MissingExtraError, RealsenseError
+from graph_slam.errors import RealsenseError
+from graph_slam.live.sdk import rs_module
 from graph_slam.session.records import CameraIntrinsics
-
-INSTALL_HINT = (
-    "RealSense SDK recordings and cameras need the optional extra 'realsense' (pyrealsense2): "
-    "pip install 'graph_slam[realsense]'"
-)
-
-
-def rs_module():
-    """``pyrealsense2``, imported lazily; a clear error naming the extra when missing."""
-    try:
-        import pyrealsense2 as rs
-    except ImportError:
-        raise MissingExtraError(INSTALL_HINT) from None
-    return rs
 
 
 @dataclass(frozen=True)

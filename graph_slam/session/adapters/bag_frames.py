@@ -88,6 +88,23 @@ def color_plan(
     return ColorPlan(True, depth_model, calib.color_model, calib.color_T_depth.pose)
 
 
+def nearest_within(
+    t_ref_s: np.ndarray, t_other_s: np.ndarray, max_dt_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each reference sample paired with the nearest other sample within ``max_dt_s`` (an
+    other sample may serve several references)."""
+    if t_ref_s.size == 0 or t_other_s.size == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+    j = np.clip(np.searchsorted(t_other_s, t_ref_s), 1, t_other_s.size - 1)
+    if t_other_s.size == 1:
+        j = np.zeros_like(j)
+    else:
+        earlier = np.abs(t_ref_s - t_other_s[j - 1]) <= np.abs(t_other_s[j] - t_ref_s)
+        j = np.where(earlier, j - 1, j)
+    ok = np.abs(t_other_s[j] - t_ref_s) <= max_dt_s
+    return np.flatnonzero(ok), j[ok]
+
+
 def pair_frames(
     choice: TopicChoice,
     got: Collected,
@@ -106,11 +123,16 @@ def pair_frames(
         c_order = order_stamps(color_ns)
         max_dt = config.association.max_color_dt_s
         ns0 = int(depth_ns.min())
-        i_d, i_c = associate(
-            (depth_ns[depth_kept] - ns0) * 1e-9,
-            (color_ns[c_order.keep] - ns0) * 1e-9,
-            max_dt,
-        )
+        if config.association.share_color:
+            i_d, i_c = nearest_within(
+                (depth_ns[depth_kept] - ns0) * 1e-9, (color_ns[c_order.keep] - ns0) * 1e-9, max_dt
+            )
+        else:
+            i_d, i_c = associate(
+                (depth_ns[depth_kept] - ns0) * 1e-9,
+                (color_ns[c_order.keep] - ns0) * 1e-9,
+                max_dt,
+            )
         # Every depth frame is kept: one without a colour image within max_dt is written
         # depth-only (position -1), counted; the pipeline registers it without colour.
         color_pos = np.full(depth_kept.size, -1, dtype=np.int64)
@@ -196,9 +218,10 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
     """Decode the chosen messages and yield each frame as soon as its depth (and colour) is in."""
     choice, plan = src.choice, src.plan
     frame_of_depth = {int(p): k for k, p in enumerate(src.depth_pos)}
-    frame_of_color = (
-        {} if src.color_pos is None else {int(p): k for k, p in enumerate(src.color_pos) if p >= 0}
-    )
+    frames_of_color: dict[int, list[int]] = {}
+    for k, p in enumerate(() if src.color_pos is None else src.color_pos):
+        if p >= 0:
+            frames_of_color.setdefault(int(p), []).append(k)
     depth_only = (
         set() if src.color_pos is None else {k for k, p in enumerate(src.color_pos) if p < 0}
     )
@@ -215,8 +238,10 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
             if topic == choice.depth and pos in frame_of_depth:
                 raw = _decoded(src, msg, topic, pos, "depth")
                 depth_ready[frame_of_depth[pos]] = depth_m(raw, src.unit_m, counts)
-            if topic == choice.color and pos in frame_of_color:
-                color_ready[frame_of_color[pos]] = _decoded(src, msg, topic, pos, "color")
+            if topic == choice.color and pos in frames_of_color:
+                image = _decoded(src, msg, topic, pos, "color")
+                for k_color in frames_of_color[pos]:
+                    color_ready[k_color] = image
             k = counts.written
             while (
                 k < src.n_frames
