@@ -76,6 +76,7 @@ class ImuMerger:
     max_gap_s: float = 0.05
     _accel: list[tuple[float, np.ndarray]] = field(default_factory=list)
     _gyro: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    _last_gyro_s: float = -np.inf
     counts: dict[str, int] = field(
         default_factory=lambda: {
             "gyro": 0, "accel": 0, "used": 0, "before accel": 0, "accel gap": 0,
@@ -93,9 +94,10 @@ class ImuMerger:
 
     def gyro(self, t_s: float, value: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
         self.counts["gyro"] += 1
-        if self._gyro and t_s <= self._gyro[-1][0]:
+        if t_s <= self._last_gyro_s:
             self.counts["out of order"] += 1
             return []
+        self._last_gyro_s = t_s
         self._gyro.append((t_s, value))
         return self._release()
 
@@ -164,6 +166,7 @@ class RealsenseSource:
         self._lock = threading.Lock()
         self._last_arrival = time.perf_counter()
         self._used_color = -1
+        self._last_depth_s = -np.inf
         self._ended = threading.Event()
 
     # ------------------------------------------------------------------ start / stop
@@ -318,6 +321,9 @@ class RealsenseSource:
         if not depth:
             return
         t_s = depth.get_timestamp() * 1e-3
+        if t_s <= self._last_depth_s:  # the frame syncer gives a depth frame again
+            return
+        self._last_depth_s = t_s
         setup = self._setup
         raw = np.asanyarray(depth.get_data())
         depth_m = raw.astype(np.float32) * np.float32(setup.depth_unit_m)

@@ -109,6 +109,7 @@ class LiveRunner:
         self._imu_t: list[float] = []
         self._imu_pending: list[ImuItem] = []
         self._latency: list[float] = []
+        self.compute_s: list[float] = []
         self._arrived = self._skipped = 0
         self._loaded = False
 
@@ -217,8 +218,11 @@ class LiveRunner:
             self._loaded = kind == "foot_strike"
         index = len(self._latency)
         frame = RgbdFrame(frame.t_s, frame.depth_m, frame.color_rgb, index)
+        w0 = time.perf_counter()
         out = self.pipe.add_frame(frame, self._loaded)
-        self._latency.append(time.perf_counter() - item.arrival_s)
+        now = time.perf_counter()
+        self._latency.append(now - item.arrival_s)
+        self.compute_s.append(now - w0)
         if self.keep_frames:
             self.rec.frames.append(frame)
         if self.viewer is not None:
