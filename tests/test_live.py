@@ -149,3 +149,20 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     online = np.loadtxt(tmp_path / "out" / "run" / "live" / "icp_imu_kin" / "online.tum", ndmin=2)
     np.testing.assert_allclose(online[:, 0], session.frame_times_s[: online.shape[0]])
     assert online.shape[0] >= 0.5 * result.n_processed
+
+
+def test_missing_extra_is_named_before_any_work(monkeypatch, tmp_path: Path, capsys) -> None:
+    import sys
+
+    from graph_slam.cli import main
+    from graph_slam.errors import MissingExtraError
+    from graph_slam.live.sdk import rs_module
+
+    monkeypatch.setitem(sys.modules, "pyrealsense2", None)  # import fails as when missing
+    with pytest.raises(MissingExtraError, match=r"optional extra 'realsense'.*\[realsense\]"):
+        rs_module()
+    with pytest.raises(SystemExit) as done:
+        main(["live", "--playback", str(tmp_path / "x.db3"), "--out", str(tmp_path / "o")])
+    assert done.value.code == 2
+    assert "optional extra 'realsense'" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -62,6 +62,9 @@ def register(app: typer.Typer) -> None:
         from graph_slam.pipelines.config import PipelineConfig, with_preset
         from graph_slam.session.adapters.config import ConvertConfig
 
+        from graph_slam.live.sdk import rs_module
+
+        rs_module()  # a missing extra is said before anything else
         if log is not None and udp is not None:
             raise ConfigError("--log and --udp: give one prosthesis source")
         if out.exists() and not overwrite:

@@ -149,11 +149,11 @@ class RealsenseSource:
         timeout_s: float = 2.0,
         camera_T_imu: np.ndarray | None = None,
     ) -> None:
+        self.rs = rs_module()  # the extra first: before anything else is checked or done
         if serial is not None and playback is not None:
             raise RealsenseError("give a camera serial or a recording to play back, not both")
         if playback is not None and not Path(playback).is_file():
             raise RealsenseError(f"{playback}: no such recording")
-        self.rs = rs_module()
         self.serial, self.playback = serial, None if playback is None else Path(playback)
         self.real_time = real_time
         self.max_color_dt_s = max_color_dt_s
