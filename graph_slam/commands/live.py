@@ -59,10 +59,9 @@ def register(app: typer.Typer) -> None:
         from graph_slam.live.camera import RealsenseSource
         from graph_slam.live.loop import LiveRunner, write_outputs
         from graph_slam.live.prosthesis import LogReplay, NoProsthesis, UdpStream
+        from graph_slam.live.sdk import rs_module
         from graph_slam.pipelines.config import PipelineConfig, with_preset
         from graph_slam.session.adapters.config import ConvertConfig
-
-        from graph_slam.live.sdk import rs_module
 
         rs_module()  # a missing extra is said before anything else
         if log is not None and udp is not None:
