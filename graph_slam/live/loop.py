@@ -100,11 +100,13 @@ class LiveRunner:
         viewer=None,
         imu_wait_s: float = 0.02,
         keep_frames: bool = True,
+        pipeline_factory: Callable | None = None,
     ) -> None:
         self.source, self.prosthesis, self.config = source, prosthesis, config
         self.mount_pitch_deg = mount_pitch_deg
         self.status, self.status_interval_s = status, status_interval_s
         self.viewer, self.imu_wait_s, self.keep_frames = viewer, imu_wait_s, keep_frames
+        self.pipeline_factory = pipeline_factory
         self.rec = _Recorded()
         self._imu_t: list[float] = []
         self._imu_pending: list[ImuItem] = []
@@ -122,10 +124,12 @@ class LiveRunner:
         self.setup = setup
         camera_T_imu = setup.camera_T_imu if setup.camera_T_imu is not None else np.eye(4)
 
+        factory = self.pipeline_factory or make_pipeline
+
         def make():
-            return make_pipeline(self.config, setup.intrinsics, camera_T_imu,
-                                 leg_model(self.mount_pitch_deg),
-                                 setup.color_model is not None)  # fmt: skip
+            return factory(self.config, setup.intrinsics, camera_T_imu,
+                           leg_model(self.mount_pitch_deg),
+                           setup.color_model is not None)  # fmt: skip
 
         warm_up(make(), setup)  # imports, compiled kernels, thread pools: not per-frame work
         self.pipe = make()
