@@ -94,8 +94,13 @@ def register(app: typer.Typer) -> None:
             out.mkdir(parents=True, exist_ok=True)
             viewer = LiveViewer(out / "live.rrd", spawn=rerun == "spawn",
                                 connect=None if rerun == "spawn" else rerun)  # fmt: skip
+        session_path = out / "session"
+        if overwrite and (session_path / "session.yaml").is_file():
+            import shutil
+
+            shutil.rmtree(session_path)  # a session graph-slam wrote
         runner = LiveRunner(source, prosthesis, pcfg, mount_pitch_deg=mount_pitch,
-                            status=typer.echo, viewer=viewer)  # fmt: skip
+                            status=typer.echo, viewer=viewer, session_path=session_path)  # fmt: skip
         result = runner.run(max_s=max_seconds)
         if viewer is not None:
             viewer.close()

@@ -19,6 +19,8 @@ with ``precomputed``): complete up to the last frame processed, each folder writ
 from __future__ import annotations
 
 import math
+import queue
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -101,12 +103,17 @@ class LiveRunner:
         imu_wait_s: float = 0.02,
         keep_frames: bool = True,
         pipeline_factory: Callable | None = None,
+        session_path: Path | None = None,
     ) -> None:
         self.source, self.prosthesis, self.config = source, prosthesis, config
         self.mount_pitch_deg = mount_pitch_deg
         self.status, self.status_interval_s = status, status_interval_s
         self.viewer, self.imu_wait_s, self.keep_frames = viewer, imu_wait_s, keep_frames
         self.pipeline_factory = pipeline_factory
+        self.session_path = None if session_path is None else Path(session_path)
+        self._writer = None
+        self._writer_thread: threading.Thread | None = None
+        self._to_write: queue.Queue = queue.Queue()
         self.rec = _Recorded()
         self._imu_t: list[float] = []
         self._imu_pending: list[ImuItem] = []
@@ -133,6 +140,8 @@ class LiveRunner:
 
         warm_up(make(), setup)  # imports, compiled kernels, thread pools: not per-frame work
         self.pipe = make()
+        if self.session_path is not None:
+            self._start_writer(self.session_path)
         self.source.discard()
         self.source.resume()
         reason = "stopped"
@@ -227,7 +236,9 @@ class LiveRunner:
         now = time.perf_counter()
         self._latency.append(now - item.arrival_s)
         self.compute_s.append(now - w0)
-        if self.keep_frames:
+        if self._writer is not None:
+            self._to_write.put(frame)  # written by the writer thread as the run goes on
+        elif self.keep_frames:
             self.rec.frames.append(frame)
         if self.viewer is not None:
             self.viewer.frame(out)
@@ -245,8 +256,7 @@ class LiveRunner:
         )
 
     # ------------------------------------------------------------------ outputs
-    def write_session(self, path: Path, name: str = "live") -> Path:
-        """The frames processed, with the streams given to the pipeline, as a session."""
+    def _session_writer(self, path: Path, name: str = "live"):
         from graph_slam.session import SessionWriter
         from graph_slam.session.manifest import Provenance
         from graph_slam.session.records import Calibration
@@ -257,11 +267,34 @@ class LiveRunner:
         )
         provenance = Provenance(generator="graph_slam.live", source=str(
             self.source.playback or setup.device.get("serial", "camera")))  # fmt: skip
-        with SessionWriter(path, name=name, intrinsics=setup.intrinsics,
-                           depth_unit_m=setup.depth_unit_m, camera_profile="realsense-live",
-                           calibration=calibration, provenance=provenance) as writer:  # fmt: skip
+        return SessionWriter(path, name=name, intrinsics=setup.intrinsics,
+                             depth_unit_m=setup.depth_unit_m, camera_profile="realsense-live",
+                             calibration=calibration, provenance=provenance)  # fmt: skip
+
+    def _start_writer(self, path: Path) -> None:
+        """The session's frames are written by a thread while the run goes on (memory stays
+        bounded); the manifest is written last, on stop."""
+        self._writer = self._session_writer(path)
+
+        def drain() -> None:
+            while (frame := self._to_write.get()) is not None:
+                self._writer.add_frame(frame)
+
+        self._writer_thread = threading.Thread(target=drain, name="live-writer", daemon=True)
+        self._writer_thread.start()
+
+    def write_session(self, path: Path | None = None) -> Path:
+        """The frames processed, with the streams given to the pipeline, as a session (at
+        ``session_path`` when it was written during the run)."""
+        if self._writer is not None:
+            self._to_write.put(None)
+            self._writer_thread.join()
+            writer = self._writer
+        else:
+            writer = self._session_writer(path)
             for frame in self.rec.frames:
                 writer.add_frame(frame)
+        with writer:
             if self.rec.imu:
                 t = np.concatenate([c[0] for c in self.rec.imu])
                 writer.write_imu(ImuSeries(t, np.concatenate([c[1] for c in self.rec.imu]),
@@ -273,7 +306,7 @@ class LiveRunner:
                 ev = sorted(self.rec.events)
                 writer.write_events(GaitEvents(np.array([e[0] for e in ev]),
                                                tuple(e[1] for e in ev), ("live",) * len(ev)))  # fmt: skip
-        return path
+        return writer.path
 
 
 def write_outputs(runner: LiveRunner, result: LiveResult, out: Path, *, overwrite: bool = False):
@@ -283,7 +316,7 @@ def write_outputs(runner: LiveRunner, result: LiveResult, out: Path, *, overwrit
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    session = runner.write_session(out / "session")
+    session = runner.write_session(out / "session")  # (written during the run if asked)
     variant = runner.config.variant
     cfg = RunConfig(variants=[variant], pipeline=runner.config.model_copy(
         update={"mount_pitch_deg": runner.mount_pitch_deg, "event_source": None}), rrd=False)  # fmt: skip
