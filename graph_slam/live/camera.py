@@ -50,8 +50,23 @@ class CameraSetup:
 
 @dataclass(frozen=True)
 class FrameItem:
+    """A depth frame; its colour image (as recorded) is registered to it by :meth:`rgbd`,
+    only for the frames the estimator takes (a skipped frame costs no registration)."""
+
     frame: RgbdFrame
     arrival_s: float
+    raw_color: np.ndarray | None = None
+    setup: CameraSetup | None = None
+    rays: np.ndarray | None = None
+
+    def rgbd(self) -> RgbdFrame:
+        if self.raw_color is None or self.setup is None:
+            return self.frame
+        s = self.setup
+        aligned = align_color_to_depth(self.frame.depth_m, self.raw_color, s.depth_model,
+                                       s.color_model, s.color_T_depth, self.rays)  # fmt: skip
+        f = self.frame
+        return RgbdFrame(t_s=f.t_s, depth_m=f.depth_m, color_rgb=aligned.color_rgb, index=f.index)
 
 
 @dataclass(frozen=True)
@@ -326,7 +341,7 @@ class RealsenseSource:
         self._last_depth_s = t_s
         setup = self._setup
         raw = np.asanyarray(depth.get_data())
-        depth_m = raw.astype(np.float32) * np.float32(setup.depth_unit_m)
+        depth_m = raw.astype(np.float32) * np.float32(setup.depth_unit_m)  # a new array
         color = None
         c = fs.get_color_frame() if setup.color_model is not None else None
         if c and abs(c.get_timestamp() * 1e-3 - t_s) <= self.max_color_dt_s:
@@ -336,11 +351,8 @@ class RealsenseSource:
                 rgb = np.asanyarray(c.get_data())
                 if c.profile.format() == self.rs.format.bgr8:
                     rgb = rgb[:, :, ::-1]
-                aligned = align_color_to_depth(depth_m, np.ascontiguousarray(rgb),
-                                               setup.depth_model, setup.color_model,
-                                               setup.color_T_depth, self._rays)  # fmt: skip
-                color = aligned.color_rgb
+                color = np.array(rgb)  # a copy: librealsense reuses its buffers
         self.counts["depth"] += 1
         self.counts["color used" if color is not None else "depth-only"] += 1
-        frame = RgbdFrame(t_s=t_s, depth_m=depth_m, color_rgb=color, index=depth.get_frame_number())
-        self.items.put(FrameItem(frame, arrival))
+        frame = RgbdFrame(t_s=t_s, depth_m=depth_m, color_rgb=None, index=depth.get_frame_number())
+        self.items.put(FrameItem(frame, arrival, color, setup, self._rays))

@@ -216,7 +216,7 @@ class LiveRunner:
                 return
 
     def _process(self, item: FrameItem) -> None:
-        frame = item.frame
+        frame = item.rgbd()  # colour registered to depth now: only for the frames taken
         self._feed_imu(frame.t_s)
         known = self.prosthesis.until(frame.t_s)
         if known.joints_t_s:
