@@ -46,27 +46,36 @@ class CameraSetup:
     camera_T_imu: np.ndarray | None
     has_imu: bool
     device: dict[str, str]
+    color_bgr: bool = False
 
 
 @dataclass(frozen=True)
 class FrameItem:
-    """A depth frame; its colour image (as recorded) is registered to it by :meth:`rgbd`,
-    only for the frames the estimator takes (a skipped frame costs no registration)."""
+    """A depth frame as librealsense gave it (kept, not decoded); :meth:`rgbd` decodes it
+    and registers its colour image (when paired) to it, only for the frames the estimator
+    takes: a skipped frame costs nothing in the callback or after."""
 
-    frame: RgbdFrame
+    t_s: float
+    index: int
     arrival_s: float
-    raw_color: np.ndarray | None = None
+    depth: Any  # rs.depth_frame (kept)
+    color: Any = None  # rs.video_frame (kept) or None: depth-only
     setup: CameraSetup | None = None
     rays: np.ndarray | None = None
 
     def rgbd(self) -> RgbdFrame:
-        if self.raw_color is None or self.setup is None:
-            return self.frame
         s = self.setup
-        aligned = align_color_to_depth(self.frame.depth_m, self.raw_color, s.depth_model,
-                                       s.color_model, s.color_T_depth, self.rays)  # fmt: skip
-        f = self.frame
-        return RgbdFrame(t_s=f.t_s, depth_m=f.depth_m, color_rgb=aligned.color_rgb, index=f.index)
+        depth_m = np.asanyarray(self.depth.get_data()).astype(np.float32)
+        depth_m *= np.float32(s.depth_unit_m)
+        color = None
+        if self.color is not None:
+            rgb = np.asanyarray(self.color.get_data())
+            if s.color_bgr:
+                rgb = rgb[:, :, ::-1]
+            aligned = align_color_to_depth(depth_m, np.ascontiguousarray(rgb), s.depth_model,
+                                           s.color_model, s.color_T_depth, self.rays)  # fmt: skip
+            color = aligned.color_rgb
+        return RgbdFrame(t_s=self.t_s, depth_m=depth_m, color_rgb=color, index=self.index)
 
 
 @dataclass(frozen=True)
@@ -250,6 +259,7 @@ class RealsenseSource:
             camera_T_imu=camera_T_imu,
             has_imu=has_imu,
             device=info,
+            color_bgr=color_p is not None and color_p.format() == rs.format.bgr8,
         )
 
     def pause(self) -> None:
@@ -340,19 +350,16 @@ class RealsenseSource:
             return
         self._last_depth_s = t_s
         setup = self._setup
-        raw = np.asanyarray(depth.get_data())
-        depth_m = raw.astype(np.float32) * np.float32(setup.depth_unit_m)  # a new array
         color = None
         c = fs.get_color_frame() if setup.color_model is not None else None
         if c and abs(c.get_timestamp() * 1e-3 - t_s) <= self.max_color_dt_s:
             number = c.get_frame_number()
             if number != self._used_color:
                 self._used_color = number
-                rgb = np.asanyarray(c.get_data())
-                if c.profile.format() == self.rs.format.bgr8:
-                    rgb = rgb[:, :, ::-1]
-                color = np.array(rgb)  # a copy: librealsense reuses its buffers
+                c.keep()  # held past the callback (released when the item is dropped)
+                color = c
+        depth.keep()
         self.counts["depth"] += 1
         self.counts["color used" if color is not None else "depth-only"] += 1
-        frame = RgbdFrame(t_s=t_s, depth_m=depth_m, color_rgb=None, index=depth.get_frame_number())
-        self.items.put(FrameItem(frame, arrival, color, setup, self._rays))
+        index = depth.get_frame_number()
+        self.items.put(FrameItem(t_s, index, arrival, depth, color, setup, self._rays))

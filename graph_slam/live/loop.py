@@ -197,7 +197,7 @@ class LiveRunner:
         if not self.setup.has_imu:
             return True
         last = self._imu_t[-1] if self._imu_t else -math.inf
-        return last >= item.frame.t_s or now - item.arrival_s > self.imu_wait_s
+        return last >= item.t_s or now - item.arrival_s > self.imu_wait_s
 
     def _feed_imu(self, t_s: float) -> None:
         """IMU chunks up to and including the first sample at or after ``t_s``."""
