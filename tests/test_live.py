@@ -134,15 +134,14 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     log = LogReplay(conv.prosthesis_log.path, conv.prosthesis_log, 3.217)
     lines: list[str] = []
     cfg = PipelineConfig.model_validate(with_preset({"variant": "icp+imu+kin"}, "realtime"))
-    runner = LiveRunner(
-        source,
-        log,
-        cfg,
-        mount_pitch_deg=35.0,
-        status=lines.append,
-        session_path=tmp_path / "out" / "session",
-    )  # written as it runs
+    from graph_slam.live.viewer import LiveViewer
+
+    viewer = LiveViewer(tmp_path / "live.rrd", grid_step=3)  # poses + grid (to a file here)
+    runner = LiveRunner(source, log, cfg, mount_pitch_deg=35.0, status=lines.append,
+                        session_path=tmp_path / "out" / "session", viewer=viewer)  # fmt: skip
     result = runner.run(max_s=30.0)
+    viewer.close()
+    assert (tmp_path / "live.rrd").stat().st_size > 1000
     assert result.stop_reason == "end of playback"
     assert result.n_processed >= 10 and result.n_processed + result.skipped == result.n_arrived
     assert lines and "frames/s" in lines[0] and "latency p95" in lines[0]
