@@ -139,7 +139,13 @@ def _scan(path: Path, config: ConvertConfig, report: ConversionReport) -> _Scan:
         try:
             choice = resolve_topics(topics, cfg)
         except ConversionError as err:  # the topic errors name the file too
-            raise type(err)(f"{path}: {err}") from None
+            hint = ""
+            if not any("/image/data" in t for t in topics) and "/file_version" in topics:
+                hint = (
+                    " (an SDK recording without frames: empty, or interrupted — librealsense "
+                    "writes a .db3's messages in batches and when the recording is closed)"
+                )
+            raise type(err)(f"{path}: {err}{hint}") from None
         if choice.camera_info is None and cfg.intrinsics is None:
             raise MissingStreamError(
                 f"{path}: no camera_info topic for {choice.depth}; set bag.camera_info_topic "
