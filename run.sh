@@ -54,7 +54,7 @@ install() {
   if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then return 0; fi
   [ -x "$VENV/bin/python" ] || "$py" -m venv "$VENV"
   "$VENV/bin/python" -m pip install -q --upgrade pip
-  "$VENV/bin/python" -m pip install -q -e ".[eval,bags,dev,batch]"
+  "$VENV/bin/python" -m pip install -q -e ".[eval,bags,dev,batch,realsense]"
   echo "$want" > "$stamp"
 }
 

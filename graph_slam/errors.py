@@ -100,6 +100,14 @@ class SimulationError(GraphSlamError):
     """The simulator (graph_slam.sim) got a scene, profile or setting it cannot use."""
 
 
+class RealsenseError(GraphSlamError):
+    """A RealSense camera or SDK recording could not be opened, recorded or read live."""
+
+
+class MissingExtraError(RealsenseError):
+    """An optional extra (e.g. ``realsense``: pyrealsense2) is not installed."""
+
+
 class RegistrationFailure(StrEnum):
     """Why a registration failed (see :class:`RegistrationError`)."""
 

@@ -132,14 +132,18 @@ def test_ros2_wrapper_bag_registered_colour_and_combined_imu(ros2_bag, tmp_path:
     assert tree_digest(bag) == before
     session = open_session(result.path)
     assert validate_session(result.path).ok
-    # Frame 3 has no colour image → dropped and counted; colour bgr8 → RGB.
-    assert session.n_frames == 7
-    frames = list(session)
-    kept = [k for k in range(8) if k != 3]
-    for frame, k in zip(frames, kept, strict=True):
-        assert np.array_equal(frame.color_rgb, color_rgb(k))
+    # Frame 3 has no colour image → kept depth-only and counted; colour bgr8 → RGB.
+    assert session.n_frames == 8 and session.n_color_frames == 7
+    for k, frame in enumerate(session):
+        if k == 3:
+            assert frame.color_rgb is None
+        else:
+            assert np.array_equal(frame.color_rgb, color_rgb(k))
         np.testing.assert_allclose(frame.depth_m, depth_raw(k) * 1e-3, rtol=1e-6)
-    assert result.report.stream("frames").dropped["no colour image within 0.02 s"] == 1
+    frames_report = result.report.stream("frames")
+    assert frames_report.depth_only == 1 and not frames_report.dropped.get(
+        "no colour image within 0.02 s"
+    )
     assert session.intrinsics.cx_px == CX and session.intrinsics.fy_px == FY
     np.testing.assert_allclose(session.imu.t_s, truth.imu_ns * 1e-9, rtol=0, atol=5e-7)
     t_rel = (truth.imu_ns - T0_NS) * 1e-9
@@ -174,7 +178,7 @@ def test_cli_convert_then_info_numbers(ros2_bag, tmp_path: Path, capsys) -> None
         main(["info", str(tmp_path / "s")])
     out = capsys.readouterr().out
     rows = {line.split("│")[1].strip(): line for line in out.splitlines() if line.count("│") > 5}
-    assert "│ 7 " in rows["frames"] and "30.00" in rows["frames"]  # median rate 30 Hz
+    assert "│ 8 " in rows["frames"] and "30.00" in rows["frames"]  # median rate 30 Hz
     assert "│ 51 " in rows["imu"] and "200.00" in rows["imu"]
     assert "│ 26 " in rows["joints"] and "100.00" in rows["joints"]
     assert "0 complete (2 foot strikes, 1 toe-offs)" not in out  # 2 strikes → 1 stride

@@ -1,5 +1,6 @@
-"""A recording end to end, as a researcher gets one: a RealSense SDK bag (colour not aligned to
-depth, extrinsics in the bag) and a prosthesis log on its own clock, exported from the
+"""A recording end to end, as a researcher gets one: a RealSense SDK recording written by
+librealsense (colour not aligned to depth, at its own rate and size; the cameras' extrinsics in
+the recording) and a prosthesis log on its own clock, exported from the
 simulator (``graph-slam simulate --export realsense-sdk-bag``), then ``graph-slam convert``
 with only the topic preset and the log's column mapping, then ``graph-slam run`` — the
 commands of docs/recording.md, through the CLI's entry point."""
@@ -15,6 +16,7 @@ import yaml
 from graph_slam.cli import main
 
 pytest.importorskip("rosbags")
+pytest.importorskip("pyrealsense2")
 
 CLOCK_OFFSET_S = 3.217
 STRIDES = 5  # 6 foot strikes: the clock offset needs at least 5 matched
@@ -35,7 +37,7 @@ def converted(tmp_path_factory) -> tuple[Path, Path]:
     _cli("simulate", "--export", "realsense-sdk-bag", "--out", rec, "--strides", STRIDES,
          "--resolution", "106x60", "--no-blur", "--seed", "2",
          "--clock-offset", CLOCK_OFFSET_S)  # fmt: skip
-    _cli("convert", rec / "recording.bag", session, "--config", rec / "convert.yaml")
+    _cli("convert", rec / "recording.db3", session, "--config", rec / "convert.yaml")
     return rec, session
 
 
@@ -61,7 +63,8 @@ def ran(converted, tmp_path_factory) -> Path:
 def test_convert_config_sets_no_offset_and_no_extrinsics(converted) -> None:
     rec, _ = converted
     cfg = yaml.safe_load((rec / "convert.yaml").read_text())
-    assert set(cfg) == {"bag", "prosthesis_log"} and cfg["bag"] == {"preset": "realsense-sdk"}
+    assert set(cfg) == {"bag", "prosthesis_log", "calibration"}
+    assert cfg["bag"] == {"preset": "realsense-sdk"} and set(cfg["calibration"]) == {"camera_T_imu"}
     assert set(cfg["prosthesis_log"]) == {"path", "time", "knee", "ankle", "load"}
 
 
@@ -74,13 +77,15 @@ def test_clock_offset_estimated_within_10_ms(converted) -> None:
     assert offset["n_matched"] >= 5
 
 
-def test_extrinsics_come_from_the_bag_and_equal_the_exported(converted) -> None:
+def test_extrinsics_come_from_the_recording_and_the_config(converted) -> None:
+    """color_T_depth from the recording's tf text; camera_T_imu (which librealsense does not
+    record for motion streams) from convert.yaml."""
     rec, session = converted
     truth = yaml.safe_load((rec / "export.yaml").read_text())
     calib = yaml.safe_load((session / "conversion_report.yaml").read_text())["calibration"]
-    for name in ("color_T_depth", "camera_T_imu"):
-        assert calib[name]["source"].startswith("bag (")
-        np.testing.assert_allclose(calib[name]["value"], truth[name], atol=1e-9)
+    assert calib["color_T_depth"]["source"].startswith("bag (")
+    # the SDK's text keeps 6 decimals
+    np.testing.assert_allclose(calib["color_T_depth"]["value"], truth["color_T_depth"], atol=2e-6)
     resolved = yaml.safe_load((session / "conversion.yaml").read_text())
     np.testing.assert_allclose(resolved["calibration"]["camera_T_imu"], truth["camera_T_imu"],
                                atol=1e-9)  # fmt: skip
@@ -109,8 +114,14 @@ def test_aligned_colour_matches_the_simulators_registered_colour(converted) -> N
     session = open_session(session_path)
     assert session.manifest.sensors.camera.has_color
     epoch = truth["export"]["camera_epoch_s"]
-    n = session.n_frames
-    for index in (n // 5, n // 2, 4 * n // 5):
+    # colour frames at 30 Hz from the first depth frame: registered ones within 1 ms of
+    # their depth frame (the others moved with the leg in between)
+    export = truth["export"]
+    t = session.frame_times_s
+    t_color = t[0] + export["color_delay_s"] + np.arange(200) / export["color_rate_hz"]
+    near = [k for k in range(t.size) if np.min(np.abs(t_color - t[k])) < 1e-3]
+    assert len(near) >= 6
+    for index in (near[len(near) // 5], near[len(near) // 2], near[4 * len(near) // 5]):
         frame = session.frame(index)
         world_T_camera = sim.motion.world_T(np.array([frame.t_s - epoch]), sim.thigh_T_camera)
         expected = renderer.render_color(world_T_camera[0]).astype(int)
@@ -137,7 +148,9 @@ def test_run_writes_its_artefacts_with_colored_icp(ran) -> None:
     assert (ran / "report.md").is_file() and (ran / "run.json").is_file()
     strides = summary["sessions"][session_name]["variants"]["icp+imu+kin"]["strides"]
     assert "mount pitch" in (ran / "report.md").read_text().lower()
-    registered = sum(s["registered"] for s in strides)
+    # depth-only frames (no colour image within 20 ms: colour is at 30 Hz) register
+    # point-to-plane, whose floor-dominated view holds fewer directions ("partial")
+    registered = sum(s["registered"] + s["partial"] for s in strides)
     assert registered >= 0.8 * RUN_FRAMES
 
 
@@ -159,8 +172,10 @@ def _read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def test_trajectory_is_close_to_the_ground_truth(ran, converted) -> None:
     """The smoothed world trajectory against the exported ground truth (not used by convert
-    or run) after a rigid alignment of the positions: RMS below 3 cm over ~1.5 strides (the
-    bound is loose; measured ~1 cm)."""
+    or run) after a rigid alignment of the positions, over ~1.5 strides at 106×60: RMS below
+    7 cm. Colour is at 30 Hz beside 90 Hz depth, so two thirds of the frames register without
+    colour (point-to-plane): measured 5.6 cm (2.0 cm when the same walk is exported with colour
+    at every depth frame, RecordingExportConfig.color_rate_hz None)."""
     rec, _ = converted
     t_est, p_est = _read_tum(ran / "recording" / "icp_imu_kin" / "smoothed_world.tum")
     t_gt, p_gt = _read_tum(rec / "ground_truth.tum")
@@ -175,7 +190,7 @@ def test_trajectory_is_close_to_the_ground_truth(ran, converted) -> None:
     rms = float(np.sqrt(np.mean(np.sum((aligned - p_gt) ** 2, axis=1))))
     travelled = float(np.linalg.norm(p_gt[-1] - p_gt[0]))
     assert travelled > 0.5
-    assert rms < 0.03, rms
+    assert rms < 0.07, rms
 
 
 def test_an_unknown_export_is_a_clear_error(tmp_path: Path, capsys) -> None:

@@ -23,6 +23,8 @@ def print_report(report) -> None:
         dropped = "; ".join(f"{n} {why}" for why, n in s.dropped.items() if n) or "–"
         table.add_row(s.stream, s.source, str(s.found), str(s.used), dropped)
     console.print(table)
+    if report.device:
+        console.print("  device: " + ", ".join(f"{k} {v}" for k, v in report.device.items()))
     for note in report.notes + [n for s in report.streams for n in s.notes]:
         console.print(f"  note: {note}")
 

@@ -73,8 +73,8 @@ def register(app: typer.Typer) -> None:
             str,
             typer.Option(
                 help="session: a session folder with ground truth; realsense-sdk-bag: what a "
-                "real recording gives (a RealSense SDK bag with unaligned colour and the "
-                "extrinsics, a prosthesis CSV log on its own clock; docs/recording.md)."
+                "real recording gives (a RealSense SDK .db3 written by librealsense, unaligned "
+                "colour at 30 Hz, a prosthesis CSV log on its own clock; docs/recording.md)."
             ),
         ] = "session",
         clock_offset: Annotated[
@@ -130,7 +130,8 @@ EXPORTS = ("session", "realsense-sdk-bag")
 
 
 def _export(cfg, out: Path, export: str, clock_offset_s: float, overwrite: bool) -> None:
-    """``--export realsense-sdk-bag``: the walk as a bag + a prosthesis log (graph_slam.sim.export)."""
+    """``--export realsense-sdk-bag``: the walk as an SDK recording + a prosthesis log
+    (graph_slam.sim.export)."""
     from graph_slam.commands._common import progress_bar
     from graph_slam.errors import ConfigError
     from graph_slam.sim.export import RecordingExportConfig, export_realsense_recording

@@ -102,6 +102,19 @@ class GraphPipeline(PipelineBase):
             config.cloud,
             has_color,
         )
+        self.has_color = has_color
+        # A frame recorded without a colour image (colour slower than depth, or missing) is
+        # registered with the depth-only settings, as is any frame whose keyframe has none.
+        self.registration_depth_only = make_registration(
+            with_camera_floor(
+                sensor_registration(config.graph.registration, False, config.graph.depth_only),
+                config.graph.real_camera_floor,
+            ),
+            intrinsics,
+            config.cloud,
+            False,
+        )
+        self._uncoloured: set[int] = set()
         self.imu_guess = imu_guess_on(config, self.registration)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.keys = Keyframes(config.graph.keyframe)
@@ -183,14 +196,20 @@ class GraphPipeline(PipelineBase):
 
     def _register(self, frame: RgbdFrame, index: int, foot_loaded: bool, timer: StageTimer):
         """The frame prepared once (on the keyframe's grid through the guess: its cloud, and
-        the next keyframe perhaps) and registered to the keyframe (same stride). Returns
+        the next keyframe perhaps) and registered to the keyframe (same stride), with the
+        depth-only settings when the frame or its keyframe has no colour image. Returns
         ``(prepared, icp, fitness)``; stages ``cloud``, ``preprocess``, ``registration``."""
         if not self.cfg.backend.factors["icp"] or not (self.cfg.graph.icp_in_swing or foot_loaded):
             return None, None, float("nan")
         key = self._target(frame.t_s)
+        registration = (
+            self.registration
+            if self._coloured(frame, index, None if key is None else key[0])
+            else self.registration_depth_only
+        )
         with timer("preprocess"):
             grid_T_cloud = None if key is None else key[1].grid_T_cloud @ key[2]
-            prepared = self.registration.prepare(frame, grid_T_cloud)
+            prepared = registration.prepare(frame, grid_T_cloud)
         timer.add("cloud", prepared.timing_s["cloud"])
         timer.exclude("preprocess", "cloud")
         icp, fitness = None, float("nan")
@@ -198,9 +217,30 @@ class GraphPipeline(PipelineBase):
             if key is not None:
                 key_index, target, guess = key
                 icp, fitness = _measured(
-                    lambda: self.registration.register(prepared, target, guess), index, key_index
+                    lambda: registration.register(prepared, target, guess), index, key_index
                 )
         return prepared, icp, fitness
+
+    def _coloured(self, frame: RgbdFrame, index: int, key_index: int | None) -> bool:
+        """Whether frame ``index`` registers with colour: the session has colour, the frame
+        has its colour image and so has its keyframe (``key_index``; None: no keyframe)."""
+        if not self.has_color:
+            return False
+        if frame.color_rgb is None or key_index in self._uncoloured:
+            self._uncoloured.add(index)  # its cloud has no colour: a target without colour
+            return False
+        return True
+
+    def _waits_for_colour(self, index: int, t_s: float) -> bool:
+        """Frame ``index`` has no colour but the keyframe has: the keyframe is kept until a
+        frame with colour replaces it, for at most twice the keyframe interval."""
+        key = self.keys.key
+        return (
+            index in self._uncoloured
+            and key is not None
+            and key.index not in self._uncoloured
+            and t_s - key.t_s < 2 * self.keys.config.interval_s
+        )
 
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
@@ -260,9 +300,11 @@ class GraphPipeline(PipelineBase):
         self._prev = (est.stride_T_camera, t_s)
         accepted = est.gate is not None and est.gate.accepted
         target = prepared if prepared is not None and prepared.is_target else None
-        self.keys.update(
-            index, target, est.stride_T_camera, t_s, keep=accepted and not est.stride_start
-        )
+        keep = accepted and not est.stride_start
+        if keep and target is not None and self._waits_for_colour(index, t_s):
+            return  # the coloured keyframe stays the target (a colourless one would make
+            # the frames after it register without colour too)
+        self.keys.update(index, target, est.stride_T_camera, t_s, keep=keep)
         if target is None:  # nothing to register the next frame against
             self._prev = None
             self._prev2 = None

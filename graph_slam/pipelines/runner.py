@@ -67,6 +67,8 @@ def open_pipeline_mount(
         session, config.mount_pitch_deg, config.mount_estimate, streams=streams
     )
     has_color = bool(session.manifest.sensors.camera.has_color)
+    if config.variant == "icp" and session.n_color_frames < session.n_frames:
+        has_color = False  # the thesis baseline's coloured map needs colour in every frame
     pipe = factory(config, session.intrinsics, calib.camera_T_imu, leg_model, has_color)
     return session, streams, pipe, mount
 

@@ -192,8 +192,11 @@ def run(
     progress: ProgressCallback | None = None,
     *,
     overwrite: bool = False,
+    precomputed: dict[str, dict] | None = None,
 ) -> RunReport:
-    """Run every variant on every session and write the output folder ``out`` (docs/run.md)."""
+    """Run every variant on every session and write the output folder ``out`` (docs/run.md).
+    ``precomputed``: session name → {variant: PipelineResults} already computed (a live run,
+    ``graph_slam.live``): written as a run's without running the variants again."""
     from graph_slam.report.checks import preflight
 
     t_start = time.perf_counter()
@@ -205,7 +208,7 @@ def run(
     variants = [str(v) for v in cfg.variants]
     warnings = preflight(opened, variants, cfg.pipeline.event_source, scoring=False)
     with atomic_folder(out, overwrite=overwrite) as tmp:
-        report = _write_run(tmp, opened, cfg, reference, progress, warnings)
+        report = _write_run(tmp, opened, cfg, reference, progress, warnings, precomputed)
         report.wall_s = time.perf_counter() - t_start
         report.summary["wall_s"] = report.wall_s
         report.files += _write_documents(tmp, report, cfg)
@@ -214,7 +217,9 @@ def run(
     return report
 
 
-def _write_run(tmp: Path, opened, cfg: RunConfig, reference, progress, warnings) -> RunReport:
+def _write_run(
+    tmp: Path, opened, cfg: RunConfig, reference, progress, warnings, precomputed=None
+) -> RunReport:
     """Steps 1-3 for every session, and the rerun recording, into ``tmp``."""
     from graph_slam.report import views
     from graph_slam.report.artefacts import write_variant
@@ -232,7 +237,10 @@ def _write_run(tmp: Path, opened, cfg: RunConfig, reference, progress, warnings)
         from graph_slam.report.terrain_trace import TerrainTrace
 
         traces = [{main: TerrainTrace(cfg.rrd_grid_step, every_frame=False)} for _ in opened]
-    runs = session_results(opened, cfg, tick, traces)
+    if precomputed is not None:
+        runs = iter([precomputed[s.name] for s in opened])
+    else:
+        runs = session_results(opened, cfg, tick, traces)
     for session, results, session_traces in zip(opened, runs, traces, strict=True):
         trace = None if session_traces is None else session_traces[main]
         warnings += rejected_samples(session, results)

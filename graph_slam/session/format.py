@@ -5,7 +5,7 @@ A session folder (docs/session_format.md)::
     session.yaml        manifest: schema version, sensors, calibration, files, provenance
     frames.csv          index,t_s,depth,color   (one row per RGB-D frame, paths relative)
     depth/NNNNNN.png    uint16, metres = value × depth_unit_m, 0 = invalid
-    color/NNNNNN.png    RGB8, aligned with the depth (optional)
+    color/NNNNNN.png    RGB8, aligned with the depth (optional; per frame)
     imu.csv             t_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,accel_x_m_s2,accel_y_m_s2,accel_z_m_s2
     joints.csv          t_s,knee_rad,ankle_rad
     events.csv          t_s,kind,source
@@ -277,6 +277,11 @@ class Session:
     def n_frames(self) -> int:
         return int(self._index.t_s.size)
 
+    @property
+    def n_color_frames(self) -> int:
+        """Frames with a colour image (the others were recorded depth-only)."""
+        return sum(c is not None for c in self._index.color)
+
     def __len__(self) -> int:
         return self.n_frames
 
@@ -452,15 +457,12 @@ class SessionWriter:
                 f"{self.path}: frame {self._n_frames} t_s={frame.t_s!r} does not increase "
                 f"(previous {self._last_t!r})"
             )
+        # Colour may be missing in some frames (a depth frame without a colour image close
+        # enough in time is kept depth-only): its row leaves the colour column empty.
         has_color = frame.color_rgb is not None
-        if self._has_color is None:
-            self._has_color = has_color
-            if has_color:
-                (self.path / "color").mkdir()
-        elif has_color != self._has_color:
-            raise SessionError(
-                f"{self.path}: frame {self._n_frames}: colour must be present in all frames or none"
-            )
+        if has_color and not self._has_color:
+            (self.path / "color").mkdir(exist_ok=True)
+            self._has_color = True
         units = np.rint(frame.depth_m / self.depth_unit_m)
         max_units = np.iinfo(np.uint16).max
         if units.max(initial=0) > max_units:

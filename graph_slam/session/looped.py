@@ -115,6 +115,13 @@ class LoopedSession:
     def n_frames(self) -> int:
         return int(self._frame_t_s.size)
 
+    @property
+    def n_color_frames(self) -> int:
+        """Loop frames with a colour image (all of them when the recording's frames have)."""
+        if self.base.n_color_frames == self.base.n_frames:
+            return self.n_frames
+        return sum(self.base.frame(int(i)).color_rgb is not None for i in self._frame_source)
+
     def __len__(self) -> int:
         return self.n_frames
 

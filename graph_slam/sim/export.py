@@ -1,15 +1,17 @@
-"""A simulated walk exported as a real recording: a RealSense SDK bag and a prosthesis log.
+"""A simulated walk exported as a real recording: a RealSense SDK recording and a prosthesis log.
 
 What a researcher brings home from a session, made from the simulator so that the whole path
-(``graph-slam convert`` then ``graph-slam run``, docs/recording.md) can be tried and tested
-without a camera:
+(``graph-slam convert`` then ``graph-slam run``, or ``graph-slam live --playback``,
+docs/recording.md) can be tried and tested without a camera:
 
-- ``recording.bag``: a ROS 1 bag in the RealSense SDK's layout (:mod:`.realsense_bag`):
-  16-bit depth at the camera's rate (with the profile's frame drops), colour **not aligned**
-  to depth — rendered from the colour camera's own pose (``color_T_depth``, a D455-like
-  59 mm baseline and a small rotation) with its own size and intrinsics —, camera infos, the
-  streams' extrinsics (``tf``), accel and gyro at their own rates in the IMU's frame, with
-  ``camera_T_imu`` in the bag;
+- ``recording.db3``: a RealSense SDK recording written by librealsense itself
+  (:mod:`.realsense_sdk`: a software device recorded by ``rs.recorder``), which the SDK's
+  playback opens: 16-bit depth at the camera's rate (with the profile's frame drops), colour
+  **not aligned** to depth at its own rate and size — rendered from the colour camera's own
+  pose (``color_T_depth``, a D455-like 59 mm baseline and a small rotation) —, the cameras'
+  intrinsics, the depth→colour extrinsics, the depth units, accel and gyro at their own rates
+  in the IMU's frame. Frames are fed at ``record_speed`` × real time, so the recording's own
+  time (what the SDK's real-time playback follows) matches the frames' stamps;
 - ``prosthesis_log.csv``: the controller's log on its own clock (camera time = log time +
   ``clock_offset_s``): ``time_ms``, ``knee_deg``, ``ankle_deg`` (the encoders) and
   ``load_n`` (a load cell: body weight over stance, linear ramps at strike and toe-off);
@@ -17,12 +19,15 @@ without a camera:
   camera clock — for checking only, ``convert`` and ``run`` do not read it;
 - ``export.yaml``: what was exported (the truth to check a conversion against) and the
   simulator's resolved config;
-- ``convert.yaml``: the conversion config for this recording — the topic preset and the log's
-  column mapping only (no clock offset, no extrinsics: ``convert`` finds them).
+- ``convert.yaml``: the conversion config for this recording — the topic preset, the log's
+  column mapping and ``calibration.camera_T_imu`` (librealsense records no extrinsics for its
+  motion streams; a camera's own are read with pyrealsense2, docs/recording.md). No clock
+  offset and no camera extrinsics: ``convert`` finds them.
 
 Steps of :func:`export_realsense_recording`: prepare the simulation → render depth (the depth
-camera) and colour (the colour camera) frame by frame, merged in time order with the IMU
-samples into the bag → write the log, the ground truth and the two YAML files.
+camera) and colour (the colour camera) at their own times → feed them, merged in time order
+with the IMU samples, to librealsense's recorder → write the log, the ground truth and the two
+YAML files.
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ from graph_slam.sim.recording import _DEPTH, _ENCODERS, _IMU, _LOAD_CELL, Simula
 from graph_slam.sim.render import Renderer, intrinsics_for
 from graph_slam.sim.sensors import simulate_encoders, simulate_imu
 
-BAG_NAME = "recording.bag"
+BAG_NAME = "recording.db3"
 LOG_NAME = "prosthesis_log.csv"
 TRUTH_NAME = "ground_truth.tum"
 EXPORT_NAME = "export.yaml"
@@ -68,6 +73,20 @@ class RecordingExportConfig(ConfigModel):
     color_scale: float = Field(
         1.5, gt=0.2, le=4, description="colour image size = depth image size × this"
     )
+    color_size_px: tuple[int, int] | None = Field(
+        None, description="colour image size (width, height); None: depth size × color_scale"
+    )
+    color_rate_hz: float | None = Field(
+        30.0, gt=0, le=300, description="colour frames per second; None: with every depth frame"
+    )
+    record_speed: float | None = Field(
+        1.0,
+        gt=0,
+        le=100,
+        description="frames are given to the recorder at this multiple of real time (its "
+        "playback follows the recording's own time); None: as fast as they come",
+    )
+    serial: str = Field("000000000001", description="the device's serial number in the file")
     color_fov_deg: tuple[float, float] = Field(
         (90.0, 65.0), description="colour camera field of view (x, y); D455 RGB ≈ 90° × 65°"
     )
@@ -83,7 +102,7 @@ class RecordingExportConfig(ConfigModel):
     color_delay_s: float = Field(
         0.0003, ge=0, le=0.01, description="colour stamp − depth stamp of one frame"
     )
-    gyro_rate_hz: float = Field(200.0, gt=0, le=1000, description="D455: 200 or 400 Hz")
+    gyro_rate_hz: float = Field(400.0, gt=0, le=1000, description="D455: 200 or 400 Hz")
     accel_rate_hz: float = Field(250.0, gt=0, le=1000, description="D455: 63 or 250 Hz")
     body_weight_n: float = Field(750.0, gt=0, description="load-cell reading in stance")
     load_ramp_s: float = Field(0.03, gt=0, le=0.2, description="load rise/fall time")
@@ -123,7 +142,8 @@ class ExportResult:
     def lines(self) -> list[str]:
         d, c = self.depth_intrinsics, self.color_intrinsics
         return [
-            f"wrote {self.bag}: {self.frames} depth frames {d.width_px}x{d.height_px}, colour "
+            f"wrote {self.bag} (RealSense SDK recording): {self.frames} depth frames "
+            f"{d.width_px}x{d.height_px}, {self.counts.get('color', 0)} colour "
             f"{c.width_px}x{c.height_px} (not aligned), accel + gyro, over {self.duration_s:.2f} s",
             f"wrote {self.log} (clock offset {self.clock_offset_s:+.3f} s: camera = log + offset)",
             f"wrote {self.ground_truth} (for checking only), {self.path / EXPORT_NAME}, "
@@ -145,6 +165,8 @@ def color_intrinsics(depth: CameraIntrinsics, export: RecordingExportConfig) -> 
     principal point off centre by ``color_principal_offset_px``."""
     w = max(round(depth.width_px * export.color_scale), 8)
     h = max(round(depth.height_px * export.color_scale), 8)
+    if export.color_size_px is not None:
+        w, h = export.color_size_px
     fov_x, fov_y = export.color_fov_deg
     du, dv = export.color_principal_offset_px
     return CameraIntrinsics(
@@ -193,6 +215,15 @@ def export_realsense_recording(
     return result
 
 
+def _color_times(t_frames: np.ndarray, export: RecordingExportConfig) -> np.ndarray:
+    """The colour frames' times: at ``color_rate_hz`` from the first depth frame (+ delay),
+    or with every depth frame."""
+    if export.color_rate_hz is None:
+        return t_frames + export.color_delay_s
+    n = int(np.floor((t_frames[-1] - t_frames[0]) * export.color_rate_hz)) + 1
+    return t_frames[0] + export.color_delay_s + np.arange(n) / export.color_rate_hz
+
+
 def _write_bag(
     path: Path,
     sim: Simulation,
@@ -201,8 +232,10 @@ def _write_bag(
     color_k: CameraIntrinsics,
     progress: Callable[[int, int], None] | None,
 ) -> dict[str, int]:
-    """Depth, colour, accel and gyro in one time-ordered pass; frames rendered as they come."""
-    from graph_slam.sim.realsense_bag import SdkBagWriter
+    """Depth and colour rendered at their own times, then given with accel and gyro in time
+    order to librealsense's recorder (in memory first when recording in real time, so that
+    rendering does not slow the recording's clock)."""
+    from graph_slam.sim.realsense_sdk import SdkDevice, SdkRecorder
 
     cfg, camera = sim.cfg, sim.camera
     depth_only = camera.model_copy(update={"color": False})
@@ -212,38 +245,49 @@ def _write_bag(
     )
     color_T_depth = pose(export.color_T_depth_rotvec_rad, export.color_T_depth_t_m)
     t_frames = sim.frame_times_s
+    t_color = _color_times(t_frames, export)
     world_T_depth = sim.motion.world_T(t_frames, sim.thigh_T_camera)
-    world_T_color = world_T_depth @ np.linalg.inv(color_T_depth)
-    gyro_depth, _ = sim.motion.imu_ideal(t_frames, sim.thigh_T_camera)
+    world_T_color = sim.motion.world_T(t_color, sim.thigh_T_camera) @ np.linalg.inv(color_T_depth)
+    gyro_depth, _ = sim.motion.imu_ideal(t_color, sim.thigh_T_camera)
     gyro_color = gyro_depth @ color_T_depth[:3, :3].T
     accel, gyro = _imu_streams(sim, export)
-    events = _schedule(t_frames, accel.t_s, gyro.t_s, export)
+    events = _schedule(t_frames, t_color, accel.t_s, gyro.t_s)
     rng_depth = np.random.default_rng([cfg.seed, _DEPTH])
-    imu = sim.imu
-    variances = (
-        np.full(3, (imu.accel_noise_density_m_s2_sqrt_hz**2) * export.accel_rate_hz),
-        np.full(3, (imu.gyro_noise_density_rad_s_sqrt_hz**2) * export.gyro_rate_hz),
-    )
-    pending: dict[int, np.ndarray] = {}
-    with SdkBagWriter(path) as bag:
-        bag.write_calibration(events[0][0], depth_k, color_k, color_T_depth,
-                              sim.calibration.camera_T_imu, export.depth_unit_m,
-                              variances)  # fmt: skip
-        for stamp, kind, i in events:
-            if kind == 0:
-                depth_m, _ = depth_r.render(world_T_depth[i], rng_depth)
-                raw = np.rint(depth_m / export.depth_unit_m)
-                bag.write_depth(stamp, np.clip(raw, 0, 65535).astype(np.uint16))
-                pending[i] = color_r.render_color(world_T_color[i], gyro_color[i])
-                if progress is not None:
-                    progress(i + 1, t_frames.size)
-            elif kind == 1:
-                bag.write_color(stamp, pending.pop(i))
+    device = SdkDevice(
+        depth=depth_k, depth_rate_hz=round(camera.rate_hz), depth_unit_m=export.depth_unit_m,
+        color=color_k, color_rate_hz=round(export.color_rate_hz or camera.rate_hz),
+        color_T_depth=color_T_depth, accel_rate_hz=round(export.accel_rate_hz),
+        gyro_rate_hz=round(export.gyro_rate_hz), serial=export.serial,
+    )  # fmt: skip
+
+    def render(kind: int, i: int) -> np.ndarray:
+        if kind == 0:
+            depth_m, _ = depth_r.render(world_T_depth[i], rng_depth)
+            if progress is not None:
+                progress(i + 1, t_frames.size)
+            raw = np.rint(depth_m / export.depth_unit_m)
+            return np.clip(raw, 0, 65535).astype(np.uint16)
+        return color_r.render_color(world_T_color[i], gyro_color[i])
+
+    images: dict[tuple[int, int], np.ndarray] = {}
+    if export.record_speed is not None:  # rendered first: the recorder's clock is real time
+        images = {(k, i): render(k, i) for _, k, i in events if k in (0, 1)}
+    epoch = export.camera_epoch_s
+    with SdkRecorder(path, device, speed=export.record_speed) as rec:
+        for t_s, kind, i in events:
+            if kind in (0, 1):
+                image = images.pop((kind, i)) if images else render(kind, i)
+                (rec.depth if kind == 0 else rec.color)(t_s + epoch, image)
             elif kind == 2:
-                bag.write_accel(stamp, accel.accel_m_s2[i])
+                rec.accel(t_s + epoch, accel.accel_m_s2[i])
             else:
-                bag.write_gyro(stamp, gyro.gyro_rad_s[i])
-        return dict(bag.counts)
+                rec.gyro(t_s + epoch, gyro.gyro_rad_s[i])
+        return {
+            "depth": rec.counts["depth"],
+            "color": rec.counts["color"],
+            "accel": rec.counts["accel"],
+            "gyro": rec.counts["gyro"],
+        }
 
 
 def _imu_streams(sim: Simulation, export: RecordingExportConfig):
@@ -261,20 +305,15 @@ def _imu_streams(sim: Simulation, export: RecordingExportConfig):
 
 
 def _schedule(
-    t_frames: np.ndarray, t_accel: np.ndarray, t_gyro: np.ndarray, export: RecordingExportConfig
-) -> list[tuple[int, int, int]]:
-    """Every message as (bag ns, kind, index), in time order: kind 0 depth, 1 colour (the
-    depth stamp + ``color_delay_s``), 2 accel, 3 gyro."""
-
-    def ns(t_s: np.ndarray) -> np.ndarray:
-        return np.rint((np.asarray(t_s) + export.camera_epoch_s) * 1e9).astype(np.int64)
-
-    delay_ns = round(export.color_delay_s * 1e9)
+    t_frames: np.ndarray, t_color: np.ndarray, t_accel: np.ndarray, t_gyro: np.ndarray
+) -> list[tuple[float, int, int]]:
+    """Every frame and sample as (simulator time s, kind, index), in time order: kind 0
+    depth, 1 colour, 2 accel, 3 gyro."""
     return sorted(
-        [(int(n), 0, i) for i, n in enumerate(ns(t_frames))]
-        + [(int(n) + delay_ns, 1, i) for i, n in enumerate(ns(t_frames))]
-        + [(int(n), 2, i) for i, n in enumerate(ns(t_accel))]
-        + [(int(n), 3, i) for i, n in enumerate(ns(t_gyro))]
+        [(float(t), 0, i) for i, t in enumerate(t_frames)]
+        + [(float(t), 1, i) for i, t in enumerate(t_color)]
+        + [(float(t), 2, i) for i, t in enumerate(t_accel)]
+        + [(float(t), 3, i) for i, t in enumerate(t_gyro)]
     )
 
 
@@ -314,11 +353,13 @@ def _write_log(path: Path, sim: Simulation, export: RecordingExportConfig) -> No
                header="time_ms,knee_deg,ankle_deg,load_n", comments="")  # fmt: skip
 
 
-def convert_config(log_path: str | Path) -> dict:
-    """The conversion config of an exported recording: the SDK preset and the log's column
-    mapping, nothing else (``convert`` estimates the clock offset and reads the extrinsics)."""
+def convert_config(log_path: str | Path, camera_T_imu: np.ndarray) -> dict:
+    """The conversion config of an exported recording: the SDK preset, the log's column
+    mapping and the IMU's extrinsics (which librealsense does not record for its motion
+    streams); ``convert`` estimates the clock offset and reads the cameras' extrinsics."""
     return {
         "bag": {"preset": "realsense-sdk"},
+        "calibration": {"camera_T_imu": np.asarray(camera_T_imu, float).tolist()},
         "prosthesis_log": {
             "path": str(log_path),
             "time": {"column": "time_ms", "unit": "ms"},
@@ -338,7 +379,8 @@ def _write_yaml(tmp: Path, result: ExportResult, sim: Simulation, export: Record
         return {n: getattr(x, n) for n in ("width_px", "height_px", "fx_px", "fy_px", "cx_px", "cy_px")}  # fmt: skip
 
     truth = {
-        "note": "what the bag and the log were made with; graph-slam convert does not read it",
+        "note": "what the recording and the log were made with; graph-slam convert does not "
+        "read it",
         "clock_offset_s": export.clock_offset_s,
         "color_T_depth": result.color_T_depth.tolist(),
         "camera_T_imu": result.camera_T_imu.tolist(),
@@ -354,5 +396,6 @@ def _write_yaml(tmp: Path, result: ExportResult, sim: Simulation, export: Record
     (tmp / EXPORT_NAME).write_text(yaml.safe_dump(truth, sort_keys=False), encoding="utf-8")
     log_path = result.path / LOG_NAME
     (tmp / CONVERT_NAME).write_text(
-        yaml.safe_dump(convert_config(log_path), sort_keys=False), encoding="utf-8"
+        yaml.safe_dump(convert_config(log_path, result.camera_T_imu), sort_keys=False),
+        encoding="utf-8",
     )

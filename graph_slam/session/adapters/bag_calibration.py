@@ -27,12 +27,13 @@ from scipy.spatial.transform import Rotation
 
 from graph_slam.errors import ConversionError
 from graph_slam.session.adapters.align import CameraModel
+from graph_slam.session.adapters.bag_sdk import STRING, imu_intrinsic_values, string_transform
 from graph_slam.session.records import CameraIntrinsics
 
 TRANSFORM = "geometry_msgs/msg/Transform"
 IMU_INTRINSIC = "realsense_msgs/msg/ImuIntrinsic"
-#: ``/device_D/sensor_S/<Stream>_<i>/tf/<group>``
-SDK_TF = re.compile(r"^(/device_\d+/sensor_\d+/[A-Za-z]+_\d+)/tf/(\d+)$")
+#: ``/device_D/sensor_S/<Stream>_<i>/tf/<group>`` (ROS 1: ``tf/0``; ROS 2: ``tf/ref_1``)
+SDK_TF = re.compile(r"^(/device_\d+/sensor_\d+/[A-Za-z]+_\d+)/tf/((?:ref_)?\d+)$")
 #: ``/device_D/sensor_S/<Stream>_<i>`` of a data topic
 SDK_STREAM = re.compile(r"^(/device_\d+/sensor_\d+/[A-Za-z]+_\d+)/")
 UNIT_QUATERNION_TOLERANCE = 1e-3
@@ -100,7 +101,9 @@ def sdk_stream(topic: str | None) -> str | None:
 
 
 def sdk_tf_topics(topics: Mapping[str, str | None]) -> tuple[str, ...]:
-    return tuple(sorted(t for t, m in topics.items() if SDK_TF.match(t) and m == TRANSFORM))
+    return tuple(
+        sorted(t for t, m in topics.items() if SDK_TF.match(t) and m in (TRANSFORM, STRING))
+    )
 
 
 def sdk_imu_intrinsic_topics(
@@ -131,7 +134,11 @@ class SdkExtrinsics:
         for topic, msg in messages.items():
             match = SDK_TF.match(topic)
             if match:
-                pose = transform_matrix(msg, f"topic {topic}")
+                where = f"topic {topic}"
+                if msg.__msgtype__ == STRING:
+                    pose = string_transform(msg.data, where)  # the SDK's text (ROS 2)
+                else:
+                    pose = transform_matrix(msg, where)
                 self.by_stream[match.group(1)] = (match.group(2), pose, topic)
 
     def lookup(self, a: str | None, b: str | None) -> Extrinsic | None:
@@ -192,13 +199,13 @@ class TfTree:
 
 def imu_intrinsic_entry(msg: Any, topic: str) -> dict[str, Any]:
     """The SDK's ``realsense_msgs/ImuIntrinsic``: 3×4 [scale and misalignment | bias], variances."""
-    data = np.asarray(msg.data, dtype=np.float64).reshape(3, 4)
+    data, noise, bias = imu_intrinsic_values(msg)
     return {
         "source": f"bag ({topic})",
         "scale_misalignment": data[:, :3].tolist(),
         "bias": data[:, 3].tolist(),
-        "noise_variances": np.asarray(msg.noise_variances, dtype=np.float64).tolist(),
-        "bias_variances": np.asarray(msg.bias_variances, dtype=np.float64).tolist(),
+        "noise_variances": noise.tolist(),
+        "bias_variances": bias.tolist(),
         "applied": False,
     }
 

@@ -88,6 +88,23 @@ def color_plan(
     return ColorPlan(True, depth_model, calib.color_model, calib.color_T_depth.pose)
 
 
+def nearest_within(
+    t_ref_s: np.ndarray, t_other_s: np.ndarray, max_dt_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each reference sample paired with the nearest other sample within ``max_dt_s`` (an
+    other sample may serve several references)."""
+    if t_ref_s.size == 0 or t_other_s.size == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+    j = np.clip(np.searchsorted(t_other_s, t_ref_s), 1, t_other_s.size - 1)
+    if t_other_s.size == 1:
+        j = np.zeros_like(j)
+    else:
+        earlier = np.abs(t_ref_s - t_other_s[j - 1]) <= np.abs(t_other_s[j] - t_ref_s)
+        j = np.where(earlier, j - 1, j)
+    ok = np.abs(t_other_s[j] - t_ref_s) <= max_dt_s
+    return np.flatnonzero(ok), j[ok]
+
+
 def pair_frames(
     choice: TopicChoice,
     got: Collected,
@@ -106,29 +123,42 @@ def pair_frames(
         c_order = order_stamps(color_ns)
         max_dt = config.association.max_color_dt_s
         ns0 = int(depth_ns.min())
-        i_d, i_c = associate(
-            (depth_ns[depth_kept] - ns0) * 1e-9,
-            (color_ns[c_order.keep] - ns0) * 1e-9,
-            max_dt,
-        )
-        frames_dropped[f"no colour image within {max_dt} s"] = depth_kept.size - i_d.size
-        depth_kept = depth_kept[i_d]
-        color_pos = c_order.keep[i_c]
+        if config.association.share_color:
+            i_d, i_c = nearest_within(
+                (depth_ns[depth_kept] - ns0) * 1e-9, (color_ns[c_order.keep] - ns0) * 1e-9, max_dt
+            )
+        else:
+            i_d, i_c = associate(
+                (depth_ns[depth_kept] - ns0) * 1e-9,
+                (color_ns[c_order.keep] - ns0) * 1e-9,
+                max_dt,
+            )
+        # Every depth frame is kept: one without a colour image within max_dt is written
+        # depth-only (position -1), counted; the pipeline registers it without colour.
+        color_pos = np.full(depth_kept.size, -1, dtype=np.int64)
+        color_pos[i_d] = c_order.keep[i_c]
+        depth_only = depth_kept.size - i_d.size
         report.add(
             StreamReport(
                 "color",
                 choice.color,
                 color_ns.size,
-                color_pos.size,
+                int(i_c.size),
                 {
                     "duplicate stamp": c_order.duplicates,
-                    f"no depth frame within {max_dt} s": c_order.keep.size - color_pos.size,
+                    f"no depth frame within {max_dt} s": c_order.keep.size - i_c.size,
                 },
             )
         )
     frames_report = report.add(
         StreamReport("frames", choice.depth, depth_ns.size, depth_kept.size, frames_dropped)
     )
+    if color_pos is not None and depth_only:
+        frames_report.notes.append(
+            f"{depth_only} depth frame(s) without a colour image within "
+            f"{config.association.max_color_dt_s} s kept depth-only"
+        )
+        frames_report.depth_only = depth_only
     return depth_kept, color_pos, frames_report
 
 
@@ -188,8 +218,12 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
     """Decode the chosen messages and yield each frame as soon as its depth (and colour) is in."""
     choice, plan = src.choice, src.plan
     frame_of_depth = {int(p): k for k, p in enumerate(src.depth_pos)}
-    frame_of_color = (
-        {} if src.color_pos is None else {int(p): k for k, p in enumerate(src.color_pos)}
+    frames_of_color: dict[int, list[int]] = {}
+    for k, p in enumerate(() if src.color_pos is None else src.color_pos):
+        if p >= 0:
+            frames_of_color.setdefault(int(p), []).append(k)
+    depth_only = (
+        set() if src.color_pos is None else {k for k, p in enumerate(src.color_pos) if p < 0}
     )
     rays = pixel_rays(plan.depth_model) if plan.align else None
     with_color = src.color_pos is not None and choice.color is not None
@@ -204,10 +238,16 @@ def _read_frames(src: FrameSource, counts: FrameCounts) -> Iterator[RgbdFrame]:
             if topic == choice.depth and pos in frame_of_depth:
                 raw = _decoded(src, msg, topic, pos, "depth")
                 depth_ready[frame_of_depth[pos]] = depth_m(raw, src.unit_m, counts)
-            if topic == choice.color and pos in frame_of_color:
-                color_ready[frame_of_color[pos]] = _decoded(src, msg, topic, pos, "color")
+            if topic == choice.color and pos in frames_of_color:
+                image = _decoded(src, msg, topic, pos, "color")
+                for k_color in frames_of_color[pos]:
+                    color_ready[k_color] = image
             k = counts.written
-            while k < src.n_frames and k in depth_ready and (not with_color or k in color_ready):
+            while (
+                k < src.n_frames
+                and k in depth_ready
+                and (not with_color or k in color_ready or k in depth_only)
+            ):
                 yield _frame(src, k, depth_ready.pop(k), color_ready.pop(k, None), rays, counts)
                 k = counts.written = k + 1
 

@@ -21,6 +21,12 @@ def _rosbags():
     return AnyReader
 
 
+def _ros2_typestore():
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
 def _rosbag_errors() -> tuple[type[BaseException], ...]:
     import sqlite3
     import struct
@@ -116,7 +122,9 @@ class Bag:
         any_reader = _rosbags()
         self._errors = _rosbag_errors()
         try:
-            self.reader = any_reader([bag_path(path)])
+            # The RealSense SDK's .db3 recordings carry no message definitions: the standard
+            # ROS 2 types are brought along (used only for types a bag does not define).
+            self.reader = any_reader([bag_path(path)], default_typestore=_ros2_typestore())
             self.reader.open()
         except FileNotFoundError as err:
             raise _bag_error(path, err) from None

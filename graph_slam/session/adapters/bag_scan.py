@@ -19,7 +19,8 @@ from graph_slam.session.adapters.bag_images import (
     image_array,
 )
 from graph_slam.session.adapters.bag_reader import Bag
-from graph_slam.session.adapters.bag_topics import COMPRESSED, TopicChoice
+from graph_slam.session.adapters.bag_sdk import metadata_stamp_ns
+from graph_slam.session.adapters.bag_topics import COMPRESSED, STRING, TopicChoice
 from graph_slam.session.adapters.config import BagConfig
 
 DEPTH_CHECK_FRAMES = 5
@@ -55,6 +56,10 @@ class Collected:
     tf_static: list[Any] = field(default_factory=list)
     #: first message of each extra topic (the SDK's tf and imu_intrinsic topics)
     extra: dict[str, Any] = field(default_factory=dict)
+    #: role → the frames' own stamps (ns) from the SDK's per-frame metadata, in message order
+    metadata_ns: dict[str, list[int]] = field(default_factory=dict)
+    #: (msgtype, message) of the SDK's device info topic
+    device: list[tuple[str | None, Any]] = field(default_factory=list)
 
 
 def _vec(v: Any) -> tuple[float, float, float]:
@@ -143,8 +148,13 @@ def first_pass(
     counts: Mapping[str, int],
     msgtypes: Mapping[str, str | None],
     extra_topics: tuple[str, ...] = (),
+    metadata_topics: Mapping[str, str] | None = None,
+    device_topic: str | None = None,
 ) -> Collected:
-    """Read every chosen topic once (see the module docstring)."""
+    """Read every chosen topic once (see the module docstring); ``metadata_topics``: the
+    SDK's per-frame metadata topic → the role of its frames; ``device_topic``: its device
+    info."""
+    metadata_topics = dict(metadata_topics or {})
     role_of: dict[str, list[str]] = {}
     for role, topic in choice.topic_of().items():
         role_of.setdefault(topic, []).append(role)
@@ -153,10 +163,18 @@ def first_pass(
     out = Collected()
     use_header = cfg.stamps == "header"
     index: dict[str, int] = {}
-    for topic, bag_ns, msg in bag.messages(set(role_of) | set(extra_topics)):
+    wanted = set(role_of) | set(extra_topics) | set(metadata_topics)
+    if device_topic is not None:
+        wanted.add(device_topic)
+    for topic, bag_ns, msg in bag.messages(wanted):
         i = index[topic] = index.get(topic, -1) + 1
         if topic in extra_topics:
             out.extra.setdefault(topic, msg)
+        if topic in metadata_topics:
+            stamp = metadata_stamp_ns(msg.data, f"topic {topic}, message {i}")
+            out.metadata_ns.setdefault(metadata_topics[topic], []).append(stamp)
+        if topic == device_topic:
+            out.device.append((msgtypes.get(topic), msg))
         for role in role_of.get(topic, ()):
             if role in ("depth", "color"):
                 ns = stamp_ns(msg, bag_ns, use_header)
@@ -179,3 +197,41 @@ def first_pass(
             elif role == "gait_events":
                 out.events.append((bag_ns, str(msg.data).strip()))
     return out
+
+
+def sdk_metadata_topics(choice: TopicChoice, msgtypes: Mapping[str, str | None]) -> dict[str, str]:
+    """The SDK's per-frame metadata topic of each image / IMU stream chosen (ROS 2 SDK
+    recordings: ``<stream>/image/metadata``, ``<stream>/imu/metadata``) → the stream's role."""
+    out = {}
+    for role in ("depth", "color", "accel", "gyro"):
+        topic = getattr(choice, role)
+        if topic is None or "/device_" not in topic:
+            continue
+        stream = topic.split("/image/data", 1)[0].split("/imu/data", 1)[0]
+        for meta in (f"{stream}/image/metadata", f"{stream}/imu/metadata"):
+            if msgtypes.get(meta) == STRING:
+                out[meta] = role
+    return out
+
+
+def use_metadata_stamps(got: Collected, choice: TopicChoice, path: Any) -> list[str]:
+    """Replace the stamps of every stream that has the SDK's per-frame metadata with the
+    frames' own time (the k-th metadata message belongs to the k-th frame); notes."""
+    notes = []
+    for role, stamps in got.metadata_ns.items():
+        values = {"depth": got.depth_ns, "color": got.color_ns}.get(role)
+        samples = {"accel": got.accel, "gyro": got.gyro}.get(role)
+        n = len(values) if values is not None else len(samples or [])
+        topic = getattr(choice, role)
+        if len(stamps) != n:
+            raise ConversionError(
+                f"{path}: {topic} has {n} message(s) but its metadata topic {len(stamps)}; "
+                "the frames' own times cannot be paired (set bag.stamps: bag to use the "
+                "recording's time)"
+            )
+        if values is not None:
+            values[:] = stamps
+        elif samples is not None:
+            samples[:] = [(ns, *rest) for ns, (_, *rest) in zip(stamps, samples, strict=True)]
+        notes.append(f"{role}: stamps from the SDK's frame metadata (the device's clock)")
+    return notes

@@ -18,6 +18,7 @@ CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 IMU = "sensor_msgs/msg/Imu"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT32 = "std_msgs/msg/Float32"
+STRING = "std_msgs/msg/String"
 EVENT_TYPES = frozenset(
     f"std_msgs/msg/{t}"
     for t in ("String", "Int8", "Int16", "Int32", "Int64", "UInt8", "UInt16", "UInt32", "UInt64")
@@ -44,7 +45,7 @@ ROLE_TYPES: dict[str, frozenset[str]] = {
     "gyro": frozenset({IMU}),
     "joint_states": frozenset({JOINT_STATE}),
     "gait_events": EVENT_TYPES,
-    "depth_units": frozenset({FLOAT32}),
+    "depth_units": frozenset({FLOAT32, STRING}),
     "color_info": frozenset({CAMERA_INFO}),
     "tf_static": frozenset({TF_MESSAGE}),
 }
@@ -69,18 +70,33 @@ def _unique(pattern: str, topics: Mapping[str, str | None], role: str) -> str | 
 class RealsenseSdkPreset:
     """Recordings of the RealSense SDK / realsense-viewer (``/device_N/sensor_M/...``).
 
-    Depth ``/device_0/sensor_0/Depth_0/image/data``; accel and gyro are separate ``Accel_K`` and
-    ``Gyro_K`` streams whose sensor index varies by device, so they are found by pattern on the
-    same device. Colour is recorded unregistered to depth, with its own camera_info
-    (``…/Color_0/info/camera_info``); it is registered to depth with the extrinsics of the
-    streams' ``tf`` topics. Depth units: the ``Depth Units`` option topic.
+    ROS 1 ``.bag`` (librealsense before 2.5x): depth ``…/Depth_0/image/data`` (raw), camera
+    info ``…/Depth_0/info/camera_info``. ROS 2 ``.db3`` (librealsense 2.5x): depth
+    ``…/Depth_0/image/data/compressedDepth``, colour ``…/Color_0/image/data/compressed``, camera
+    info ``…/image/camera_info`` with every frame, the frame's own time in ``…/metadata``.
+    Accel and gyro are separate ``Accel_K`` and ``Gyro_K`` streams whose sensor index varies by
+    device, so they are found by pattern on the same device. Colour is recorded unregistered
+    to depth; it is registered to depth with the extrinsics of the streams' ``tf`` topics.
+    Depth units: the ``Depth Units`` option topic (Float32, or a text in ROS 2).
     """
 
     name = "realsense-sdk"
-    depth_pattern = re.compile(r"^/device_(\d+)/sensor_(\d+)/Depth_\d+/image/data$")
+    depth_pattern = re.compile(
+        r"^/device_(\d+)/sensor_(\d+)/Depth_\d+/image/data(/compressedDepth)?$"
+    )
 
     def depth_candidates(self, topics: Mapping[str, str | None]) -> list[str]:
         return sorted(t for t in topics if self.depth_pattern.match(t))
+
+    @staticmethod
+    def camera_info(image: str, topics: Mapping[str, str | None]) -> str | None:
+        """The CameraInfo of an SDK image stream: ``…/image/camera_info`` (ROS 2, with every
+        frame), else ``…/info/camera_info`` (ROS 1, once)."""
+        stream = image.split("/image/data", 1)[0]
+        for topic in (f"{stream}/image/camera_info", f"{stream}/info/camera_info"):
+            if topics.get(topic) == CAMERA_INFO:
+                return topic
+        return None
 
     def related(self, depth: str, topics: Mapping[str, str | None]) -> dict[str, Any]:
         match = self.depth_pattern.match(depth)
@@ -88,13 +104,11 @@ class RealsenseSdkPreset:
             return {"color_registered": False}
         device, sensor = match.group(1), match.group(2)
         base = rf"^/device_{device}/sensor_\d+"
-        info = depth.replace("/image/data", "/info/camera_info")
-        color = _unique(rf"{base}/Color_\d+/image/data$", topics, "color")
-        color_info = color.replace("/image/data", "/info/camera_info") if color else None
+        color = _unique(rf"{base}/Color_\d+/image/data(/compressed)?$", topics, "color")
         return {
-            "camera_info": info if info in topics else None,
+            "camera_info": self.camera_info(depth, topics),
             "color": color,
-            "color_info": color_info if color_info in topics else None,
+            "color_info": self.camera_info(color, topics) if color else None,
             "accel": _unique(rf"{base}/Accel_\d+/imu/data$", topics, "accel"),
             "gyro": _unique(rf"{base}/Gyro_\d+/imu/data$", topics, "gyro"),
             "depth_units": _unique(

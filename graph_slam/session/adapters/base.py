@@ -37,6 +37,8 @@ class StreamReport:
     used: int
     dropped: dict[str, int] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: frames used without colour (no colour image close enough in time): kept depth-only
+    depth_only: int = 0
 
     @property
     def balanced(self) -> bool:
@@ -50,6 +52,7 @@ class StreamReport:
             "used": int(self.used),
             "dropped": {k: int(v) for k, v in self.dropped.items() if v},
             "notes": list(self.notes),
+            **({"depth_only": int(self.depth_only)} if self.depth_only else {}),
         }
 
 
@@ -65,6 +68,8 @@ class ConversionReport:
     clock_offset: Any = None
     #: calibration name → {"source": "bag (topic…)" | "config" | "default", "value": …}
     calibration: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: the recording device (RealSense SDK: product, serial, firmware) when the source says
+    device: dict[str, str] = field(default_factory=dict)
 
     def add(self, stream: StreamReport) -> StreamReport:
         self.streams.append(stream)
@@ -86,6 +91,7 @@ class ConversionReport:
             "notes": list(self.notes),
             **({"clock_offset": self.clock_offset.to_dict()} if self.clock_offset else {}),
             "calibration": {k: dict(v) for k, v in self.calibration.items()},
+            **({"device": dict(self.device)} if self.device else {}),
         }
 
 

@@ -33,6 +33,13 @@ class AssociationConfig(ConfigModel):
         description="a depth frame and a colour image pair only if their stamps differ by at "
         "most this (TUM's associate.py uses 0.02 s)",
     )
+    share_color: bool = Field(
+        False,
+        description="bags: a colour image may be registered to every depth frame within "
+        "max_color_dt_s (colour slower than depth: each depth frame gets the nearest colour "
+        "image, as librealsense's frame syncer does); false: one depth frame per colour image, "
+        "the other depth frames kept depth-only",
+    )
     max_ground_truth_gap_s: float = Field(
         0.05,
         gt=0,

@@ -36,7 +36,13 @@ from graph_slam.session.adapters.bag_frames import (
 )
 from graph_slam.session.adapters.bag_images import image_array
 from graph_slam.session.adapters.bag_reader import Bag, bag_path
-from graph_slam.session.adapters.bag_scan import Collected, first_pass
+from graph_slam.session.adapters.bag_scan import (
+    Collected,
+    first_pass,
+    sdk_metadata_topics,
+    use_metadata_stamps,
+)
+from graph_slam.session.adapters.bag_sdk import device_info
 from graph_slam.session.adapters.bag_streams import imu_series, joints_events, zero_stamps
 from graph_slam.session.adapters.bag_topics import TopicChoice, listing, resolve_topics
 from graph_slam.session.adapters.base import ConversionReport, Recording
@@ -97,6 +103,12 @@ class RosbagAdapter:
         if calib.camera_T_imu is not None:
             calibration = Calibration(camera_T_imu=calib.camera_T_imu.pose)
             report.calibration["camera_T_imu"] = extrinsic_entry(calib.camera_T_imu)
+        elif imu is not None:
+            report.notes.append(
+                "no depth→IMU extrinsics in the bag (librealsense 2.5x records none for its "
+                "motion streams): camera_T_imu is identity unless calibration.camera_T_imu "
+                "is set in the conversion config"
+            )
         source = FrameSource(
             path, choice, scan.topics, depth_kept, color_pos, frame_t, unit_m,
             got.depth_format, got.color_format, plan,
@@ -124,7 +136,16 @@ def _scan(path: Path, config: ConvertConfig, report: ConversionReport) -> _Scan:
     cfg = config.bag
     with Bag(path) as bag:
         topics, counts, is_ros2 = bag.topics(), bag.counts(), bag.is_ros2
-        choice = resolve_topics(topics, cfg)
+        try:
+            choice = resolve_topics(topics, cfg)
+        except ConversionError as err:  # the topic errors name the file too
+            hint = ""
+            if not any("/image/data" in t for t in topics) and "/file_version" in topics:
+                hint = (
+                    " (an SDK recording without frames: empty, or interrupted — librealsense "
+                    "writes a .db3's messages in batches and when the recording is closed)"
+                )
+            raise type(err)(f"{path}: {err}{hint}") from None
         if choice.camera_info is None and cfg.intrinsics is None:
             raise MissingStreamError(
                 f"{path}: no camera_info topic for {choice.depth}; set bag.camera_info_topic "
@@ -132,16 +153,26 @@ def _scan(path: Path, config: ConvertConfig, report: ConversionReport) -> _Scan:
             )
         imu_topics = sdk_imu_intrinsic_topics(topics, {"accel": choice.accel, "gyro": choice.gyro})
         extra = sdk_tf_topics(topics) + tuple(imu_topics.values())
-        got = first_pass(bag, choice, cfg, counts, topics, extra)
+        metadata = sdk_metadata_topics(choice, topics) if cfg.stamps == "header" else {}
+        device = _device_topic(choice.depth, topics)
+        got = first_pass(bag, choice, cfg, counts, topics, extra, metadata, device)
     report.notes.append(
         f"ROS {'2' if is_ros2 else '1'} bag; topics chosen by preset {choice.preset}"
     )
     report.notes.extend(choice.notes)
+    report.notes.extend(use_metadata_stamps(got, choice, path))
+    report.device.update(device_info(got.device))
     for role, values in (("depth", got.depth_ns), ("color", got.color_ns)):
         topic = getattr(choice, role)
         if topic is not None:
             zero_stamps(values, topic, cfg)
     return _Scan(dict(topics), choice, got, is_ros2)
+
+
+def _device_topic(depth: str, topics: dict[str, str | None]) -> str | None:
+    """The RealSense SDK's device info topic (``/device_<d>/info``) of the depth stream."""
+    device = depth.split("/sensor_", 1)[0] + "/info" if depth.startswith("/device_") else None
+    return device if device in topics else None
 
 
 def _calibration(scan: _Scan, config: ConvertConfig, report: ConversionReport) -> BagCalibration:

@@ -1,0 +1,48 @@
+"""Poses and the live elevation grid to rerun while a live run goes on: saved to a ``.rrd``
+file, and streamed to a viewer that is spawned (``spawn``) or running at an address
+(``connect``: ``rerun+http://HOST:9876/proxy``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+class LiveViewer:
+    """Call with every frame's ``FrameOutput``; every ``grid_step``-th frame logs the grid."""
+
+    def __init__(self, path: str | Path, *, spawn: bool = False, connect: str | None = None,
+                 grid_step: int = 9) -> None:  # fmt: skip
+        import rerun as rr
+
+        from graph_slam.report.terrain_trace import TerrainTrace
+        from graph_slam.viz.rerun_logger import RerunLogger
+
+        self.logger = RerunLogger(path, application_id="graph_slam_live")
+        sinks = [rr.FileSink(str(path))]
+        if spawn:
+            rr.spawn(connect=False)
+            sinks.append(rr.GrpcSink())
+        elif connect:
+            sinks.append(rr.GrpcSink(connect))
+        if len(sinks) > 1:
+            self.logger._rec.set_sinks(*sinks)  # the file and the viewer
+        self.trace = TerrainTrace(grid_step=grid_step, every_frame=False)
+        self._stride = -1
+
+    def frame(self, out) -> None:
+        log = self.logger
+        log.set_time(out.stride_index, out.t_s)
+        if out.stride_T_camera is not None and np.isfinite(out.stride_T_camera).all():
+            log.log_camera(out.stride_T_camera)
+        self.trace(out)
+        snap = self.trace.snapshots.pop(int(out.frame_index), None)
+        if snap is not None:
+            log.log_grid(snap)
+        self.trace.obstacles.clear()
+        self.trace.t_s.clear()
+        self.trace.stride_index.clear()
+
+    def close(self) -> None:
+        self.logger.close()
