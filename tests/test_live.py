@@ -143,7 +143,7 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     viewer.close()
     assert (tmp_path / "live.rrd").stat().st_size > 1000
     assert result.stop_reason == "end of playback"
-    assert result.n_processed >= 10 and result.n_processed + result.skipped == result.n_arrived
+    assert result.n_processed >= 3 and result.n_processed + result.skipped == result.n_arrived
     assert lines and "frames/s" in lines[0] and "latency p95" in lines[0]
     assert result.counts["imu"]["used"] > 100 and log.counts["events"] >= 2
     write_outputs(runner, result, tmp_path / "out")
