@@ -126,6 +126,8 @@ class Curb:
     """Signed: + up along the walk."""
     height_sigma_m: float
     edge: EdgeLine
+    near_height_m: float = 0.0
+    """The surface before the edge (stride z)."""
 
     @property
     def near_x_m(self) -> float:
@@ -165,6 +167,8 @@ class BoxFeature:
     leading: EdgeLine
     depth_m: float
     depth_sigma_m: float
+    floor_height_m: float = 0.0
+    """The surface it stands on (stride z)."""
 
     @property
     def near_x_m(self) -> float:

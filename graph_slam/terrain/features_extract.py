@@ -257,6 +257,7 @@ def _boxes(edges: list[dict], terraces: dict, cfg: FeatureConfig):
                     leading=lead,
                     depth_m=trail.x_at(lead.y_m) - lead.x_m,
                     depth_sigma_m=math.hypot(lead.sigma_m, trail.sigma_m),
+                    floor_height_m=(base[0] + base[1]) / 2,
                 )
             )
             used.update((k, m))
@@ -299,7 +300,7 @@ def _chains(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureCon
         if len(chain) == 1:
             run_on = _far_extent(g, labels, e["b"], e["line"], True)
             if run_on >= cfg.curb_min_depth_m:
-                curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"]))
+                curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"], terraces[e["a"]]["h"]))
                 continue
         steps = []
         for k, c in enumerate(chain):
@@ -347,6 +348,8 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         cov = np.linalg.inv(normal) * s2
         gx, gy = float(coef[1]), float(coef[2])
         grad = math.hypot(gx, gy)
+        if grad < math.tan(math.radians(cfg.ramp_min_deg)):
+            continue  # sloped cells of no slope: the flanks of an edge
         jac = np.array([gx, gy]) / max(grad, 1e-12)
         slope_sigma = math.sqrt(float(jac @ cov[1:, 1:] @ jac)) / (1 + grad * grad)
         perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
