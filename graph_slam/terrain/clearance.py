@@ -108,26 +108,26 @@ def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, f
     return out
 
 
+_OFFSETS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
+
+
 def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per point: the highest known cell within ``radius`` and its σ (NaN: none)."""
+    """Per point: the highest known cell within ``radius`` (the 3×3 offsets of it) and its σ
+    (NaN: none)."""
     h, s = view.height_m, view.sigma_m
     nx, ny = h.shape
-    x0, y0 = view.origin_xy_m
-    cell = view.cell_m
-    best = np.full(len(xy), -np.inf)
-    sig = np.full(len(xy), np.nan)
-    for dx in (-radius, 0.0, radius):
-        for dy in (-radius, 0.0, radius):
-            i = np.floor((xy[:, 0] + dx - x0) / cell).astype(np.int64)
-            j = np.floor((xy[:, 1] + dy - y0) / cell).astype(np.int64)
-            on = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
-            hh = np.full(len(xy), np.nan)
-            ss = np.full(len(xy), np.nan)
-            hh[on], ss[on] = h[i[on], j[on]], s[i[on], j[on]]
-            better = np.isfinite(hh) & (hh > best)
-            best[better], sig[better] = hh[better], ss[better]
-    best[~np.isfinite(best)] = np.nan
-    return best, sig
+    q = (xy[:, None, :] + radius * _OFFSETS[None]) - np.asarray(view.origin_xy_m)
+    ij = np.floor(q / view.cell_m).astype(np.int64)
+    on = (ij[..., 0] >= 0) & (ij[..., 0] < nx) & (ij[..., 1] >= 0) & (ij[..., 1] < ny)
+    i, j = np.where(on, ij[..., 0], 0), np.where(on, ij[..., 1], 0)
+    hh = np.where(on, h[i, j], np.nan)
+    hh = np.where(np.isfinite(hh), hh, -np.inf)
+    k = np.argmax(hh, axis=1)
+    rows = np.arange(len(xy))
+    best = hh[rows, k]
+    sig = s[i[rows, k], j[rows, k]]
+    found = np.isfinite(best)
+    return np.where(found, best, np.nan), np.where(found, sig, np.nan)
 
 
 def clearance_along(

@@ -56,6 +56,7 @@ class FeatureConfig(ConfigModel):
     fit_rms_max_m: float = Field(0.006, gt=0, description="local plane residual of a surface")
     min_terrace_cells: int = Field(6, ge=1)
     min_ramp_cells: int = Field(20, ge=3)
+    min_ramp_length_m: float = Field(0.2, gt=0, description="a ramp's extent up its slope")
     min_rise_m: float = Field(0.03, gt=0, description="smallest step, curb or box")
     max_gap_cells: int = Field(10, ge=0, description="most cells between two terraces")
     min_edge_rows: int = Field(3, ge=2, description="rows an edge must be seen in")

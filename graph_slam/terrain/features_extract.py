@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from graph_slam.errors import MappingError
@@ -18,6 +19,8 @@ from graph_slam.terrain.features import (
     TerrainFeatures,
     _Grid,
 )
+
+_DEFAULT = FeatureConfig()
 
 
 def features_of_view(view, config: FeatureConfig | None = None, source: str = "online"):
@@ -47,7 +50,7 @@ def extract_features(
     """Stairs, ramps, curbs and boxes of a height grid (NaN: unknown). ``variance_m2``: each
     cell's height variance; ``corr_sigma_m``: the part of its σ common to the grid (the pose's;
     zero when None)."""
-    cfg = config or FeatureConfig()
+    cfg = config or _DEFAULT
     h = np.asarray(height_m, dtype=np.float64)
     var = np.asarray(variance_m2, dtype=np.float64)
     if h.ndim != 2 or var.shape != h.shape:
@@ -76,40 +79,54 @@ def extract_features(
     )
 
 
-def _box_sum(a: np.ndarray, k: int) -> np.ndarray:
-    """Sum over each cell's k×k window (zero padded), by cumulative sums."""
-    p = k // 2
-    c = np.pad(a, ((p + 1, p), (p + 1, p))).cumsum(0).cumsum(1)
-    return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
+@numba.njit(cache=True, nogil=True)
+def _plane_kernel(h, known, half, min_cells):  # pragma: no cover - compiled
+    """Per cell: slope (height per cell), RMS residual of the plane over its window, valid."""
+    nx, ny = h.shape
+    slope = np.zeros((nx, ny))
+    rms = np.zeros((nx, ny))
+    valid = np.zeros((nx, ny), dtype=np.bool_)
+    for i in range(nx):
+        for j in range(ny):
+            if not known[i, j]:
+                continue
+            n = sx = sy = sz = sxx = sxy = syy = sxz = syz = szz = 0.0
+            z0 = h[i, j]
+            for a in range(max(i - half, 0), min(i + half + 1, nx)):
+                for b in range(max(j - half, 0), min(j + half + 1, ny)):
+                    if known[a, b]:
+                        x, y, z = a - i, b - j, h[a, b] - z0
+                        n += 1.0
+                        sx += x
+                        sy += y
+                        sz += z
+                        sxx += x * x
+                        sxy += x * y
+                        syy += y * y
+                        sxz += x * z
+                        syz += y * z
+                        szz += z * z
+            if n < min_cells:
+                continue
+            mx, my, mz = sx / n, sy / n, sz / n
+            cxx, cxy, cyy = sxx / n - mx * mx, sxy / n - mx * my, syy / n - my * my
+            cxz, cyz, czz = sxz / n - mx * mz, syz / n - my * mz, szz / n - mz * mz
+            det = cxx * cyy - cxy * cxy
+            if det <= 1e-9:
+                continue
+            gx = (cyy * cxz - cxy * cyz) / det
+            gy = (cxx * cyz - cxy * cxz) / det
+            slope[i, j] = np.sqrt(gx * gx + gy * gy)
+            rms[i, j] = np.sqrt(max(czz - gx * cxz - gy * cyz, 0.0))
+            valid[i, j] = True
+    return slope, rms, valid
 
 
 def _local_planes(g: _Grid, cfg: FeatureConfig):
     """Per cell: slope (tan) and RMS residual of the plane over its window; enough cells."""
-    k = cfg.window_cells | 1
-    m = g.known.astype(np.float64)
-    z = np.where(g.known, g.h - np.nanmedian(g.h[g.known]), 0.0)
-    ii, jj = np.meshgrid(
-        np.arange(g.h.shape[0], dtype=float), np.arange(g.h.shape[1], dtype=float), indexing="ij"
-    )
-    ii -= ii.mean()
-    jj -= jj.mean()
-    s = _box_sum(m, k)
-    valid = g.known & (s >= cfg.min_window_cells)
-    sd = np.where(valid, s, 1.0)
-    mx, my, mz = (_box_sum(m * a, k) / sd for a in (ii, jj, z))
-    cxx = _box_sum(m * ii * ii, k) / sd - mx * mx
-    cxy = _box_sum(m * ii * jj, k) / sd - mx * my
-    cyy = _box_sum(m * jj * jj, k) / sd - my * my
-    cxz = _box_sum(m * ii * z, k) / sd - mx * mz
-    cyz = _box_sum(m * jj * z, k) / sd - my * mz
-    czz = _box_sum(m * z * z, k) / sd - mz * mz
-    det = cxx * cyy - cxy * cxy
-    valid &= det > 1e-9
-    det = np.where(valid, det, 1.0)
-    gx = (cyy * cxz - cxy * cyz) / det
-    gy = (cxx * cyz - cxy * cxz) / det
-    resid = np.maximum(czz - gx * cxz - gy * cyz, 0.0)
-    return np.hypot(gx, gy) / g.cell, np.sqrt(resid), valid
+    h = np.where(g.known, g.h, 0.0)
+    slope, rms, valid = _plane_kernel(h, g.known, cfg.window_cells // 2, cfg.min_window_cells)
+    return slope / g.cell, rms, valid
 
 
 def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
@@ -128,14 +145,14 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
     height = np.bincount(flat, w * hv, n + 1) / np.maximum(sw, 1e-300)
     ind = np.sqrt(np.bincount(flat, w * w * var_ind, n + 1)) / np.maximum(sw, 1e-300)
     corr = np.bincount(flat, w * g.corr.ravel(), n + 1) / np.maximum(sw, 1e-300)
+    keep = sizes >= cfg.min_terrace_cells
+    keep[0] = False
+    labels = np.where(keep[labels], labels, 0)
     objs = ndimage.find_objects(labels)
     out = {}
-    for k in range(1, n + 1):
-        if sizes[k] < cfg.min_terrace_cells:
-            labels[labels == k] = 0
-            continue
+    for k in np.flatnonzero(keep):
         sx, sy = objs[k - 1]
-        out[k] = {
+        out[int(k)] = {
             "h": float(height[k]), "ind": float(ind[k]), "corr": float(corr[k]),
             "i": (sx.start, sx.stop - 1), "j": (sy.start, sy.stop - 1), "n": int(sizes[k]),
         }  # fmt: skip
@@ -348,8 +365,9 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         cov = np.linalg.inv(normal) * s2
         gx, gy = float(coef[1]), float(coef[2])
         grad = math.hypot(gx, gy)
-        if grad < math.tan(math.radians(cfg.ramp_min_deg)):
-            continue  # sloped cells of no slope: the flanks of an edge
+        along = ((x - xm) * gx + (y - ym) * gy) / max(grad, 1e-12)
+        if grad < math.tan(math.radians(cfg.ramp_min_deg)) or np.ptp(along) < cfg.min_ramp_length_m:
+            continue  # the flanks of an edge, not a ramp
         jac = np.array([gx, gy]) / max(grad, 1e-12)
         slope_sigma = math.sqrt(float(jac @ cov[1:, 1:] @ jac)) / (1 + grad * grad)
         perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
