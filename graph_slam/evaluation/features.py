@@ -1,0 +1,188 @@
+"""Terrain features against the scene's truth: stairs, ramps, curbs and boxes (stride frame).
+
+:func:`feature_truth_from_scene` turns a scene's objects into the features a perfect grid
+would give (a :class:`~graph_slam.terrain.features.TerrainFeatures` with σ 0) in a stride's
+frame: ``box`` objects are boxes; the ``step`` objects of a flight (``NAME.stepK``: step K a
+box of height K·rise, its near face the K-th nosing) are stairs; a ``ramp`` (a wedge rising
+along its x) is a ramp whose start line is its low edge; ``curb`` objects (a block of the
+given height running on across the walk; a scene's kind may add them) are curbs. It is the one
+place a scene's geometry becomes feature truth: new scene kinds plug in here.
+
+:func:`score_features` matches each measured feature to the truth (a nosing or an edge to the
+nearest true one within ``match_m`` along x, in its y range; a ramp to the true ramp it
+overlaps; a box to the true box whose footprint holds its leading edge's point) and gives the
+errors and the errors over σ; :func:`summarise_scores` reduces them to n, RMSE and the std of
+error/σ per quantity.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from graph_slam.terrain.features import (
+    BoxFeature,
+    Curb,
+    EdgeLine,
+    Ramp,
+    Stairs,
+    Step,
+    TerrainFeatures,
+)
+
+QUANTITIES = {
+    "steps": ("rise_m", "nosing_m", "tread_m"),
+    "ramps": ("slope_rad", "start_m"),
+    "curbs": ("height_m", "edge_m"),
+    "boxes": ("height_m", "leading_m", "depth_m"),
+}
+
+
+def _edge(x: float, y: float, yaw: float, y_range: tuple[float, float]) -> EdgeLine:
+    return EdgeLine(x, y, yaw, 0.0, 0.0, y_range, 0, False)
+
+
+def _in_stride(stride_T_world: np.ndarray, world_T_object: np.ndarray):
+    """Object centre (x, y, z) and yaw in the stride frame."""
+    t = stride_T_world @ world_T_object
+    return t[:3, 3], math.atan2(t[1, 0], t[0, 0])
+
+
+def _near_face(centre, yaw: float, depth: float, width: float):
+    """The object's near face (its −x side): point at the face's middle, its y range."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    x, y = centre[0] - c * depth / 2, centre[1] - s * depth / 2
+    return x, y, (y - width / 2, y + width / 2)
+
+
+def feature_truth_from_scene(scene, world_T_stride: np.ndarray) -> TerrainFeatures:
+    """The scene's features in the stride frame (see the module docstring)."""
+    stride_T_world = np.linalg.inv(np.asarray(world_T_stride, dtype=np.float64))
+    floor_z = float(stride_T_world[2, 3])  # the world floor (z = 0) in the stride frame
+    boxes, ramps, curbs, flights = [], [], [], {}
+    for obj in scene.objects:
+        size = np.asarray(obj.size_m, dtype=np.float64)
+        centre, yaw = _in_stride(stride_T_world, obj.world_T_object)
+        x, y, yr = _near_face(centre, yaw, size[0], size[1])
+        if obj.kind == "box":
+            boxes.append(BoxFeature(size[2], 0.0, _edge(x, y, yaw, yr), size[0], 0.0, floor_z))
+        elif obj.kind == "step":
+            flights.setdefault(obj.name.split(".step")[0], []).append((x, y, yaw, yr, size))
+        elif obj.kind == "ramp":
+            ramps.append(
+                Ramp(
+                    math.atan2(size[2], size[0]),
+                    0.0,
+                    yaw,
+                    0.0,
+                    _edge(x, y, yaw, yr),
+                    0,
+                    0.0,
+                    (x, x + size[0] * math.cos(yaw)),
+                )
+            )
+        elif obj.kind == "curb":
+            curbs.append(Curb(size[2], 0.0, _edge(x, y, yaw, yr), floor_z))
+    stairs = []
+    for steps in flights.values():
+        steps.sort(key=lambda s: s[0])
+        out = []
+        for k, (x, y, yaw, yr, size) in enumerate(steps):
+            below = floor_z + (steps[k - 1][4][2] if k else 0.0)
+            rise = floor_z + size[2] - below
+            tread = steps[k + 1][0] - x if k + 1 < len(steps) else float("nan")
+            out.append(Step(rise, 0.0, _edge(x, y, yaw, yr), tread, 0.0, below, below + rise))
+        stairs.append(Stairs(tuple(out)))
+    return TerrainFeatures(source="truth", stairs=tuple(stairs), ramps=tuple(ramps),
+                           curbs=tuple(curbs), boxes=tuple(boxes))  # fmt: skip
+
+
+def _nearest_edge(line: EdgeLine, candidates, match_m: float):
+    """The candidate (edge, payload) nearest ``line`` along x at its y, within ``match_m``."""
+    best, dist = None, match_m
+    for edge, payload in candidates:
+        lo, hi = edge.y_range_m
+        if not lo - 0.02 <= line.y_m <= hi + 0.02:
+            continue
+        d = abs(edge.x_at(line.y_m) - line.x_m)
+        if d <= dist:
+            best, dist = (edge, payload), d
+    return best
+
+
+def _err(value: float, truth: float, sigma: float) -> tuple[float, float]:
+    e = value - truth
+    return e, (e / sigma if sigma > 0 and math.isfinite(sigma) else float("nan"))
+
+
+def score_features(
+    measured: TerrainFeatures, truth: TerrainFeatures, match_m: float = 0.05
+) -> dict[str, list[dict]]:
+    """Per kind, one row per measured feature matched to the truth: per quantity its error
+    and error/σ (``{quantity: (error, normalised)}``), and ``x_m`` (where along the walk)."""
+    out: dict[str, list[dict]] = {k: [] for k in QUANTITIES}
+    true_steps = [(s.nosing, s) for st in truth.stairs for s in st.steps]
+    for st in measured.stairs:
+        for step in st.steps:
+            hit = _nearest_edge(step.nosing, true_steps, match_m)
+            if hit is None:
+                continue
+            edge, t = hit
+            row = {
+                "x_m": step.nosing.x_m,
+                "rise_m": _err(step.rise_m, t.rise_m, step.rise_sigma_m),
+                "nosing_m": _err(step.nosing.x_m, edge.x_at(step.nosing.y_m), step.nosing.sigma_m),
+            }
+            if math.isfinite(step.tread_m) and math.isfinite(t.tread_m):
+                row["tread_m"] = _err(step.tread_m, t.tread_m, step.tread_sigma_m)
+            out["steps"].append(row)
+    for c in measured.curbs:
+        hit = _nearest_edge(c.edge, [(t.edge, t) for t in truth.curbs], match_m)
+        if hit is not None:
+            edge, t = hit
+            out["curbs"].append({
+                "x_m": c.edge.x_m,
+                "height_m": _err(c.height_m, t.height_m, c.height_sigma_m),
+                "edge_m": _err(c.edge.x_m, edge.x_at(c.edge.y_m), c.edge.sigma_m),
+            })  # fmt: skip
+    for r in measured.ramps:
+        true = [t for t in truth.ramps if t.near_x_m < r.far_x_m and r.near_x_m < t.far_x_m]
+        if not true:
+            continue
+        t = true[0]
+        row = {"x_m": r.near_x_m, "slope_rad": _err(r.slope_rad, t.slope_rad, r.slope_sigma_rad)}
+        if r.start is not None and t.start is not None:
+            row["start_m"] = _err(r.start.x_m, t.start.x_at(r.start.y_m), r.start.sigma_m)
+        out["ramps"].append(row)
+    for b in measured.boxes:
+        hit = _nearest_edge(b.leading, [(t.leading, t) for t in truth.boxes], match_m)
+        if hit is not None:
+            edge, t = hit
+            out["boxes"].append({
+                "x_m": b.leading.x_m,
+                "height_m": _err(b.height_m, t.height_m, b.height_sigma_m),
+                "leading_m": _err(b.leading.x_m, edge.x_at(b.leading.y_m), b.leading.sigma_m),
+                "depth_m": _err(b.depth_m, t.depth_m, b.depth_sigma_m),
+            })  # fmt: skip
+    return out
+
+
+def summarise_scores(scores: Sequence[dict[str, list[dict]]]) -> dict[str, dict]:
+    """Per kind and quantity over many grids: n, RMSE, mean error (bias) and the std of the
+    errors over σ (1 when the σ are right)."""
+    out: dict[str, dict] = {}
+    for kind, quantities in QUANTITIES.items():
+        rows = [r for s in scores for r in s.get(kind, [])]
+        out[kind] = {"matched": len(rows)}
+        for q in quantities:
+            pairs = np.array([r[q] for r in rows if q in r], dtype=np.float64).reshape(-1, 2)
+            e, z = pairs[:, 0], pairs[:, 1][np.isfinite(pairs[:, 1])]
+            out[kind][q] = {
+                "n": int(e.size),
+                "rmse": float(np.sqrt(np.mean(e**2))) if e.size else None,
+                "bias": float(np.mean(e)) if e.size else None,
+                "std_error_over_sigma": float(np.std(z, ddof=1)) if z.size > 1 else None,
+            }
+    return out
