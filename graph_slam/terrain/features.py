@@ -201,6 +201,26 @@ class TerrainFeatures:
         keep = {k: tuple(f for f in getattr(self, k) if f.far_x_m >= min_x_m) for k in KINDS}
         return TerrainFeatures(self.stride_index, self.t_s, self.source, error=self.error, **keep)
 
+    def summary(self, toe_x_m: float = 0.0) -> str:
+        """The nearest feature in words, distances from ``toe_x_m`` (cm), e.g.
+        ``stairs 3 steps: next +16.8±0.2 cm, 41.0±0.4 cm ahead``; ``""`` when none."""
+        near = []
+        for st in self.stairs:
+            s = st.steps[0]
+            near.append((s.nosing.x_m, f"stairs {st.n_steps} step(s): next {s.rise_m * 100:+.1f}"
+                         f"±{s.rise_sigma_m * 100:.1f} cm, {(s.nosing.x_m - toe_x_m) * 100:.1f}"
+                         f"±{s.nosing.sigma_m * 100:.1f} cm ahead"))  # fmt: skip
+        for c in self.curbs:
+            near.append((c.edge.x_m, f"curb {c.height_m * 100:+.1f}±{c.height_sigma_m * 100:.1f}"
+                         f" cm, {(c.edge.x_m - toe_x_m) * 100:.1f} cm ahead"))  # fmt: skip
+        for r in self.ramps:
+            near.append((r.near_x_m, f"ramp {math.degrees(r.slope_rad):.1f}"
+                         f"±{math.degrees(r.slope_sigma_rad):.1f}°, from "
+                         f"{(r.near_x_m - toe_x_m) * 100:.1f} cm ahead"))  # fmt: skip
+        if not near:
+            return ""
+        return min(near)[1]
+
     def count(self) -> int:
         return sum(len(getattr(self, k)) for k in KINDS)
 
