@@ -16,6 +16,9 @@ from graph_slam.terrain.online import (
     z_variance,
 )
 
+MIN_COVERED_FRACTION = 0.5
+"""A new cell is carried when known old cells cover at least this fraction of it."""
+
 
 def carry_map(
     cfg: OnlineTerrainConfig, old: TerrainView, new_T_old: np.ndarray, cov_new_T_old: np.ndarray
@@ -31,7 +34,8 @@ def carry_map(
     a fused cell holds the points over its area. Each share enters as one point whose weight
     is the share's fraction of the cell's (its depth-noise variance grown to match: the pose
     part is the whole cell's). Binned to the one cell holding its moved centre, a cell landed
-    up to half a cell (1 cm) away, and a box edge with it."""
+    up to half a cell (1 cm) away, and a box edge with it. A new cell less than half covered
+    by known old cells is left unknown."""
     known = old.known.ravel()
     if not known.any():
         return CellSums.empty(int(np.prod(cfg.shape)))
@@ -52,7 +56,7 @@ def carry_map(
     i0, j0 = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
     fu, fv = u - i0, v - j0
     last_old = s.last_t_s[known]
-    flats, zs, vds, vps, lasts = [], [], [], [], []
+    flats, zs, vds, vps, lasts, areas = [], [], [], [], [], []
     for di, dj, area in (
         (0, 0, (1 - fu) * (1 - fv)), (1, 0, fu * (1 - fv)), (0, 1, (1 - fu) * fv), (1, 1, fu * fv),
     ):  # fmt: skip
@@ -61,11 +65,16 @@ def carry_map(
         keep &= cfg.x_range_m[0] + (i + 0.5) * cfg.cell_m >= cfg.carry_min_x_m
         a = area[keep]
         flats.append(i[keep] * ny + j[keep])
+        areas.append(a)
         zs.append(p_new[keep, 2])
         vds.append(var_all[keep] / a - var_pose[keep])
         vps.append(var_pose[keep])
         lasts.append(last_old[keep])
-    terms = PointTerms(*(np.concatenate(x) for x in (flats, zs, vds, vps)))
-    carried = CellSums.empty(nx * ny).plus(terms, np.concatenate(lasts))
+    flat, area = np.concatenate(flats), np.concatenate(areas)
+    # a new cell mostly over unknown old cells (the shadow behind a box, the old map's border)
+    # takes nothing: a small share would stand for the whole cell
+    covered = np.bincount(flat, area, nx * ny)[flat] >= MIN_COVERED_FRACTION
+    terms = PointTerms(*(np.concatenate(x)[covered] for x in (flats, zs, vds, vps)))
+    carried = CellSums.empty(nx * ny).plus(terms, np.concatenate(lasts)[covered])
     # carried cells count no point of the new stride
     return dataclasses.replace(carried, count=carried.count * 0)
