@@ -186,3 +186,77 @@ def summarise_scores(scores: Sequence[dict[str, list[dict]]]) -> dict[str, dict]
                 "std_error_over_sigma": float(np.std(z, ddof=1)) if z.size > 1 else None,
             }
     return out
+
+
+def scene_height_at(scene, world_T_stride: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
+    """The scene's surface height (stride z) at stride-frame (x, y): the floor, boxes and
+    steps (their tops), ramps (their wedge)."""
+    stride_T_world = np.linalg.inv(np.asarray(world_T_stride, dtype=np.float64))
+    world_T_stride = np.asarray(world_T_stride, dtype=np.float64)
+    xy = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
+    world = np.column_stack([xy, np.zeros(len(xy)), np.ones(len(xy))]) @ world_T_stride.T
+    h = np.zeros(len(xy))
+    for obj in scene.objects:
+        size = np.asarray(obj.size_m, dtype=np.float64)
+        local = world @ np.linalg.inv(obj.world_T_object).T
+        inside = (np.abs(local[:, 0]) <= size[0] / 2) & (np.abs(local[:, 1]) <= size[1] / 2)
+        if obj.kind == "ramp":
+            top = (local[:, 0] + size[0] / 2) / size[0] * size[2]
+        else:
+            top = np.full(len(xy), size[2])
+        h = np.where(inside, np.maximum(h, top), h)
+    up = np.column_stack([world[:, 0], world[:, 1], h, np.ones(len(xy))])
+    return (up @ stride_T_world.T)[:, 2]
+
+
+def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
+    """The measured least toe clearance of a scored stride's swing (the variant's smoothed
+    poses and final grid) and the true one (the true poses over the scene's surface), both
+    from the encoders over the same mid-swing frames; None when either cannot be had."""
+    from graph_slam.strides.joints import interp_q
+    from graph_slam.terrain.clearance import ClearanceConfig, clearance_along, toe_path
+    from graph_slam.terrain.features_extract import features_of_view
+
+    cfg = config or ClearanceConfig()
+    session = run_session.session
+    grid = getattr(stride, "smoothed_grid", None)
+    if grid is None or ref.toe_off_s is None or session.joints is None or leg_model is None:
+        return None
+    t = np.asarray(ref.t_s)
+    s = (t - ref.toe_off_s) / max(ref.t_next_strike_s - ref.toe_off_s, 1e-9)
+    rows = np.flatnonzero((s >= cfg.mid_swing[0]) & (s <= cfg.mid_swing[1]))
+    t_joint = np.asarray(session.joints.t_s) + session.calibration.joints_time_offset_s
+    q = [interp_q(float(t[k]), t_joint, session.joints.q_rad) for k in rows]
+    est = np.asarray(stride.smoothed_stride_T_camera)
+    keep = [
+        k for k, qk in zip(rows, q, strict=True) if qk is not None and np.isfinite(est[k]).all()
+    ]
+    if len(keep) < 2:
+        return None
+    qs = np.array([interp_q(float(t[k]), t_joint, session.joints.q_rad) for k in keep])
+    measured = clearance_along(grid, features_of_view(grid, source="smoothed"),
+                               toe_path(est[keep], qs, leg_model), cfg)  # fmt: skip
+    true_toe = toe_path(np.asarray(ref.stride_T_camera)[keep], qs, leg_model)
+    ground = scene_height_at(session.scene, ref.world_T_stride, true_toe[:, :2])
+    true = float(np.min(true_toe[:, 2] - ground))
+    if not math.isfinite(measured.min_m):
+        return None
+    return measured.min_m, true, measured.sigma_m
+
+
+def summarise_clearances(pairs: Sequence[tuple[float, float, float]]) -> dict:
+    """n, RMSE, bias (measured − true), the fraction within ±5 mm, the std of error/σ."""
+    if not pairs:
+        return {"n": 0, "rmse": None, "bias": None, "within_5mm_fraction": None,
+                "std_error_over_sigma": None}  # fmt: skip
+    a = np.asarray(pairs, dtype=np.float64)
+    e = a[:, 0] - a[:, 1]
+    z = e / np.where(a[:, 2] > 0, a[:, 2], np.nan)
+    z = z[np.isfinite(z)]
+    return {
+        "n": int(e.size),
+        "rmse": float(np.sqrt(np.mean(e**2))),
+        "bias": float(np.mean(e)),
+        "within_5mm_fraction": float(np.mean(np.abs(e) <= 0.005)),
+        "std_error_over_sigma": float(np.std(z, ddof=1)) if z.size > 1 else None,
+    }

@@ -147,6 +147,9 @@ class CompareReport:
     """Caveats on the numbers (graph_slam.session.plausibility): gaps, units, dropped strides."""
     deadlines: dict[str, list] = field(default_factory=dict)
     """Per variant: when its online map knew each stride's obstacles (StrideDeadlines)."""
+    features: dict[str, dict] = field(default_factory=dict)
+    """Per variant: its final grids' terrain features and swing clearances against the scene
+    (``metrics.json``'s ``terrain_features``)."""
 
 
 @dataclass
@@ -163,6 +166,10 @@ class _Study:
     toe_pcts: list[float] = field(default_factory=list)
     deadlines: dict[Variant, list] = field(default_factory=dict)
     """Per variant: :class:`~graph_slam.report.terrain_trace.StrideDeadlines` per stride."""
+    features: dict[Variant, list] = field(default_factory=dict)
+    """Per variant: the feature scores of each stride's final grid."""
+    clearances: dict[Variant, list] = field(default_factory=dict)
+    """Per variant: (measured, true, σ) least swing clearance per stride."""
     n_strides: int = 0
 
     @classmethod
@@ -261,7 +268,10 @@ def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnin
     report = _tables(tmp, cfg, study, [s.name for s in opened], unscored)
     report.warnings = warnings
     deadlines = {v: d for v, d in study.deadlines.items() if d}  # variants scored
-    document = metrics_document(", ".join(report.sessions), report.variants, report.maps, deadlines)
+    report.features = _feature_summaries(study)
+    document = metrics_document(
+        ", ".join(report.sessions), report.variants, report.maps, deadlines, report.features
+    )
     report.deadlines = {str(v): d for v, d in deadlines.items()}
     document["warnings"] = [w.to_dict() for w in warnings]
     files.append(write_metrics_json(document, tmp / "metrics.json"))
@@ -314,6 +324,55 @@ def _score(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
         study.deadlines[variant] += strides
     for name, size in run.truth_sizes().items():
         study.truth_sizes.setdefault(name, size)
+    _score_features(run, study, cfg)
+
+
+def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
+    """Each scored stride's final grid: its features against the scene's, its measured swing
+    clearance against the true one (graph_slam.evaluation.features)."""
+    from graph_slam.errors import GraphSlamError
+    from graph_slam.evaluation.features import (
+        feature_truth_from_scene,
+        score_features,
+        swing_clearance_pair,
+    )
+    from graph_slam.strides.kinematics import session_leg_model
+    from graph_slam.terrain.features_extract import features_of_view
+
+    scene = run.session.scene
+    if scene is None or not run.references:
+        return
+    try:
+        leg = session_leg_model(
+            run.session, cfg.pipeline.mount_pitch_deg, cfg.pipeline.mount_estimate
+        )[0]
+    except GraphSlamError:
+        leg = None
+    for variant in run.results:
+        for ref in run.references:
+            stride = run.stride_of(variant, ref)
+            grid = None if stride is None else stride.smoothed_grid
+            if grid is None:
+                continue
+            truth = feature_truth_from_scene(scene, ref.world_T_stride)
+            measured = features_of_view(grid, source="smoothed")
+            study.features.setdefault(variant, []).append(score_features(measured, truth))
+            pair = swing_clearance_pair(run, ref, stride, leg)
+            if pair is not None:
+                study.clearances.setdefault(variant, []).append(pair)
+
+
+def _feature_summaries(study: _Study) -> dict[str, dict]:
+    from graph_slam.evaluation.features import summarise_clearances, summarise_scores
+
+    return {
+        str(v): {
+            "grids": len(scores),
+            **summarise_scores(scores),
+            "swing_clearance": summarise_clearances(study.clearances.get(v, [])),
+        }
+        for v, scores in study.features.items()
+    }
 
 
 def _tables(out: Path, cfg: CompareConfig, study: _Study, sessions, unscored) -> CompareReport:
