@@ -61,3 +61,21 @@ def test_scores_of_a_measured_staircase_against_its_scene():
     shifted = feature_truth_from_scene(SceneTruth("s", tuple(objects)), _stride(-0.03, 0.0))
     moved = summarise_scores([score_features(measured, shifted)])["steps"]
     assert abs(moved["nosing_m"]["bias"] + 0.03) <= 0.005
+
+
+def test_feature_deadline_known_answer():
+    from graph_slam.evaluation.features import feature_deadlines, summarise_feature_deadlines
+
+    final = extract_features(*grid(stairs_surface(), 0.0), (X0, Y0), CELL)
+    rough = extract_features(*grid(stairs_surface(rise=0.19), 0.0), (X0, Y0), CELL)
+    partial = extract_features(
+        *grid(stairs_surface(), 0.0, unknown=lambda x, y: x > 1.0), (X0, Y0), CELL
+    )
+    # frames at 0.0 .. 0.4 s: rises 2 cm off first, then the near two steps, then all four
+    online = [None, rough, partial, None, final]
+    rows = feature_deadlines([0.0, 0.1, 0.2, 0.3, 0.4], online, final, toe_off_s=0.35)
+    assert [r["kind"] for r in rows] == ["step"] * 4
+    assert [r["known_t_s"] for r in rows] == [0.2, 0.2, 0.4, 0.4]
+    summary = summarise_feature_deadlines(rows)
+    assert summary["n"] == 4 and summary["n_known"] == 4 and summary["n_before_toe_off"] == 2
+    assert math.isclose(summary["lead_s_min"], -0.05, abs_tol=1e-9)

@@ -150,3 +150,15 @@ def test_level_floor_has_no_feature_and_json_round_trip():
     assert back.to_dict() == f.to_dict() and back.stairs[0].steps[1] == f.stairs[0].steps[1]
     assert f.ahead(0.9).stairs[0].n_steps == 4  # the flight reaches beyond 0.9 m
     assert not f.ahead(2.0).stairs
+
+
+def test_sloped_cells_along_one_line_give_no_plane():
+    from graph_slam.terrain.features import FeatureConfig, _Grid
+    from graph_slam.terrain.features_extract import _ramps
+
+    g = math.tan(math.radians(8.0))
+    h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=9)
+    sloped = np.zeros(h.shape, bool)
+    sloped[45:80, 30] = True  # one row of cells: the plane's y slope is undetermined
+    cells = _Grid(h, var, np.zeros_like(h), X0, Y0, CELL)
+    assert _ramps(cells, sloped, np.zeros(h.shape, int), {}, FeatureConfig()) == []

@@ -260,3 +260,58 @@ def summarise_clearances(pairs: Sequence[tuple[float, float, float]]) -> dict:
         "within_5mm_fraction": float(np.mean(np.abs(e) <= 0.005)),
         "std_error_over_sigma": float(np.std(z, ddof=1)) if z.size > 1 else None,
     }
+
+
+DEADLINE_TOLERANCE = {"step": 0.01, "curb": 0.01, "box": 0.01, "ramp": math.radians(1.0)}
+"""How close a feature's value (rise, height; a ramp's slope) must be to the final one to count
+as known; its edge must also be within ``DEADLINE_EDGE_M`` of the final edge."""
+DEADLINE_EDGE_M = 0.02
+
+
+def feature_marks(features: TerrainFeatures) -> list[tuple[str, float, float, float]]:
+    """(kind, edge x, edge y, value) of every feature: each step's nosing and rise, each
+    curb's edge and height, each ramp's start and slope, each box's leading edge and height."""
+    out = [("step", s.nosing.x_m, s.nosing.y_m, s.rise_m) for st in features.stairs
+           for s in st.steps]  # fmt: skip
+    out += [("curb", c.edge.x_m, c.edge.y_m, c.height_m) for c in features.curbs]
+    out += [("ramp", r.near_x_m, 0.0 if r.start is None else r.start.y_m, r.slope_rad)
+            for r in features.ramps]  # fmt: skip
+    out += [("box", b.leading.x_m, b.leading.y_m, b.height_m) for b in features.boxes]
+    return out
+
+
+def feature_deadlines(t_s: Sequence[float], online: Sequence, final: TerrainFeatures,
+                      toe_off_s: float | None) -> list[dict]:  # fmt: skip
+    """Per feature of the stride's final grid: the first time an online grid (``online[k]``
+    at ``t_s[k]``, None: not searched) had the same kind within ``DEADLINE_EDGE_M`` of its edge
+    and ``DEADLINE_TOLERANCE`` of its value; ``lead_s`` = toe-off − that time."""
+    out = []
+    for kind, x, y, value in feature_marks(final):
+        known = float("nan")
+        for t, feats in zip(t_s, online, strict=True):
+            if feats is None:
+                continue
+            if any(k == kind and math.hypot(xx - x, yy - y) <= DEADLINE_EDGE_M + 0.05 * (k == "ramp")
+                   and abs(xx - x) <= DEADLINE_EDGE_M and abs(v - value) <= DEADLINE_TOLERANCE[k]
+                   for k, xx, yy, v in feature_marks(feats)):  # fmt: skip
+                known = float(t)
+                break
+        lead = (toe_off_s - known) if toe_off_s is not None and math.isfinite(known) else math.nan
+        out.append({"kind": kind, "edge_x_m": x, "value": value, "known_t_s": known,
+                    "lead_s": lead})  # fmt: skip
+    return out
+
+
+def summarise_feature_deadlines(rows: Sequence[dict]) -> dict:
+    """n, known, known before toe-off, known ≥ 0.5 s before it, median and least lead."""
+    lead = np.array([r["lead_s"] for r in rows], dtype=np.float64)
+    known = np.isfinite(lead)
+    return {
+        "n": len(rows),
+        "n_known": int(known.sum()),
+        "n_before_toe_off": int((lead[known] > 0).sum()),
+        "n_at_least_0_5_s": int((lead[known] >= 0.5).sum()),
+        "lead_s_median": float(np.median(lead[known])) if known.any() else None,
+        "lead_s_min": float(np.min(lead[known])) if known.any() else None,
+        "by_kind": {k: int(sum(r["kind"] == k for r in rows)) for k in DEADLINE_TOLERANCE},
+    }

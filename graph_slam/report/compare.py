@@ -170,6 +170,8 @@ class _Study:
     """Per variant: the feature scores of each stride's final grid."""
     clearances: dict[Variant, list] = field(default_factory=dict)
     """Per variant: (measured, true, σ) least swing clearance per stride."""
+    feature_deadlines: dict[Variant, list] = field(default_factory=dict)
+    """Per variant: when its online grid knew each feature of a stride's final grid."""
     n_strides: int = 0
 
     @classmethod
@@ -332,6 +334,7 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
     clearance against the true one (graph_slam.evaluation.features)."""
     from graph_slam.errors import GraphSlamError
     from graph_slam.evaluation.features import (
+        feature_deadlines,
         feature_truth_from_scene,
         score_features,
         swing_clearance_pair,
@@ -360,16 +363,27 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
             pair = swing_clearance_pair(run, ref, stride, leg)
             if pair is not None:
                 study.clearances.setdefault(variant, []).append(pair)
+            trace = run.traces.get(variant)
+            if trace is not None and trace.every_frame and len(trace.features) == len(trace.t_s):
+                idx = [int(i) for i in ref.frame_indices]
+                rows = feature_deadlines([trace.t_s[i] for i in idx],
+                                         [trace.features[i] for i in idx], measured, ref.toe_off_s)  # fmt: skip
+                study.feature_deadlines.setdefault(variant, []).extend(rows)
 
 
 def _feature_summaries(study: _Study) -> dict[str, dict]:
-    from graph_slam.evaluation.features import summarise_clearances, summarise_scores
+    from graph_slam.evaluation.features import (
+        summarise_clearances,
+        summarise_feature_deadlines,
+        summarise_scores,
+    )
 
     return {
         str(v): {
             "grids": len(scores),
             **summarise_scores(scores),
             "swing_clearance": summarise_clearances(study.clearances.get(v, [])),
+            "deadlines": summarise_feature_deadlines(study.feature_deadlines.get(v, [])),
         }
         for v, scores in study.features.items()
     }

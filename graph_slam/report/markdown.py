@@ -101,6 +101,22 @@ def features_section(features: dict) -> list[str]:
             _mm(f["boxes"]["leading_m"]), _mm(f["boxes"]["depth_m"]),
         ]  # fmt: skip
         lines.append(f"| {name} | {f['grids']} | " + " | ".join(cells) + f" | {clear} |")
+    lines += [
+        "",
+        "Features known before toe-off: each feature of a stride's final grid is known at the "
+        "first searched frame whose online grid had one of its kind with its edge within 2 cm "
+        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then.",
+        "",
+        "| variant | features | known | before toe-off | ≥ 0.5 s before | median lead (s) |",
+        "| :-- | --: | --: | --: | --: | --: |",
+    ]
+    for name, f in features.items():
+        d = f.get("deadlines") or {}
+        if not d.get("n"):
+            continue
+        med = "–" if d["lead_s_median"] is None else f"{d['lead_s_median']:.2f}"
+        lines.append(f"| {name} | {d['n']} | {d['n_known']} | {d['n_before_toe_off']} | "
+                     f"{d['n_at_least_0_5_s']} | {med} |")  # fmt: skip
     return [*lines, ""]
 
 

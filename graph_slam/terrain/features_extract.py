@@ -358,6 +358,8 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         xm, ym = float(np.average(x, weights=w)), float(np.average(y, weights=w))
         a = np.column_stack([np.ones_like(x), x - xm, y - ym])
         normal = a.T @ (a * w[:, None])
+        if np.linalg.cond(normal) > 1e12:
+            continue  # cells along one line: no plane
         coef = np.linalg.solve(normal, a.T @ (w * z))
         res = z - a @ coef
         dof = max(i.size - 3, 1)
