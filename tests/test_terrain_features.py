@@ -162,3 +162,19 @@ def test_sloped_cells_along_one_line_give_no_plane():
     sloped[45:80, 30] = True  # one row of cells: the plane's y slope is undetermined
     cells = _Grid(h, var, np.zeros_like(h), X0, Y0, CELL)
     assert _ramps(cells, sloped, np.zeros(h.shape, int), {}, FeatureConfig()) == []
+
+
+def test_box_depth_with_flying_pixels_in_its_shadow():
+    # behind the box: 4 cm of cells holding only flying pixels (heights in between), then 5 cm
+    # not seen, then the floor
+    def scene(x, y):
+        on = (y >= -0.4) & (y < -0.1333)
+        top = np.where((x >= 0.903) & (x < 1.1062) & on, 0.1905, 0.0)
+        return np.where((x >= 1.1062) & (x < 1.1462) & on, 0.09, top)
+
+    def shadow(x, y):
+        return (x >= 1.1462) & (x < 1.196) & (y >= -0.4) & (y < -0.1333)
+
+    (b,) = features(*grid(scene, 0.001, seed=10, unknown=shadow)).boxes
+    assert abs(b.depth_m - 0.2032) <= 0.008
+    assert b.leading.occluded is False

@@ -188,6 +188,14 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     f = np.clip((hw - ha[:, None]) / rise[:, None], 0.0, 1.0)
     f = np.where(unknown, 1.0, np.where(inside, f, 0.0))
     occluded = unknown.any(axis=1)
+    # Occluded: the cells past the last one mostly of the near surface, before the first cell
+    # not seen, are the far surface's (flying pixels of the edge fill the shadow's first cells
+    # with heights in between: counted as fractions they put the edge up to a cell late).
+    pos = np.arange(width)[None, :]
+    first_unknown = np.where(occluded, np.argmax(unknown, axis=1), width)[:, None]
+    near = inside & ~unknown & (f < 0.5) & (pos < first_unknown)
+    last_near = np.max(np.where(near, pos, 0), axis=1)[:, None]
+    f = np.where(occluded[:, None] & (pos > last_near) & inside, 1.0, f)
     x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1) - np.where(occluded, g.cell / 2, 0.0)
     noise = np.where(inside & ~unknown, np.nan_to_num(vw) / rise[:, None] ** 2, 0.0).sum(axis=1)
     sigma = g.cell * np.sqrt(noise + np.where(occluded, 1 / 12, 0.0))
