@@ -274,11 +274,12 @@ def _boxes(edges: list[dict], terraces: dict, cfg: FeatureConfig):
                 continue
             top = terraces[up["b"]]
             floor_ind = math.hypot(terraces[up["a"]]["ind"], terraces[down["b"]]["ind"]) / 2
+            floor_corr = (terraces[up["a"]]["corr"] + terraces[down["b"]]["corr"]) / 2
             lead, trail = up["line"], down["line"]
             boxes.append(
                 BoxFeature(
                     height_m=top["h"] - (base[0] + base[1]) / 2,
-                    height_sigma_m=math.hypot(top["ind"], floor_ind),
+                    height_sigma_m=math.hypot(top["ind"], floor_ind, top["corr"] - floor_corr),
                     leading=lead,
                     depth_m=trail.x_at(lead.y_m) - lead.x_m,
                     depth_sigma_m=math.hypot(lead.sigma_m, trail.sigma_m),
