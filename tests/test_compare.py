@@ -114,6 +114,8 @@ def test_compare_reports_the_deadline_and_the_live_grid(report_dir) -> None:
         assert clearance["n"] in (0, 1)
         if clearance["n"]:
             assert clearance["rmse"] < 0.05
+        assert f["warnings"]["swings"] == clearance["n"]
+        assert f["warnings"]["flagged_below_margin"] <= f["warnings"]["true_below_margin"]
     assert "## Terrain features and toe clearance" in (out / "report.md").read_text()
     from rerun.chunk import RrdReader
 

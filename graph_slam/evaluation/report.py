@@ -65,7 +65,8 @@ Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN
           "swing_clearance": {"n", "rmse", "bias", "within_5mm_fraction",
                               "std_error_over_sigma"},
           "deadlines": {"n", "n_known", "n_before_toe_off", "n_at_least_0_5_s",
-                        "lead_s_median", "lead_s_min", "by_kind": {"step"|"curb"|"box"|"ramp": int}}
+                        "lead_s_median", "lead_s_min", "by_kind": {"step"|"curb"|"box"|"ramp": int}},
+          "warnings": {"swings", "true_below_margin", "flagged_below_margin", "false_warnings"}
         }
       }
     }

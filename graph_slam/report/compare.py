@@ -172,6 +172,8 @@ class _Study:
     """Per variant: (measured, true, σ) least swing clearance per stride."""
     feature_deadlines: dict[Variant, list] = field(default_factory=dict)
     """Per variant: when its online grid knew each feature of a stride's final grid."""
+    clearance_flags: dict[Variant, list] = field(default_factory=dict)
+    """Per variant and stride: (warned in stance before toe-off, the true swing clearance)."""
     n_strides: int = 0
 
     @classmethod
@@ -364,11 +366,33 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
             if pair is not None:
                 study.clearances.setdefault(variant, []).append(pair)
             trace = run.traces.get(variant)
+            if pair is not None and trace is not None and len(trace.predictions) == len(trace.t_s):
+                warned = any(
+                    trace.predictions[int(i)] is not None and trace.predictions[int(i)].warning
+                    for i in ref.frame_indices
+                    if ref.toe_off_s is not None and trace.t_s[int(i)] < ref.toe_off_s
+                )
+                study.clearance_flags.setdefault(variant, []).append((warned, pair[1]))
             if trace is not None and trace.every_frame and len(trace.features) == len(trace.t_s):
                 idx = [int(i) for i in ref.frame_indices]
                 rows = feature_deadlines([trace.t_s[i] for i in idx],
                                          [trace.features[i] for i in idx], measured, ref.toe_off_s)  # fmt: skip
                 study.feature_deadlines.setdefault(variant, []).extend(rows)
+
+
+def _warning_summary(rows) -> dict:
+    """Swings, those truly under the warning margin (2 cm), how many of them the stance-time
+    prediction flagged before toe-off, and the flags raised over swings that cleared it."""
+    from graph_slam.terrain.clearance import ClearanceConfig
+
+    margin = ClearanceConfig().warn_below_m
+    low = [w for w, true in rows if true < margin]
+    return {
+        "swings": len(rows),
+        "true_below_margin": len(low),
+        "flagged_below_margin": int(sum(low)),
+        "false_warnings": int(sum(w for w, true in rows if true >= margin)),
+    }
 
 
 def _feature_summaries(study: _Study) -> dict[str, dict]:
@@ -384,6 +408,7 @@ def _feature_summaries(study: _Study) -> dict[str, dict]:
             **summarise_scores(scores),
             "swing_clearance": summarise_clearances(study.clearances.get(v, [])),
             "deadlines": summarise_feature_deadlines(study.feature_deadlines.get(v, [])),
+            "warnings": _warning_summary(study.clearance_flags.get(v, [])),
         }
         for v, scores in study.features.items()
     }

@@ -105,18 +105,24 @@ def features_section(features: dict) -> list[str]:
         "",
         "Features known before toe-off: each feature of a stride's final grid is known at the "
         "first searched frame whose online grid had one of its kind with its edge within 2 cm "
-        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then.",
+        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then. "
+        "Warnings: a swing is flagged when a stance frame's predicted clearance (the reference "
+        "swing over the online grid) was under 2 cm before its toe-off.",
         "",
-        "| variant | features | known | before toe-off | ≥ 0.5 s before | median lead (s) |",
-        "| :-- | --: | --: | --: | --: | --: |",
+        "| variant | features | known | before toe-off | ≥ 0.5 s before | median lead (s) | "
+        "swings | truly < 2 cm | flagged | false warnings |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
     ]
     for name, f in features.items():
         d = f.get("deadlines") or {}
         if not d.get("n"):
             continue
         med = "–" if d["lead_s_median"] is None else f"{d['lead_s_median']:.2f}"
+        w = f.get("warnings") or {}
+        warn = " | ".join(str(w.get(k, "–")) for k in
+                          ("swings", "true_below_margin", "flagged_below_margin", "false_warnings"))  # fmt: skip
         lines.append(f"| {name} | {d['n']} | {d['n_known']} | {d['n_before_toe_off']} | "
-                     f"{d['n_at_least_0_5_s']} | {med} |")  # fmt: skip
+                     f"{d['n_at_least_0_5_s']} | {med} | {warn} |")  # fmt: skip
     return [*lines, ""]
 
 

@@ -65,6 +65,9 @@ class TerrainTrace:
     features: list = field(default_factory=list)
     """The grid's terrain features (:class:`~graph_slam.terrain.features.TerrainFeatures`)
     at the frames whose boxes were searched (None elsewhere): the per-feature deadline."""
+    predictions: list = field(default_factory=list)
+    """At the searched frames in stance, the coming swing's predicted clearance
+    (:class:`~graph_slam.terrain.clearance.Clearance`; None elsewhere): the warnings."""
 
     def __call__(self, out) -> None:
         view = out.terrain
@@ -89,7 +92,14 @@ class TerrainTrace:
         else:
             self.obstacles.append(() if view is None else None)
         searched = view is not None and self.obstacles[-1] is not None and self.every_frame
-        self.features.append(getattr(view, "features", None) if searched else None)
+        feats = getattr(view, "features", None) if searched else None
+        self.features.append(feats)
+        prediction = None
+        if feats is not None and getattr(out, "foot_loaded", False):
+            from graph_slam.terrain.clearance import predict_clearance
+
+            prediction = predict_clearance(view, feats)
+        self.predictions.append(prediction)
         if self.obstacles[-1] is not None:
             self._last = (int(out.stride_index), float(out.t_s))
 
