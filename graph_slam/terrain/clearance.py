@@ -9,7 +9,8 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
 
 * :func:`clearance_along`: the minimum over a toe path (N×3) of ``z_toe − terrain``, where it
   occurs (the toe's x, y and the edge it passes, named ``stairs[0].step[1]``, ``curbs[0]``,
-  ``boxes[0].leading``, or ``ground``), its σ (the terrain's σ there and ``toe_sigma_m``).
+  ``boxes[0].leading``, or ``ground``), its σ (the terrain's σ there without the pose part,
+  which the toe path placed by the same poses shares, and ``toe_sigma_m``).
 * :func:`toe_path` — the measured swing: the toe in the stride frame from the camera poses and
   the encoders (``stride_T_camera · camera_T_toe(q)``, the leg model's forward kinematics).
 * :func:`reference_swing` / :func:`predict_clearance` — during stance, the clearance of the
@@ -111,10 +112,21 @@ def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, f
 _OFFSETS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
 
 
+def _independent_sigma(view) -> np.ndarray:
+    """The cells' σ less their pose part (the grid's ``B/W``): a toe path placed by the same
+    poses as the grid shares that error, and it cancels in the clearance."""
+    sums = getattr(view, "sums", None)
+    if sums is None:
+        return view.sigma_m
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = (sums.b / sums.w).reshape(view.shape)
+    return np.sqrt(np.maximum(view.variance_m2 - np.nan_to_num(corr) ** 2, 0.0))
+
+
 def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per point: the highest known cell within ``radius`` (the 3×3 offsets of it) and its σ
-    (NaN: none)."""
-    h, s = view.height_m, view.sigma_m
+    without the pose part (NaN: none)."""
+    h, s = view.height_m, _independent_sigma(view)
     nx, ny = h.shape
     q = (xy[:, None, :] + radius * _OFFSETS[None]) - np.asarray(view.origin_xy_m)
     ij = np.floor(q / view.cell_m).astype(np.int64)
