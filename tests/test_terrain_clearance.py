@@ -101,3 +101,17 @@ def test_unknown_terrain_gives_no_clearance(n):
     h = np.full((100, 60), np.nan)
     c = clearance_along(view_of(h, h), extract_features(h, h, (X0, Y0), CELL), np.zeros((3, 3)))
     assert c.edge == "unknown" and math.isnan(c.min_m)
+
+
+def test_a_flight_beside_the_path_leaves_the_reference_level():
+    from graph_slam.terrain.clearance import terrain_type
+    from tests.test_terrain_features import stairs_surface
+
+    def beside(x, y):  # the flight only at y < -0.2 m
+        return np.where(y < -0.2, stairs_surface()(x, y), 0.0)
+
+    h, var = grid(beside, 0.001, seed=4)
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    assert feats.stairs
+    assert terrain_type(feats, 0.2, 1.5, 0.0)[0] == "level"
+    assert terrain_type(feats, 0.2, 1.5, -0.4)[0] == "stairs_up"

@@ -175,17 +175,25 @@ def clearance_along(
                      terrain)  # fmt: skip
 
 
-def terrain_type(features: TerrainFeatures, x_from_m: float, x_to_m: float) -> tuple[str, float]:
-    """The reference swing's terrain type between two x (and the rise it lifts over)."""
+def _on_path(line, y_m: float, margin_m: float = 0.05) -> bool:
+    return line.y_range_m[0] - margin_m <= y_m <= line.y_range_m[1] + margin_m
+
+
+def terrain_type(
+    features: TerrainFeatures, x_from_m: float, x_to_m: float, y_m: float = 0.0
+) -> tuple[str, float]:
+    """The reference swing's terrain type between two x along the line y = ``y_m`` (a
+    feature beside that line does not count), and the rise it lifts over."""
     for st in features.stairs:
         for step in st.steps:
-            if x_from_m <= step.nosing.x_m <= x_to_m:
+            if x_from_m <= step.nosing.x_m <= x_to_m and _on_path(step.nosing, y_m):
                 return ("stairs_up" if step.rise_m > 0 else "stairs_down"), step.rise_m
     for c in features.curbs:
-        if x_from_m <= c.edge.x_m <= x_to_m:
+        if x_from_m <= c.edge.x_m <= x_to_m and _on_path(c.edge, y_m):
             return "curb", c.height_m
     for r in features.ramps:
-        if r.far_x_m >= x_from_m and r.near_x_m <= x_to_m:
+        on = r.start is None or _on_path(r.start, y_m)
+        if on and r.far_x_m >= x_from_m and r.near_x_m <= x_to_m:
             return "ramp", 0.0
     return "level", 0.0
 
@@ -198,7 +206,7 @@ def reference_swing(
     x0, y0 = float(toe_xy_m[0]), float(toe_xy_m[1])
     s = np.linspace(0.0, 1.0, cfg.samples)
     x = x0 + s * cfg.stride_length_m
-    kind, rise = terrain_type(features, x0, x0 + cfg.stride_length_m)
+    kind, rise = terrain_type(features, x0, x0 + cfg.stride_length_m, y0)
     xy = np.column_stack([x, np.full_like(x, y0)])
     ground, _ = _grid_heights(view, xy[[0, -1]], cfg.toe_radius_m)
     z0 = float(np.nan_to_num(ground[0]))
