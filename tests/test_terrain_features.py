@@ -150,6 +150,8 @@ def test_level_floor_has_no_feature_and_json_round_trip():
     assert back.to_dict() == f.to_dict() and back.stairs[0].steps[1] == f.stairs[0].steps[1]
     assert f.ahead(0.9).stairs[0].n_steps == 4  # the flight reaches beyond 0.9 m
     assert not f.ahead(2.0).stairs
+    # the controller's line names the next nosing ahead of the toe (0.793 m from x = 0.6 m)
+    assert "next +17.0" in f.summary(0.6) and ", 19." in f.summary(0.6)
 
 
 def test_sloped_cells_along_one_line_give_no_plane():

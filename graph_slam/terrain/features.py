@@ -206,7 +206,8 @@ class TerrainFeatures:
         ``stairs 3 steps: next +16.8±0.2 cm, 41.0±0.4 cm ahead``; ``""`` when none."""
         near = []
         for st in self.stairs:
-            s = st.steps[0]
+            ahead = [s for s in st.steps if s.nosing.x_m >= toe_x_m]
+            s = ahead[0] if ahead else st.steps[-1]
             near.append((s.nosing.x_m, f"stairs {st.n_steps} step(s): next {s.rise_m * 100:+.1f}"
                          f"±{s.rise_sigma_m * 100:.1f} cm, {(s.nosing.x_m - toe_x_m) * 100:.1f}"
                          f"±{s.nosing.sigma_m * 100:.1f} cm ahead"))  # fmt: skip
