@@ -1,6 +1,8 @@
 """A controller's loop: replay a session causally and print, per frame, what a prosthesis
 controller would read: gait phase, the obstacle ahead (distance from the toe and height, with
-σ) and the time left to toe-off (predicted from the stances seen so far).
+σ), the nearest stair, curb or ramp ahead (``TerrainView.features_ahead()``), during stance the
+coming swing's predicted toe clearance with its low-clearance warning, and the time left to
+toe-off (predicted from the stances seen so far).
 
 graph-slam simulate --scene thesis-boxes --strides 3 --resolution 424x240 --drops none --out runs/sim
 python examples/controller_loop.py runs/sim [VARIANT[:PRESET]]
@@ -10,7 +12,7 @@ time-stamp order, nothing read ahead; the newest frame taken when the estimator 
 the pipeline wrapped by :class:`graph_slam.pipelines.controller.ControllerTap`. Each frame's
 ``FrameOutput`` carries the pose (``stride_T_camera``), its covariance (``covariance``; graph
 variants with ``backend.covariances``) and the terrain (``terrain``: height_at(x, y), the grid
-arrays, ``obstacles_ahead()``), all in the stride frame (docs/terrain.md).
+arrays, ``obstacles_ahead()``, ``features_ahead()``), all in the stride frame (docs/terrain.md).
 """
 
 from __future__ import annotations

@@ -89,14 +89,14 @@ def test_compare_writes_every_promised_file(report_dir) -> None:
 
 
 def test_compare_reports_the_deadline_and_the_live_grid(report_dir) -> None:
-    """The deadline section in report.md and metrics.json (schema 3) for the baseline and the
+    """The deadline section in report.md and metrics.json (schema 4) for the baseline and the
     graph variant, the gait-phase plot, and the main variant's live grid in the recording."""
     from graph_slam.evaluation import read_metrics_json
 
     out, run = report_dir
     assert run.returncode == 0, run.stderr
     doc = read_metrics_json(out / "metrics.json")
-    assert doc["schema_version"] == 3
+    assert doc["schema_version"] == 4
     deadlines = doc["terrain_deadlines"]
     assert set(deadlines) == {"icp", "imu+kin"}
     for section in deadlines.values():
@@ -105,6 +105,18 @@ def test_compare_reports_the_deadline_and_the_live_grid(report_dir) -> None:
     assert "## Obstacles known before toe-off" in (out / "report.md").read_text()
     assert "| imu+kin | all | 1 |" in (out / "report.md").read_text()
     assert (out / "plots" / "obstacle_known_gait_phase.png").is_file()
+    # the final grids' features against the scene, the swing clearance against the truth
+    features = doc["terrain_features"]
+    assert set(features) == {"icp", "imu+kin"}
+    for f in features.values():
+        assert f["grids"] == 1 and set(f) >= {"steps", "ramps", "curbs", "boxes"}
+        clearance = f["swing_clearance"]
+        assert clearance["n"] in (0, 1)
+        if clearance["n"]:
+            assert clearance["rmse"] < 0.05
+        assert f["warnings"]["swings"] == clearance["n"]
+        assert f["warnings"]["flagged_below_margin"] <= f["warnings"]["true_below_margin"]
+    assert "## Terrain features and toe clearance" in (out / "report.md").read_text()
     from rerun.chunk import RrdReader
 
     paths = set(RrdReader(out / "recording.rrd").store().schema().entity_paths())

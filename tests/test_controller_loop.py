@@ -57,6 +57,10 @@ def test_controller_readouts_are_the_same_interleaved_or_all_at_once(session_pat
     phases = {r.phase.split()[0] for r in online}
     assert {"none", "stance"} <= phases
     assert any(r.has_pose for r in online)
+    # stance frames with a grid carry the coming swing's predicted clearance (level ground)
+    stance = [r for r in online if r.phase.startswith("stance") and np.isfinite(r.clearance_m)]
+    assert stance and all("clearance" in r.line() for r in stance)
+    assert all(0.0 < r.clearance_m < 0.2 for r in stance)
 
 
 def test_realtime_final_grid_is_the_online_one_and_old_grids_are_released(session_path):

@@ -61,7 +61,7 @@ def test_demo_writes_the_whole_report(demo_run) -> None:
     assert "| Object | measured | skipped: edge of map |" in text  # box counts beside 4.1
 
     doc = read_metrics_json(report / "metrics.json")
-    assert doc["schema_version"] == 3
+    assert doc["schema_version"] == 4
     graphs = ("icp+imu", "imu+kin", "icp+imu+kin")
     assert set(doc["terrain_deadlines"]) == {"icp", *graphs}
     assert set(doc["variants"]) == {"icp", *graphs, *(f"{g} smoothed" for g in graphs)}

@@ -245,3 +245,35 @@ def test_workers_give_the_same_trajectories_and_counts(ran, no_truth_session, tm
     for variant in ("icp", "imu+kin"):
         strides = one_doc["sessions"][session]["variants"][variant]["strides"]
         assert strides == two_doc["sessions"][session]["variants"][variant]["strides"]
+
+
+def test_features_files_hold_the_grids_features_and_clearances(ran) -> None:
+    from graph_slam.terrain.features_extract import features_of_view
+    from graph_slam.terrain.features_io import read_features_json
+    from graph_slam.variants import Variant
+
+    report, results = ran
+    res = results[Variant("imu+kin")]
+    read = 0
+    for stride in res.strides:
+        if stride.smoothed_grid is None:
+            continue
+        path = (
+            report.out
+            / report.sessions[0]
+            / "imu_kin"
+            / "maps"
+            / f"s{stride.index:02d}_features.json"
+        )
+        doc = read_features_json(path)
+        want = features_of_view(stride.smoothed_grid, source="smoothed")
+        assert doc["smoothed"].to_dict() == want.to_dict()
+        assert doc["predicted_clearance"] is not None
+        # the encoders and the smoothed poses give the swing's toe path (a level walk)
+        swing = doc["swing_clearance"]
+        if swing is not None:
+            assert -0.05 < swing.min_m < 0.3 and swing.edge != "unknown"
+        else:
+            assert doc["swing_clearance_skipped"]
+        read += 1
+    assert read >= 1

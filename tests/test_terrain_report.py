@@ -90,7 +90,7 @@ def test_metrics_json_carries_the_deadline_section(tmp_path):
     doc = metrics_document("s", {}, {}, {"icp+imu+kin": [sd]})
     path = write_metrics_json(doc, tmp_path / "metrics.json")
     back = read_metrics_json(path)
-    assert back["schema_version"] == SCHEMA_VERSION == 3
+    assert back["schema_version"] == SCHEMA_VERSION == 4
     section = back["terrain_deadlines"]["icp+imu+kin"]
     assert section["all"]["n"] == 1 and section["all"]["n_before_toe_off"] == 0  # known late
     assert section["by_speed"]["Normal"]["lead_s_min"] == pytest.approx(-0.05)

@@ -1,10 +1,10 @@
 """The numbers of an evaluation, per variant and stride, and their ``metrics.json`` form.
 
-Schema (``schema_version`` 3; every length in metres, every time in seconds; NaN is written as
+Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN is written as
 ``null``; documented in docs/evaluation.md)::
 
     {
-      "schema": "graph_slam.metrics", "schema_version": 3,
+      "schema": "graph_slam.metrics", "schema_version": 4,
       "session": str,
       "variants": {
         "<variant>": {
@@ -53,13 +53,30 @@ Schema (``schema_version`` 3; every length in metres, every time in seconds; NaN
                             "known_pct"}]}
           ]
         }
+      },
+      "terrain_features": {
+        "<variant>": {
+          "grids": int,
+          "steps": {"matched": int, "rise_m"|"nosing_m"|"tread_m": {"n", "rmse", "bias",
+                                                                  "std_error_over_sigma"}},
+          "ramps": {"matched": int, "slope_rad"|"start_m": {...}},
+          "curbs": {"matched": int, "height_m"|"edge_m": {...}},
+          "boxes": {"matched": int, "height_m"|"leading_m"|"depth_m": {...}},
+          "swing_clearance": {"n", "rmse", "bias", "within_5mm_fraction",
+                              "std_error_over_sigma"},
+          "deadlines": {"n", "n_known", "n_before_toe_off", "n_at_least_0_5_s",
+                        "lead_s_median", "lead_s_min", "by_kind": {"step"|"curb"|"box"|"ramp": int}},
+          "warnings": {"swings", "true_below_margin", "flagged_below_margin", "false_warnings"}
+        }
       }
     }
 
 Version 1 (before the completeness filter) had no ``maps`` and measured every box, whole or
 not; version 2 had no ``terrain_deadlines`` (when the online map knew each obstacle of a
 stride's final map, relative to toe-off: :mod:`graph_slam.evaluation.terrain_deadline`);
-:func:`read_metrics_json` reads all three.
+version 3 had no ``terrain_features`` (each stride's final grid's stairs, ramps, curbs and
+boxes against the scene's, :mod:`graph_slam.evaluation.features`, and the measured swing
+clearance against the true one); :func:`read_metrics_json` reads all four.
 """
 
 from __future__ import annotations
@@ -82,8 +99,8 @@ from graph_slam.evaluation.timing import TimingStats
 from graph_slam.evaluation.trajectory import StrideTrajectoryMetrics
 
 SCHEMA = "graph_slam.metrics"
-SCHEMA_VERSION = 3
-READABLE_VERSIONS = (1, 2, 3)
+SCHEMA_VERSION = 4
+READABLE_VERSIONS = (1, 2, 3, 4)
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,6 +233,7 @@ def metrics_document(
     variants: dict[str, VariantEvaluation],
     maps: dict[str, MapEvaluation] | None = None,
     deadlines: dict[str, Sequence[StrideDeadlines]] | None = None,
+    features: dict[str, dict] | None = None,
 ) -> dict[str, Any]:
     """``metrics.json``'s content (the schema above); ``deadlines``: per variant, its strides'
     :class:`~graph_slam.evaluation.terrain_deadline.StrideDeadlines`."""
@@ -228,6 +246,7 @@ def metrics_document(
         "terrain_deadlines": {
             str(name): deadline_summary(strides) for name, strides in (deadlines or {}).items()
         },
+        "terrain_features": {str(name): f for name, f in (features or {}).items()},
     }
 
 
@@ -273,5 +292,9 @@ def read_metrics_json(path: str | Path) -> dict[str, Any]:
     if document["schema_version"] >= 3 and not isinstance(document.get("terrain_deadlines"), dict):
         raise EvaluationError(
             f"{path}: field 'terrain_deadlines' must be a mapping of variant to deadlines"
+        )
+    if document["schema_version"] >= 4 and not isinstance(document.get("terrain_features"), dict):
+        raise EvaluationError(
+            f"{path}: field 'terrain_features' must be a mapping of variant to feature scores"
         )
     return document

@@ -42,6 +42,13 @@ class ControllerReadout:
     has_pose: bool = False
     obstacle_whole: bool = False
     """The box is seen whole (else its dimensions are those of the part seen)."""
+    feature: str = ""
+    """The nearest stair, curb or ramp ahead in words
+    (:meth:`graph_slam.terrain.features.TerrainFeatures.summary`)."""
+    clearance_m: float = float("nan")
+    """Stance: the coming swing's predicted toe clearance
+    (:func:`graph_slam.terrain.clearance.predict_clearance`)."""
+    clearance_warning: bool = False
 
     def line(self) -> str:
         """A fixed-width line: time, stride, phase, obstacle ahead, time left to toe-off."""
@@ -60,9 +67,13 @@ class ControllerReadout:
             else "toe-off in    ? ms"
         )
         pose = "" if self.has_pose else "  (no pose)"
+        extra = f"  {self.feature}" if self.feature else ""
+        if math.isfinite(self.clearance_m):
+            warn = "  WARNING: low clearance" if self.clearance_warning else ""
+            extra += f"  clearance {self.clearance_m * 100:.1f} cm{warn}"
         return (
             f"t={self.t_s:7.3f} s  stride {self.stride_index:2d}  {self.phase:<12} {toe}  "
-            f"{obstacle}{pose}"
+            f"{obstacle}{extra}{pose}"
         )
 
 
@@ -117,6 +128,13 @@ class ControllerTap:
                 obstacle_height_sigma_m=o.height_sigma_m,
                 obstacle_whole=o.complete,
             )
+        if out.terrain is not None:
+            from graph_slam.terrain.clearance import predict_clearance
+
+            fields["feature"] = out.terrain.features_ahead().summary(out.terrain.toe_x_m)
+            if loaded:
+                c = predict_clearance(out.terrain)
+                fields["clearance_m"], fields["clearance_warning"] = c.min_m, c.warning
         return ControllerReadout(
             out.frame_index, out.t_s, out.stride_index, phase, toe_off_in_s=toe,
             has_pose=out.has_pose, **fields,

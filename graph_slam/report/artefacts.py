@@ -39,13 +39,30 @@ def _num(x) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def write_variant(folder: Path, results, cfg) -> list[Path]:
-    """Every artefact of one variant's :class:`~graph_slam.pipelines.PipelineResults`."""
+def write_variant(folder: Path, results, cfg, session=None, leg_model=None) -> list[Path]:
+    """Every artefact of one variant's :class:`~graph_slam.pipelines.PipelineResults`
+    (``session`` and ``leg_model``: for the measured swing clearance of the features files)."""
     folder.mkdir(parents=True, exist_ok=True)
     files = write_trajectories(folder, results, kitti=cfg.kitti)
     files.append(write_frames_csv(folder / "frames.csv", results))
     files.append(write_timing_csv(folder / "timing.csv", results))
     files += write_stride_maps(folder / "maps", results, cfg)
+    files += write_stride_features(folder / "maps", results, session, leg_model)
+    return files
+
+
+def write_stride_features(folder: Path, results, session=None, leg_model=None) -> list[Path]:
+    """Per stride with a grid: ``sNN_features.json`` (terrain features, predicted and measured
+    toe clearance; :mod:`graph_slam.terrain.features_io`)."""
+    from graph_slam.terrain.features_io import stride_features_document, write_features_json
+
+    files = []
+    for stride in results.strides:
+        if stride.online_grid is None and stride.smoothed_grid is None:
+            continue
+        folder.mkdir(parents=True, exist_ok=True)
+        doc = stride_features_document(stride, results, session, leg_model)
+        files.append(write_features_json(folder / f"s{stride.index:02d}_features.json", doc))
     return files
 
 

@@ -147,6 +147,9 @@ class CompareReport:
     """Caveats on the numbers (graph_slam.session.plausibility): gaps, units, dropped strides."""
     deadlines: dict[str, list] = field(default_factory=dict)
     """Per variant: when its online map knew each stride's obstacles (StrideDeadlines)."""
+    features: dict[str, dict] = field(default_factory=dict)
+    """Per variant: its final grids' terrain features and swing clearances against the scene
+    (``metrics.json``'s ``terrain_features``)."""
 
 
 @dataclass
@@ -163,6 +166,14 @@ class _Study:
     toe_pcts: list[float] = field(default_factory=list)
     deadlines: dict[Variant, list] = field(default_factory=dict)
     """Per variant: :class:`~graph_slam.report.terrain_trace.StrideDeadlines` per stride."""
+    features: dict[Variant, list] = field(default_factory=dict)
+    """Per variant: the feature scores of each stride's final grid."""
+    clearances: dict[Variant, list] = field(default_factory=dict)
+    """Per variant: (measured, true, σ) least swing clearance per stride."""
+    feature_deadlines: dict[Variant, list] = field(default_factory=dict)
+    """Per variant: when its online grid knew each feature of a stride's final grid."""
+    clearance_flags: dict[Variant, list] = field(default_factory=dict)
+    """Per variant and stride: (warned in stance before toe-off, the true swing clearance)."""
     n_strides: int = 0
 
     @classmethod
@@ -261,7 +272,10 @@ def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnin
     report = _tables(tmp, cfg, study, [s.name for s in opened], unscored)
     report.warnings = warnings
     deadlines = {v: d for v, d in study.deadlines.items() if d}  # variants scored
-    document = metrics_document(", ".join(report.sessions), report.variants, report.maps, deadlines)
+    report.features = _feature_summaries(study)
+    document = metrics_document(
+        ", ".join(report.sessions), report.variants, report.maps, deadlines, report.features
+    )
     report.deadlines = {str(v): d for v, d in deadlines.items()}
     document["warnings"] = [w.to_dict() for w in warnings]
     files.append(write_metrics_json(document, tmp / "metrics.json"))
@@ -314,6 +328,90 @@ def _score(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
         study.deadlines[variant] += strides
     for name, size in run.truth_sizes().items():
         study.truth_sizes.setdefault(name, size)
+    _score_features(run, study, cfg)
+
+
+def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
+    """Each scored stride's final grid: its features against the scene's, its measured swing
+    clearance against the true one (graph_slam.evaluation.features)."""
+    from graph_slam.errors import GraphSlamError
+    from graph_slam.evaluation.features import (
+        feature_deadlines,
+        feature_truth_from_scene,
+        score_features,
+        swing_clearance_pair,
+    )
+    from graph_slam.strides.kinematics import session_leg_model
+    from graph_slam.terrain.features_extract import features_of_view
+
+    scene = run.session.scene
+    if scene is None or not run.references:
+        return
+    try:
+        leg = session_leg_model(
+            run.session, cfg.pipeline.mount_pitch_deg, cfg.pipeline.mount_estimate
+        )[0]
+    except GraphSlamError:
+        leg = None
+    for variant in run.results:
+        for ref in run.references:
+            stride = run.stride_of(variant, ref)
+            grid = None if stride is None else stride.smoothed_grid
+            if grid is None:
+                continue
+            truth = feature_truth_from_scene(scene, ref.world_T_stride)
+            measured = features_of_view(grid, source="smoothed")
+            study.features.setdefault(variant, []).append(score_features(measured, truth))
+            pair = swing_clearance_pair(run, ref, stride, leg)
+            if pair is not None:
+                study.clearances.setdefault(variant, []).append(pair)
+            trace = run.traces.get(variant)
+            if pair is not None and trace is not None and len(trace.predictions) == len(trace.t_s):
+                warned = any(
+                    trace.predictions[int(i)] is not None and trace.predictions[int(i)].warning
+                    for i in ref.frame_indices
+                    if ref.toe_off_s is not None and trace.t_s[int(i)] < ref.toe_off_s
+                )
+                study.clearance_flags.setdefault(variant, []).append((warned, pair[1]))
+            if trace is not None and trace.every_frame and len(trace.features) == len(trace.t_s):
+                idx = [int(i) for i in ref.frame_indices]
+                rows = feature_deadlines([trace.t_s[i] for i in idx],
+                                         [trace.features[i] for i in idx], measured, ref.toe_off_s)  # fmt: skip
+                study.feature_deadlines.setdefault(variant, []).extend(rows)
+
+
+def _warning_summary(rows) -> dict:
+    """Swings, those truly under the warning margin (2 cm), how many of them the stance-time
+    prediction flagged before toe-off, and the flags raised over swings that cleared it."""
+    from graph_slam.terrain.clearance import ClearanceConfig
+
+    margin = ClearanceConfig().warn_below_m
+    low = [w for w, true in rows if true < margin]
+    return {
+        "swings": len(rows),
+        "true_below_margin": len(low),
+        "flagged_below_margin": int(sum(low)),
+        "false_warnings": int(sum(w for w, true in rows if true >= margin)),
+    }
+
+
+def _feature_summaries(study: _Study) -> dict[str, dict]:
+    from graph_slam.evaluation.features import (
+        summarise_clearances,
+        summarise_feature_deadlines,
+        summarise_scores,
+    )
+
+    return {
+        str(v): {
+            "grids": len(scores),
+            **summarise_scores(scores),
+            "swing_clearance": summarise_clearances(study.clearances.get(v, [])),
+            "deadlines": summarise_feature_deadlines(study.feature_deadlines.get(v, [])),
+            "warnings": _warning_summary(study.clearance_flags.get(v, [])),
+        }
+        for v, scores in study.features.items()
+    }
 
 
 def _tables(out: Path, cfg: CompareConfig, study: _Study, sessions, unscored) -> CompareReport:

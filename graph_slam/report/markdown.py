@@ -60,6 +60,72 @@ def _fmt_s(x: float) -> str:
     return f"{x:.2f}" if np.isfinite(x) else "–"
 
 
+def _mm(stats: dict | None, scale: float = 1e3) -> str:
+    if not stats or stats.get("rmse") is None:
+        return "–"
+    z = stats.get("std_error_over_sigma")
+    return f"{stats['rmse'] * scale:.1f} ({stats['n']}{'' if z is None else f', z {z:.2f}'})"
+
+
+def features_section(features: dict) -> list[str]:
+    """Each variant's final grids' stairs, ramps, curbs and boxes against the scene's, and the
+    measured swing clearance against the true one (``metrics.json``'s ``terrain_features``)."""
+    if not features:
+        return []
+    lines = [
+        "## Terrain features and toe clearance (final grids against the scene)",
+        "",
+        "Each scored stride's final grid (re-fused from the smoothed poses) gives its stairs, "
+        "ramps, curbs and boxes (docs/terrain.md); each is matched to the scene's and scored: "
+        "RMSE in mm (slope in degrees), then (n, z = std of error/σ). The swing clearance: the "
+        "toe's least height over the terrain in mid-swing from the smoothed poses, the encoders "
+        "and the grid, against the true poses over the scene's surface.",
+        "",
+        "| variant | grids | step rise | nosing | tread | ramp slope (°) | ramp start | curb "
+        "height | curb edge | box height | box leading edge | box depth | swing clearance "
+        "(RMSE mm, bias mm, ≤5 mm) |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
+    ]
+    deg = 180 / 3.141592653589793
+    for name, f in features.items():
+        c = f["swing_clearance"]
+        clear = (
+            "–"
+            if not c["n"]
+            else f"{c['rmse'] * 1e3:.1f}, {c['bias'] * 1e3:+.1f}, {c['within_5mm_fraction']:.0%} of {c['n']}"
+        )
+        cells = [
+            _mm(f["steps"]["rise_m"]), _mm(f["steps"]["nosing_m"]), _mm(f["steps"]["tread_m"]),
+            _mm(f["ramps"]["slope_rad"], deg), _mm(f["ramps"]["start_m"]),
+            _mm(f["curbs"]["height_m"]), _mm(f["curbs"]["edge_m"]), _mm(f["boxes"]["height_m"]),
+            _mm(f["boxes"]["leading_m"]), _mm(f["boxes"]["depth_m"]),
+        ]  # fmt: skip
+        lines.append(f"| {name} | {f['grids']} | " + " | ".join(cells) + f" | {clear} |")
+    lines += [
+        "",
+        "Features known before toe-off: each feature of a stride's final grid is known at the "
+        "first searched frame whose online grid had one of its kind with its edge within 2 cm "
+        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then. "
+        "Warnings: a swing is flagged when a stance frame's predicted clearance (the reference "
+        "swing over the online grid) was under 2 cm before its toe-off.",
+        "",
+        "| variant | features | known | before toe-off | ≥ 0.5 s before | median lead (s) | "
+        "swings | truly < 2 cm | flagged | false warnings |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
+    ]
+    for name, f in features.items():
+        d = f.get("deadlines") or {}
+        if not d.get("n"):
+            continue
+        med = "–" if d["lead_s_median"] is None else f"{d['lead_s_median']:.2f}"
+        w = f.get("warnings") or {}
+        warn = " | ".join(str(w.get(k, "–")) for k in
+                          ("swings", "true_below_margin", "flagged_below_margin", "false_warnings"))  # fmt: skip
+        lines.append(f"| {name} | {d['n']} | {d['n_known']} | {d['n_before_toe_off']} | "
+                     f"{d['n_at_least_0_5_s']} | {med} | {warn} |")  # fmt: skip
+    return [*lines, ""]
+
+
 def deadline_section(deadlines: dict) -> list[str]:
     """Per variant and walking speed: the obstacles each stride's final map measured whole,
     how many the online map knew (height ±1 cm, leading edge ±2 cm of the final values), how
@@ -152,6 +218,7 @@ def report_markdown(report, cfg) -> str:
         if name in report.box_counts:
             lines += [report.box_counts[name]]
     lines += deadline_section(report.deadlines)
+    lines += features_section(getattr(report, "features", {}))
     lines += ["## Plots", ""]
     lines += [f"![{p.stem}]({p.as_posix()})" for p in pngs]
     lines += [

@@ -244,8 +244,9 @@ def _write_run(
     for session, results, session_traces in zip(opened, runs, traces, strict=True):
         trace = None if session_traces is None else session_traces[main]
         warnings += rejected_samples(session, results)
+        leg = _leg_model(session, cfg)
         for variant, res in results.items():
-            files += write_variant(tmp / session.name / variant.tag, res, cfg)
+            files += write_variant(tmp / session.name / variant.tag, res, cfg, session, leg)
         sessions[session.name] = summarise_session(session, results, reference)
         if cfg.rrd:
             views.log_run(session, results, cfg, logger, t_offset, trace)
@@ -259,6 +260,26 @@ def _write_run(
         "warnings": [w.to_dict() for w in warnings],
     }
     return RunReport(tmp, list(sessions), summary, files, warnings=warnings)
+
+
+def _leg_model(session, cfg: RunConfig):
+    """The session's leg model for the toe clearance (None, logged, when there is none)."""
+    import logging
+
+    from graph_slam.errors import GraphSlamError
+    from graph_slam.strides.kinematics import session_leg_model
+
+    if session.joints is None:
+        return None
+    try:
+        return session_leg_model(
+            session, cfg.pipeline.mount_pitch_deg, cfg.pipeline.mount_estimate
+        )[0]
+    except GraphSlamError as err:
+        logging.getLogger(__name__).info(
+            "%s: no leg model for the toe clearance (%s)", session.name, err
+        )
+        return None
 
 
 def _write_documents(tmp: Path, report: RunReport, cfg: RunConfig) -> list[Path]:

@@ -62,6 +62,12 @@ class TerrainTrace:
     not searched, ``interval_s``)."""
     _last: tuple[int, float] = field(default=(-(10**9), -math.inf), init=False, repr=False)
     snapshots: dict[int, GridSnapshot] = field(default_factory=dict)
+    features: list = field(default_factory=list)
+    """The grid's terrain features (:class:`~graph_slam.terrain.features.TerrainFeatures`)
+    at the frames whose boxes were searched (None elsewhere): the per-feature deadline."""
+    predictions: list = field(default_factory=list)
+    """At the searched frames in stance, the coming swing's predicted clearance
+    (:class:`~graph_slam.terrain.clearance.Clearance`; None elsewhere): the warnings."""
 
     def __call__(self, out) -> None:
         view = out.terrain
@@ -85,6 +91,15 @@ class TerrainTrace:
             self.obstacles.append((self.whole_boxes or complete_boxes)(view))
         else:
             self.obstacles.append(() if view is None else None)
+        searched = view is not None and self.obstacles[-1] is not None and self.every_frame
+        feats = getattr(view, "features", None) if searched else None
+        self.features.append(feats)
+        prediction = None
+        if feats is not None and getattr(out, "foot_loaded", False):
+            from graph_slam.terrain.clearance import predict_clearance
+
+            prediction = predict_clearance(view, feats)
+        self.predictions.append(prediction)
         if self.obstacles[-1] is not None:
             self._last = (int(out.stride_index), float(out.t_s))
 

@@ -349,6 +349,19 @@ class TerrainView:
         lo = self.toe_x_m if min_x_m is None else min_x_m
         return tuple(o for o in m.obstacles if o.leading_edge_x_m >= lo)
 
+    @cached_property
+    def features(self):
+        """Stairs, ramps, curbs and boxes of the grid with σ
+        (:func:`graph_slam.terrain.features_extract.features_of_view`), computed once on demand."""
+        from graph_slam.terrain.features_extract import features_of_view
+
+        return features_of_view(self)
+
+    def features_ahead(self, min_x_m: float | None = None):
+        """The features reaching beyond ``min_x_m`` (default: the toe)
+        (:class:`graph_slam.terrain.features.TerrainFeatures`)."""
+        return self.features.ahead(self.toe_x_m if min_x_m is None else min_x_m)
+
 
 def _frozen(a: np.ndarray) -> np.ndarray:
     a.flags.writeable = False

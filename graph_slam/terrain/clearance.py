@@ -1,0 +1,250 @@
+"""The toe's clearance over the terrain ahead: measured along a swing, predicted during stance.
+
+Everything is in the stride frame (metres). The terrain under a toe position ``(x, y)`` is the
+grid's height there (the highest of the cells within ``toe_radius_m``), except within
+``edge_band_m`` of a feature's edge (a step's nosing, a curb, a box's leading or trailing edge),
+where it is the step model of the feature: the far surface's height beyond the edge line, the
+near one's before it. A grid cell across an edge holds a mixture of both heights and would
+put the nosing up to a cell late and low; the feature's line is sub-cell.
+
+* :func:`clearance_along`: the minimum over a toe path (N×3) of ``z_toe − terrain``, where it
+  occurs (the toe's x, y and the edge it passes, named ``stairs[0].step[1]``, ``curbs[0]``,
+  ``boxes[0].leading``, or ``ground``), its σ (the terrain's σ there without the pose part,
+  which the toe path placed by the same poses shares, and ``toe_sigma_m``).
+* :func:`toe_path` — the measured swing: the toe in the stride frame from the camera poses and
+  the encoders (``stride_T_camera · camera_T_toe(q)``, the leg model's forward kinematics).
+* :func:`reference_swing` / :func:`predict_clearance` — during stance, the clearance of the
+  coming swing: a reference toe path for the terrain type ahead (level or ramp: a lift of
+  ``lift_m`` over the ground; stairs or a curb: the lift over the first rise ahead; boxes are
+  what the warning is for, the reference does not step over them) from the toe's position now
+  over one stride length, against the current grid and features. ``warning`` when the predicted
+  clearance is below ``warn_below_m`` (2 cm).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import Field
+
+from graph_slam.config import ConfigModel
+from graph_slam.terrain.features import TerrainFeatures, _plain
+
+
+class ClearanceConfig(ConfigModel):
+    """The clearance's terrain model and the stance-time prediction (metres)."""
+
+    toe_radius_m: float = Field(0.01, ge=0, description="grid cells within this of the toe")
+    edge_band_m: float = Field(0.04, gt=0, description="the step model within this of an edge")
+    warn_below_m: float = Field(0.02, description="predicted clearance that raises the warning")
+    lift_m: float = Field(
+        0.05, gt=0, description="the reference swing's peak toe lift over the ground"
+    )
+    stride_length_m: float = Field(1.3, gt=0, description="the reference swing's length")
+    samples: int = Field(60, ge=4, description="points along the reference swing")
+    mid_swing: tuple[float, float] = Field(
+        (0.1, 0.85),
+        description="the part of a swing (fractions of its duration) the clearance is taken "
+        "over: the toe leaves the ground at its start and comes down to it at its end",
+    )
+
+    def mid_swing_mask(self, n: int) -> np.ndarray:
+        """Which of ``n`` evenly timed swing samples lie in ``mid_swing``."""
+        s = np.linspace(0.0, 1.0, n)
+        return (s >= self.mid_swing[0]) & (s <= self.mid_swing[1])
+
+
+@dataclass(frozen=True)
+class Clearance:
+    """The toe's least clearance along one path (stride frame)."""
+
+    min_m: float
+    sigma_m: float
+    x_m: float
+    y_m: float
+    sample: int
+    """Index of the path point where it occurs."""
+    edge: str
+    """The edge it passes (``stairs[0].step[1]``, ``curbs[0]``, ``boxes[0].leading``, …) or
+    ``ground``; ``unknown`` when no point of the path was over a known cell."""
+    terrain: str = "level"
+    """The reference swing's terrain type (predictions) or ``measured``."""
+    warning: bool = False
+
+    def to_dict(self) -> dict:
+        return _plain(self)
+
+    @staticmethod
+    def from_dict(d: dict) -> Clearance:
+        num = {
+            k: float("nan") if d[k] is None else float(d[k])
+            for k in ("min_m", "sigma_m", "x_m", "y_m")
+        }
+        return Clearance(**num, sample=int(d["sample"]), edge=str(d["edge"]),
+                         terrain=str(d["terrain"]), warning=bool(d["warning"]))  # fmt: skip
+
+
+def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, float]]:
+    """(name, EdgeLine, height before, height beyond, σ of the rise) of every feature edge."""
+    out = []
+    for k, st in enumerate(features.stairs):
+        for m, step in enumerate(st.steps):
+            near, far = (
+                (step.lower_height_m, step.upper_height_m)
+                if step.rise_m > 0
+                else (step.upper_height_m, step.lower_height_m)
+            )
+            out.append((f"stairs[{k}].step[{m}]", step.nosing, near, far, step.rise_sigma_m))
+    for k, c in enumerate(features.curbs):
+        far = c.near_height_m + c.height_m
+        out.append((f"curbs[{k}]", c.edge, c.near_height_m, far, c.height_sigma_m))
+    for k, b in enumerate(features.boxes):
+        top = b.floor_height_m + b.height_m
+        out.append((f"boxes[{k}].leading", b.leading, b.floor_height_m, top, b.height_sigma_m))
+        trail = dataclasses.replace(b.leading, x_m=b.leading.x_m + b.depth_m)
+        out.append((f"boxes[{k}].trailing", trail, top, b.floor_height_m, b.height_sigma_m))
+    return out
+
+
+_OFFSETS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
+
+
+def _independent_sigma(view) -> np.ndarray:
+    """The cells' σ less their pose part (the grid's ``B/W``): a toe path placed by the same
+    poses as the grid shares that error, and it cancels in the clearance."""
+    sums = getattr(view, "sums", None)
+    if sums is None:
+        return view.sigma_m
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = (sums.b / sums.w).reshape(view.shape)
+    return np.sqrt(np.maximum(view.variance_m2 - np.nan_to_num(corr) ** 2, 0.0))
+
+
+def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per point: the highest known cell within ``radius`` (the 3×3 offsets of it) and its σ
+    without the pose part (NaN: none)."""
+    h, s = view.height_m, _independent_sigma(view)
+    nx, ny = h.shape
+    q = (xy[:, None, :] + radius * _OFFSETS[None]) - np.asarray(view.origin_xy_m)
+    ij = np.floor(q / view.cell_m).astype(np.int64)
+    on = (ij[..., 0] >= 0) & (ij[..., 0] < nx) & (ij[..., 1] >= 0) & (ij[..., 1] < ny)
+    i, j = np.where(on, ij[..., 0], 0), np.where(on, ij[..., 1], 0)
+    hh = np.where(on, h[i, j], np.nan)
+    hh = np.where(np.isfinite(hh), hh, -np.inf)
+    k = np.argmax(hh, axis=1)
+    rows = np.arange(len(xy))
+    best = hh[rows, k]
+    sig = s[i[rows, k], j[rows, k]]
+    found = np.isfinite(best)
+    return np.where(found, best, np.nan), np.where(found, sig, np.nan)
+
+
+def clearance_along(
+    view,
+    features: TerrainFeatures,
+    toe_xyz_m: np.ndarray,
+    config: ClearanceConfig | None = None,
+    toe_sigma_m: float = 0.0,
+    terrain: str = "measured",
+) -> Clearance:
+    """The least clearance of the toe path over the grid and the features' edges."""
+    cfg = config or ClearanceConfig()
+    p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    ground, sigma = _grid_heights(view, p[:, :2], cfg.toe_radius_m)
+    name = np.full(len(p), "ground", dtype=object)
+    for label, line, near, far, rise_sigma in _edges(features):
+        lo, hi = line.y_range_m
+        c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
+        d = (p[:, 0] - line.x_m) * c + (p[:, 1] - line.y_m) * s  # signed, along the normal
+        along = p[:, 1]
+        band = (np.abs(d) <= cfg.edge_band_m) & (along >= lo - 0.02) & (along <= hi + 0.02)
+        model = np.where(d >= 0, far, near)
+        ground = np.where(band, model, ground)
+        sigma = np.where(band, rise_sigma, sigma)
+        name = np.where(band, label, name)
+    clear = p[:, 2] - ground
+    if not np.isfinite(clear).any():
+        return Clearance(float("nan"), float("nan"), float("nan"), float("nan"), -1, "unknown",
+                         terrain)  # fmt: skip
+    k = int(np.nanargmin(clear))
+    sig = math.hypot(float(np.nan_to_num(sigma[k])), toe_sigma_m)
+    return Clearance(float(clear[k]), sig, float(p[k, 0]), float(p[k, 1]), k, str(name[k]),
+                     terrain)  # fmt: skip
+
+
+def _on_path(line, y_m: float, margin_m: float = 0.05) -> bool:
+    return line.y_range_m[0] - margin_m <= y_m <= line.y_range_m[1] + margin_m
+
+
+def terrain_type(
+    features: TerrainFeatures, x_from_m: float, x_to_m: float, y_m: float = 0.0
+) -> tuple[str, float]:
+    """The reference swing's terrain type between two x along the line y = ``y_m`` (a
+    feature beside that line does not count), and the rise it lifts over."""
+    for st in features.stairs:
+        for step in st.steps:
+            if x_from_m <= step.nosing.x_m <= x_to_m and _on_path(step.nosing, y_m):
+                return ("stairs_up" if step.rise_m > 0 else "stairs_down"), step.rise_m
+    for c in features.curbs:
+        if x_from_m <= c.edge.x_m <= x_to_m and _on_path(c.edge, y_m):
+            return "curb", c.height_m
+    for r in features.ramps:
+        on = r.start is None or _on_path(r.start, y_m)
+        if on and r.far_x_m >= x_from_m and r.near_x_m <= x_to_m:
+            return "ramp", 0.0
+    return "level", 0.0
+
+
+def reference_swing(
+    view, features: TerrainFeatures, toe_xy_m=(0.2, 0.0), config: ClearanceConfig | None = None
+) -> tuple[np.ndarray, str]:
+    """The reference toe path (N×3) of the coming swing from ``toe_xy_m``, and its type."""
+    cfg = config or ClearanceConfig()
+    x0, y0 = float(toe_xy_m[0]), float(toe_xy_m[1])
+    s = np.linspace(0.0, 1.0, cfg.samples)
+    x = x0 + s * cfg.stride_length_m
+    kind, rise = terrain_type(features, x0, x0 + cfg.stride_length_m, y0)
+    xy = np.column_stack([x, np.full_like(x, y0)])
+    ground, _ = _grid_heights(view, xy[[0, -1]], cfg.toe_radius_m)
+    z0 = float(np.nan_to_num(ground[0]))
+    z1 = z0 + rise if kind != "ramp" else float(np.nan_to_num(ground[1], nan=z0))
+    lift = cfg.lift_m * np.sqrt(np.sin(np.pi * s))  # a plateau: the toe stays up mid-swing
+    # up (or down) to the landing level by mid-swing when stepping up, over the whole swing
+    # otherwise
+    u = np.minimum(2 * s, 1.0) if rise > 0 else s
+    z = z0 + (z1 - z0) * u * u * (3 - 2 * u) + lift
+    return np.column_stack([xy, z]), kind
+
+
+def predict_clearance(
+    view,
+    features: TerrainFeatures | None = None,
+    toe_xy_m=None,
+    config: ClearanceConfig | None = None,
+) -> Clearance:
+    """The coming swing's clearance on its reference path over the current terrain, with the
+    warning flag (see the module docstring)."""
+    cfg = config or ClearanceConfig()
+    feats = view.features if features is None else features
+    toe = (view.toe_x_m, 0.0) if toe_xy_m is None else toe_xy_m
+    path, kind = reference_swing(view, feats, toe, cfg)
+    mid = np.flatnonzero(cfg.mid_swing_mask(len(path)))
+    c = clearance_along(view, feats, path[mid], cfg, terrain=kind)
+    warn = bool(math.isfinite(c.min_m) and c.min_m < cfg.warn_below_m)
+    sample = int(mid[c.sample]) if c.sample >= 0 else -1
+    return Clearance(c.min_m, c.sigma_m, c.x_m, c.y_m, sample, c.edge, kind, warn)
+
+
+def toe_path(stride_T_camera: np.ndarray, q_rad: np.ndarray, leg_model) -> np.ndarray:
+    """The toe (N×3, stride frame) from the camera poses (N×4×4) and the encoders (N×2):
+    ``stride_T_camera · camera_T_toe(q)`` by the leg model's forward kinematics."""
+    poses = np.asarray(stride_T_camera, dtype=np.float64).reshape(-1, 4, 4)
+    q = np.asarray(q_rad, dtype=np.float64).reshape(-1, 2)
+    out = np.empty((len(poses), 3))
+    for k, (pose, qk) in enumerate(zip(poses, q, strict=True)):
+        camera_T_toe = leg_model.frame_T_frame("camera_optical", "toe", qk, check_limits=False)
+        out[k] = (pose @ camera_T_toe)[:3, 3]
+    return out

@@ -1,0 +1,300 @@
+"""Terrain features ahead of the foot from an elevation grid: stairs, ramps, curbs and boxes.
+
+What a controller plans a swing with is a handful of numbers, each with its σ, in the stride
+frame (x forward from the heel, y left, z up; metres, radians). :func:`extract_features` reads
+them off any elevation grid (the online grid of a frame, :meth:`TerrainView.features_ahead
+<graph_slam.terrain.online.TerrainView.features_ahead>`, or a stride's re-fused grid):
+
+1. **Local planes**: every known cell gets a least-squares plane over its
+   ``window_cells``² neighbourhood (box sums, no loop): slope and RMS residual.
+2. **Terraces**: 4-connected components of *level* cells (slope under ``level_max_deg``,
+   residual under ``fit_rms_max_m``); the cells by a height jump are not level (a step inside
+   the window leaves a residual of about a third of its rise), so every tread, the floor and a
+   box top fall apart. A terrace's height is the inverse-variance mean of its cells.
+3. **Edges across x**: along each grid row, two terraces met within ``max_gap_cells`` whose
+   heights differ by at least ``min_rise_m``; the edge lies where the area between them says
+   (a cell holding the far surface over a fraction f of its length is about f of the way
+   between the two heights: ``x = x_end - cell · Σ f``). Cells not seen between them (the
+   shadow behind a nosing seen from above) are taken as the far surface and the edge put at the
+   middle of the last near cell (±cell/√12). Per terrace pair, a line ``x = x̄ + b (y - ȳ)`` is
+   fitted to the rows (3σ outliers rejected): position, yaw and their σ.
+4. **Kinds**: a terrace entered by a rise and left by a drop to the same level (within
+   ``box_same_level_m``) is a **box**; chains of edges through shared terraces with the same
+   sign of rise are **stairs** (two or more edges), a single edge whose far terrace runs at
+   least ``curb_min_depth_m`` on is a **curb**, otherwise a stair of one step seen.
+   Components of cells sloped between ``ramp_min_deg`` and ``ramp_max_deg`` are **ramps**:
+   one plane fitted to them (slope, uphill direction, σ from the fit) and their start line, the
+   plane's intersection with the terrace they are entered from (the one nearest the heel).
+
+σ: a terrace height carries its cells' depth noise averaged and their pose part (correlated:
+it does not average); a rise the two independent parts and the difference of the pose parts
+(a common height offset cancels in a rise). An edge's σ is the spread of its rows' positions
+or, when larger, their height noise scaled to a position (``σ_h / rise · cell`` per cell),
+over √rows. The horizontal error of the stride frame itself (the heel position, the pose's
+yaw) is not in the grid and not in these σ (docs/terrain.md, *Limits*).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+from pydantic import Field
+
+from graph_slam.config import ConfigModel
+
+
+class FeatureConfig(ConfigModel):
+    """Thresholds of :func:`extract_features` (metres, degrees)."""
+
+    window_cells: int = Field(5, ge=3, le=11, description="local plane window (odd)")
+    min_window_cells: int = Field(12, ge=3, description="known cells a local plane needs")
+    level_max_deg: float = Field(3.0, gt=0, description="steepest level cell")
+    ramp_min_deg: float = Field(3.5, gt=0, description="gentlest ramp cell")
+    ramp_max_deg: float = Field(20.0, gt=0, description="steepest ramp cell")
+    fit_rms_max_m: float = Field(0.006, gt=0, description="local plane residual of a surface")
+    min_terrace_cells: int = Field(6, ge=1)
+    min_ramp_cells: int = Field(20, ge=3)
+    min_ramp_length_m: float = Field(0.2, gt=0, description="a ramp's extent up its slope")
+    min_rise_m: float = Field(0.03, gt=0, description="smallest step, curb or box")
+    max_gap_cells: int = Field(10, ge=0, description="most cells between two terraces")
+    min_edge_rows: int = Field(3, ge=2, description="rows an edge must be seen in")
+    box_same_level_m: float = Field(0.02, gt=0)
+    curb_min_depth_m: float = Field(0.45, gt=0, description="upper surface of a curb")
+
+
+@dataclass(frozen=True)
+class EdgeLine:
+    """A straight edge on the ground: ``x = x_m - tan(yaw_rad) (y - y_m)``; ``yaw_rad`` is
+    the direction of its normal (the way across it, from stride x towards y)."""
+
+    x_m: float
+    y_m: float
+    """The point reported: at y = 0 (the foot's line) when the edge is seen there, else at the
+    nearest end of the part seen."""
+    yaw_rad: float
+    sigma_m: float
+    """1σ of the position along the normal at (x_m, y_m)."""
+    yaw_sigma_rad: float
+    y_range_m: tuple[float, float]
+    rows: int
+    occluded: bool = False
+    """The surface just beyond the edge was not seen (a nosing from above)."""
+
+    def x_at(self, y_m: float) -> float:
+        return float(self.x_m - math.tan(self.yaw_rad) * (y_m - self.y_m))
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step of a flight: its nosing edge and rise (signed: + up along the walk)."""
+
+    rise_m: float
+    rise_sigma_m: float
+    nosing: EdgeLine
+    tread_m: float = float("nan")
+    """Depth of the tread beyond this nosing, to the next one (NaN: the next is not seen)."""
+    tread_sigma_m: float = float("nan")
+    lower_height_m: float = float("nan")
+    upper_height_m: float = float("nan")
+
+
+@dataclass(frozen=True)
+class Stairs:
+    steps: tuple[Step, ...]
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.steps)
+
+    @property
+    def ascending(self) -> bool:
+        return self.steps[0].rise_m > 0
+
+    @property
+    def near_x_m(self) -> float:
+        return self.steps[0].nosing.x_m
+
+    @property
+    def far_x_m(self) -> float:
+        return self.steps[-1].nosing.x_m
+
+
+@dataclass(frozen=True)
+class Curb:
+    height_m: float
+    """Signed: + up along the walk."""
+    height_sigma_m: float
+    edge: EdgeLine
+    near_height_m: float = 0.0
+    """The surface before the edge (stride z)."""
+
+    @property
+    def near_x_m(self) -> float:
+        return self.edge.x_m
+
+    far_x_m = near_x_m
+
+
+@dataclass(frozen=True)
+class Ramp:
+    slope_rad: float
+    slope_sigma_rad: float
+    uphill_yaw_rad: float
+    """Direction of steepest ascent, from stride x towards y."""
+    uphill_yaw_sigma_rad: float
+    start: EdgeLine | None
+    """Where the slope begins from the surface the walk comes from (None: not seen)."""
+    n_cells: int
+    rms_m: float
+    x_range_m: tuple[float, float]
+
+    @property
+    def near_x_m(self) -> float:
+        return self.start.x_m if self.start is not None else self.x_range_m[0]
+
+    @property
+    def far_x_m(self) -> float:
+        return self.x_range_m[1]
+
+
+@dataclass(frozen=True)
+class BoxFeature:
+    """A box found by the features pass (leading and trailing edges across x)."""
+
+    height_m: float
+    height_sigma_m: float
+    leading: EdgeLine
+    depth_m: float
+    depth_sigma_m: float
+    floor_height_m: float = 0.0
+    """The surface it stands on (stride z)."""
+
+    @property
+    def near_x_m(self) -> float:
+        return self.leading.x_m
+
+    @property
+    def far_x_m(self) -> float:
+        return self.leading.x_m + self.depth_m
+
+
+KINDS = ("stairs", "ramps", "curbs", "boxes")
+
+
+@dataclass(frozen=True)
+class TerrainFeatures:
+    """Every feature of one grid (stride frame). ``source``: ``online`` or ``smoothed``."""
+
+    stride_index: int = -1
+    t_s: float = float("nan")
+    source: str = "online"
+    stairs: tuple[Stairs, ...] = ()
+    ramps: tuple[Ramp, ...] = ()
+    curbs: tuple[Curb, ...] = ()
+    boxes: tuple[BoxFeature, ...] = ()
+    error: str | None = None
+
+    def ahead(self, min_x_m: float) -> TerrainFeatures:
+        """The features that reach beyond ``min_x_m`` (e.g. the toe)."""
+        keep = {k: tuple(f for f in getattr(self, k) if f.far_x_m >= min_x_m) for k in KINDS}
+        return TerrainFeatures(self.stride_index, self.t_s, self.source, error=self.error, **keep)
+
+    def summary(self, toe_x_m: float = 0.0) -> str:
+        """The nearest feature in words, distances from ``toe_x_m`` (cm), e.g.
+        ``stairs 3 steps: next +16.8±0.2 cm, 41.0±0.4 cm ahead``; ``""`` when none."""
+        near = []
+        for st in self.stairs:
+            ahead = [s for s in st.steps if s.nosing.x_m >= toe_x_m]
+            s = ahead[0] if ahead else st.steps[-1]
+            near.append((s.nosing.x_m, f"stairs {st.n_steps} step(s): next {s.rise_m * 100:+.1f}"
+                         f"±{s.rise_sigma_m * 100:.1f} cm, {(s.nosing.x_m - toe_x_m) * 100:.1f}"
+                         f"±{s.nosing.sigma_m * 100:.1f} cm ahead"))  # fmt: skip
+        for c in self.curbs:
+            near.append((c.edge.x_m, f"curb {c.height_m * 100:+.1f}±{c.height_sigma_m * 100:.1f}"
+                         f" cm, {(c.edge.x_m - toe_x_m) * 100:.1f} cm ahead"))  # fmt: skip
+        for r in self.ramps:
+            near.append((r.near_x_m, f"ramp {math.degrees(r.slope_rad):.1f}"
+                         f"±{math.degrees(r.slope_sigma_rad):.1f}°, from "
+                         f"{(r.near_x_m - toe_x_m) * 100:.1f} cm ahead"))  # fmt: skip
+        if not near:
+            return ""
+        return min(near)[1]
+
+    def count(self) -> int:
+        return sum(len(getattr(self, k)) for k in KINDS)
+
+    def to_dict(self) -> dict:
+        return _plain(self)
+
+    @staticmethod
+    def from_dict(d: dict) -> TerrainFeatures:
+        return TerrainFeatures(
+            stride_index=int(d["stride_index"]),
+            t_s=_num(d["t_s"]),
+            source=str(d["source"]),
+            stairs=tuple(
+                Stairs(tuple(_build(Step, s, nosing=EdgeLine) for s in x["steps"]))
+                for x in d["stairs"]
+            ),
+            ramps=tuple(_build(Ramp, x, start=EdgeLine) for x in d["ramps"]),
+            curbs=tuple(_build(Curb, x, edge=EdgeLine) for x in d["curbs"]),
+            boxes=tuple(_build(BoxFeature, x, leading=EdgeLine) for x in d["boxes"]),
+            error=d.get("error"),
+        )
+
+
+def _num(v):
+    return float("nan") if v is None else float(v)
+
+
+def _plain(obj):
+    """Dataclasses, tuples and floats as JSON values (NaN as None)."""
+    if hasattr(obj, "__dataclass_fields__"):
+        return {f.name: _plain(getattr(obj, f.name)) for f in fields(obj)}
+    if isinstance(obj, (tuple, list)):
+        return [_plain(x) for x in obj]
+    if isinstance(obj, (float, np.floating)):
+        return None if not math.isfinite(obj) else float(obj)
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    return obj
+
+
+def _build(cls, d: dict, **nested):
+    kwargs = {}
+    for f in fields(cls):
+        v = d[f.name]
+        if f.name in nested:
+            v = None if v is None else _build(nested[f.name], v)
+        elif f.name in {"y_range_m", "x_range_m"}:
+            v = (_num(v[0]), _num(v[1]))
+        elif f.type in ("float", float):
+            v = _num(v)
+        kwargs[f.name] = v
+    return cls(**kwargs)
+
+
+@dataclass
+class _Grid:
+    """The arrays the extraction works on (axis 0 x, axis 1 y)."""
+
+    h: np.ndarray
+    var: np.ndarray
+    corr: np.ndarray
+    x0: float
+    y0: float
+    cell: float
+    known: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.known = np.isfinite(self.h) & np.isfinite(self.var)
+
+    def x_of(self, i):
+        return self.x0 + (np.asarray(i) + 0.5) * self.cell
+
+    def y_of(self, j):
+        return self.y0 + (np.asarray(j) + 0.5) * self.cell

@@ -1,0 +1,425 @@
+"""The feature extraction of :mod:`graph_slam.terrain.features` (the steps of its docstring)."""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from graph_slam.errors import MappingError
+from graph_slam.terrain.features import (
+    BoxFeature,
+    Curb,
+    EdgeLine,
+    FeatureConfig,
+    Ramp,
+    Stairs,
+    Step,
+    TerrainFeatures,
+    _Grid,
+)
+
+_DEFAULT = FeatureConfig()
+
+
+def features_of_view(view, config: FeatureConfig | None = None, source: str = "online"):
+    """The features of a :class:`~graph_slam.terrain.online.TerrainView` (online or re-fused)."""
+    s = view.sums
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = (s.b / s.w).reshape(view.shape)
+    return extract_features(
+        view.height_m, view.variance_m2, view.origin_xy_m, view.cell_m,
+        corr_sigma_m=corr, config=config, t_s=view.t_s, stride_index=view.stride_index,
+        source=source,
+    )  # fmt: skip
+
+
+def extract_features(
+    height_m: np.ndarray,
+    variance_m2: np.ndarray,
+    origin_xy_m,
+    cell_m: float,
+    *,
+    corr_sigma_m: np.ndarray | None = None,
+    config: FeatureConfig | None = None,
+    t_s: float = float("nan"),
+    stride_index: int = -1,
+    source: str = "online",
+) -> TerrainFeatures:
+    """Stairs, ramps, curbs and boxes of a height grid (NaN: unknown). ``variance_m2``: each
+    cell's height variance; ``corr_sigma_m``: the part of its σ common to the grid (the pose's;
+    zero when None)."""
+    cfg = config or _DEFAULT
+    h = np.asarray(height_m, dtype=np.float64)
+    var = np.asarray(variance_m2, dtype=np.float64)
+    if h.ndim != 2 or var.shape != h.shape:
+        raise MappingError(f"features: height {h.shape} and variance {var.shape} grids differ")
+    corr = np.zeros_like(h) if corr_sigma_m is None else np.asarray(corr_sigma_m, np.float64)
+    g = _Grid(h, var, np.nan_to_num(corr), float(origin_xy_m[0]), float(origin_xy_m[1]), cell_m)
+    out = TerrainFeatures(stride_index, float(t_s), source)
+    if g.known.sum() < cfg.min_window_cells:
+        return out
+    slope, rms, valid = _local_planes(g, cfg)
+    level = valid & (slope < math.tan(math.radians(cfg.level_max_deg))) & (rms < cfg.fit_rms_max_m)
+    sloped = (
+        valid
+        & (slope >= math.tan(math.radians(cfg.ramp_min_deg)))
+        & (slope <= math.tan(math.radians(cfg.ramp_max_deg)))
+        & (rms < cfg.fit_rms_max_m)
+    )
+    labels, terraces = _terraces(g, level, cfg)
+    edges = _edges(g, labels, terraces, cfg)
+    boxes, used = _boxes(edges, terraces, cfg)
+    rest = [e for k, e in enumerate(edges) if k not in used]
+    stairs, curbs = _chains(rest, g, labels, terraces, cfg)
+    ramps = _ramps(g, sloped, labels, terraces, cfg)
+    return TerrainFeatures(
+        stride_index, float(t_s), source, tuple(stairs), tuple(ramps), tuple(curbs), tuple(boxes)
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _plane_kernel(h, known, half, min_cells):  # pragma: no cover - compiled
+    """Per cell: slope (height per cell), RMS residual of the plane over its window, valid."""
+    nx, ny = h.shape
+    slope = np.zeros((nx, ny))
+    rms = np.zeros((nx, ny))
+    valid = np.zeros((nx, ny), dtype=np.bool_)
+    for i in range(nx):
+        for j in range(ny):
+            if not known[i, j]:
+                continue
+            n = sx = sy = sz = sxx = sxy = syy = sxz = syz = szz = 0.0
+            z0 = h[i, j]
+            for a in range(max(i - half, 0), min(i + half + 1, nx)):
+                for b in range(max(j - half, 0), min(j + half + 1, ny)):
+                    if known[a, b]:
+                        x, y, z = a - i, b - j, h[a, b] - z0
+                        n += 1.0
+                        sx += x
+                        sy += y
+                        sz += z
+                        sxx += x * x
+                        sxy += x * y
+                        syy += y * y
+                        sxz += x * z
+                        syz += y * z
+                        szz += z * z
+            if n < min_cells:
+                continue
+            mx, my, mz = sx / n, sy / n, sz / n
+            cxx, cxy, cyy = sxx / n - mx * mx, sxy / n - mx * my, syy / n - my * my
+            cxz, cyz, czz = sxz / n - mx * mz, syz / n - my * mz, szz / n - mz * mz
+            det = cxx * cyy - cxy * cxy
+            if det <= 1e-9:
+                continue
+            gx = (cyy * cxz - cxy * cyz) / det
+            gy = (cxx * cyz - cxy * cxz) / det
+            slope[i, j] = np.sqrt(gx * gx + gy * gy)
+            rms[i, j] = np.sqrt(max(czz - gx * cxz - gy * cyz, 0.0))
+            valid[i, j] = True
+    return slope, rms, valid
+
+
+def _local_planes(g: _Grid, cfg: FeatureConfig):
+    """Per cell: slope (tan) and RMS residual of the plane over its window; enough cells."""
+    h = np.where(g.known, g.h, 0.0)
+    slope, rms, valid = _plane_kernel(h, g.known, cfg.window_cells // 2, cfg.min_window_cells)
+    return slope / g.cell, rms, valid
+
+
+def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
+    """Components of level cells, and per component its height, σ parts and extent."""
+    from scipy import ndimage
+
+    labels, n = ndimage.label(level)
+    if n == 0:
+        return labels, {}
+    flat = labels.ravel()
+    sizes = np.bincount(flat, minlength=n + 1)
+    w = np.where(level, 1.0 / np.maximum(g.var, 1e-12), 0.0).ravel()
+    var_ind = np.maximum(g.var - g.corr**2, 0.0).ravel()
+    hv = np.where(level, g.h, 0.0).ravel()
+    sw = np.bincount(flat, w, n + 1)
+    height = np.bincount(flat, w * hv, n + 1) / np.maximum(sw, 1e-300)
+    ind = np.sqrt(np.bincount(flat, w * w * var_ind, n + 1)) / np.maximum(sw, 1e-300)
+    corr = np.bincount(flat, w * g.corr.ravel(), n + 1) / np.maximum(sw, 1e-300)
+    keep = sizes >= cfg.min_terrace_cells
+    keep[0] = False
+    labels = np.where(keep[labels], labels, 0)
+    objs = ndimage.find_objects(labels)
+    out = {}
+    for k in np.flatnonzero(keep):
+        sx, sy = objs[k - 1]
+        out[int(k)] = {
+            "h": float(height[k]), "ind": float(ind[k]), "corr": float(corr[k]),
+            "i": (sx.start, sx.stop - 1), "j": (sy.start, sy.stop - 1), "n": int(sizes[k]),
+        }  # fmt: skip
+    return labels, out
+
+
+def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfig):
+    """Every pair of terraces met along a row (x) within the gap: row j, labels, edge x and
+    its σ, occluded flag."""
+    jj, ii = np.nonzero(labels.T)  # sorted by row j, then by i
+    lab = labels[ii, jj]
+    nxt = slice(1, None)
+    same_row = jj[:-1] == jj[nxt]
+    gap = ii[nxt] - ii[:-1]
+    cand = np.flatnonzero(same_row & (lab[:-1] != lab[nxt]) & (gap <= cfg.max_gap_cells + 1))
+    if cand.size == 0:
+        return []
+    ha = np.array([terraces[la]["h"] for la in lab[cand]])
+    hb = np.array([terraces[lb]["h"] for lb in lab[cand + 1]])
+    rise = hb - ha
+    ok = np.abs(rise) >= cfg.min_rise_m
+    cand, ha, rise = cand[ok], ha[ok], rise[ok]
+    if cand.size == 0:
+        return []
+    i1, i2, j = ii[cand], ii[cand + 1], jj[cand]
+    width = cfg.max_gap_cells + 2
+    idx = i1[:, None] + np.arange(width)[None, :]
+    inside = idx <= i2[:, None]
+    idx = np.minimum(idx, g.h.shape[0] - 1)
+    hw = g.h[idx, j[:, None]]
+    vw = g.var[idx, j[:, None]]
+    unknown = inside & ~np.isfinite(hw)
+    f = np.clip((hw - ha[:, None]) / rise[:, None], 0.0, 1.0)
+    f = np.where(unknown, 1.0, np.where(inside, f, 0.0))
+    occluded = unknown.any(axis=1)
+    # Occluded: the cells past the last one mostly of the near surface, before the first cell
+    # not seen, are the far surface's (flying pixels of the edge fill the shadow's first cells
+    # with heights in between: counted as fractions they put the edge up to a cell late).
+    pos = np.arange(width)[None, :]
+    first_unknown = np.where(occluded, np.argmax(unknown, axis=1), width)[:, None]
+    near = inside & ~unknown & (f < 0.5) & (pos < first_unknown)
+    last_near = np.max(np.where(near, pos, 0), axis=1)[:, None]
+    f = np.where(occluded[:, None] & (pos > last_near) & inside, 1.0, f)
+    x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1) - np.where(occluded, g.cell / 2, 0.0)
+    noise = np.where(inside & ~unknown, np.nan_to_num(vw) / rise[:, None] ** 2, 0.0).sum(axis=1)
+    sigma = g.cell * np.sqrt(noise + np.where(occluded, 1 / 12, 0.0))
+    return [
+        (int(a), int(b), float(yy), float(xx), float(ss), bool(oc))
+        for a, b, yy, xx, ss, oc in zip(
+            lab[cand], lab[cand + 1], g.y_of(j), x, sigma, occluded, strict=True
+        )
+    ]
+
+
+def _fit_line(y: np.ndarray, x: np.ndarray, s: np.ndarray, occluded: bool, y_ref: float = 0.0):
+    """x = x̄ + b (y - ȳ) through the rows (3σ outliers out), reported at ``y_ref`` clipped into
+    the rows seen."""
+    keep = np.ones(len(y), bool)
+    for _ in range(2):
+        yy, xx = y[keep], x[keep]
+        ym = yy.mean()
+        syy = float(((yy - ym) ** 2).sum())
+        b = float(((yy - ym) * (xx - xx.mean())).sum() / syy) if syy > 0 else 0.0
+        res = x - (xx.mean() + b * (y - ym))
+        scale = max(1.4826 * float(np.median(np.abs(res[keep]))), float(np.median(s)), 1e-4)
+        new = np.abs(res) <= 3 * scale
+        if new.sum() < 2 or (new == keep).all():
+            break
+        keep = new
+    yy, xx, ss = y[keep], x[keep], s[keep]
+    n = len(yy)
+    ym, xm = float(yy.mean()), float(xx.mean())
+    syy = float(((yy - ym) ** 2).sum())
+    b = float(((yy - ym) * (xx - xm)).sum() / syy) if syy > 0 else 0.0
+    res = xx - (xm + b * (yy - ym))
+    var = max(float((res**2).sum()) / max(n - 2, 1), float(np.mean(ss**2)))
+    sb = math.sqrt(var / syy) if syy > 0 else math.inf
+    lo, hi = float(yy.min()), float(yy.max())
+    yr = min(max(y_ref, lo), hi)
+    sigma = math.sqrt(var / n + ((yr - ym) * sb) ** 2)
+    yaw = math.atan(-b)
+    return EdgeLine(
+        x_m=xm + b * (yr - ym), y_m=yr, yaw_rad=yaw, sigma_m=sigma * math.cos(yaw),
+        yaw_sigma_rad=sb / (1 + b * b), y_range_m=(lo, hi), rows=n, occluded=occluded,
+    )  # fmt: skip
+
+
+def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
+    """Per terrace pair met in enough rows: its edge line, rise and σ."""
+    pairs: dict[tuple[int, int], list] = {}
+    for a, b, y, x, s, oc in _transitions(g, labels, terraces, cfg):
+        pairs.setdefault((a, b), []).append((y, x, s, oc))
+    out = []
+    for (a, b), rows in pairs.items():
+        if len(rows) < cfg.min_edge_rows:
+            continue
+        y, x, s, oc = (np.array(v) for v in zip(*rows, strict=True))
+        line = _fit_line(y, x, s, bool(oc.mean() > 0.5))
+        ta, tb = terraces[a], terraces[b]
+        out.append({
+            "a": a, "b": b, "line": line, "rise": tb["h"] - ta["h"],
+            "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2 + (ta["corr"] - tb["corr"]) ** 2),
+        })  # fmt: skip
+    out.sort(key=lambda e: e["line"].x_m)
+    return out
+
+
+def _boxes(edges: list[dict], terraces: dict, cfg: FeatureConfig):
+    """A terrace entered by a rise and left by a drop to the same level: a box."""
+    boxes, used = [], set()
+    for k, up in enumerate(edges):
+        if up["rise"] <= 0:
+            continue
+        for m, down in enumerate(edges):
+            if m in used or down["a"] != up["b"] or down["rise"] >= 0:
+                continue
+            base = (terraces[up["a"]]["h"], terraces[down["b"]]["h"])
+            if abs(base[0] - base[1]) > cfg.box_same_level_m:
+                continue
+            top = terraces[up["b"]]
+            floor_ind = math.hypot(terraces[up["a"]]["ind"], terraces[down["b"]]["ind"]) / 2
+            floor_corr = (terraces[up["a"]]["corr"] + terraces[down["b"]]["corr"]) / 2
+            lead, trail = up["line"], down["line"]
+            boxes.append(
+                BoxFeature(
+                    height_m=top["h"] - (base[0] + base[1]) / 2,
+                    height_sigma_m=math.hypot(top["ind"], floor_ind, top["corr"] - floor_corr),
+                    leading=lead,
+                    depth_m=trail.x_at(lead.y_m) - lead.x_m,
+                    depth_sigma_m=math.hypot(lead.sigma_m, trail.sigma_m),
+                    floor_height_m=(base[0] + base[1]) / 2,
+                )
+            )
+            used.update((k, m))
+            break
+    return boxes, used
+
+
+def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, ascending_x: bool) -> float:
+    """How far the terrace runs on beyond the edge (m, along x in the edge's rows)."""
+    i, j = np.nonzero(labels == terrace)
+    y = g.y_of(j)
+    rows = (y >= line.y_range_m[0] - 1e-9) & (y <= line.y_range_m[1] + 1e-9)
+    if not rows.any():
+        return 0.0
+    x = g.x_of(i[rows]) + g.cell / 2
+    return float(x.max() - line.x_at(float(np.median(y[rows]))))
+
+
+def _chains(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureConfig):
+    """Edges linked through shared terraces with the same sign of rise: stairs or a curb."""
+    starts = {e["a"]: e for e in edges}
+    ends = {e["b"] for e in edges}
+    stairs, curbs, seen = [], [], set()
+    for e in edges:
+        if id(e) in seen:
+            continue
+        if e["a"] in ends and any(
+            x["b"] == e["a"] and np.sign(x["rise"]) == np.sign(e["rise"]) for x in edges
+        ):
+            continue  # not the chain's first edge
+        chain = [e]
+        while (
+            (nxt := starts.get(chain[-1]["b"])) is not None
+            and np.sign(nxt["rise"]) == np.sign(e["rise"])
+            and id(nxt) not in seen
+            and nxt not in chain
+        ):
+            chain.append(nxt)
+        seen.update(id(c) for c in chain)
+        if len(chain) == 1:
+            run_on = _far_extent(g, labels, e["b"], e["line"], True)
+            if run_on >= cfg.curb_min_depth_m:
+                curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"], terraces[e["a"]]["h"]))
+                continue
+        steps = []
+        for k, c in enumerate(chain):
+            tread, tread_sigma = float("nan"), float("nan")
+            if k + 1 < len(chain):
+                nxt = chain[k + 1]["line"]
+                here = c["line"]
+                tread = (nxt.x_at(here.y_m) - here.x_m) * math.cos(here.yaw_rad)
+                tread_sigma = math.hypot(here.sigma_m, nxt.sigma_m)
+            steps.append(
+                Step(
+                    rise_m=c["rise"],
+                    rise_sigma_m=c["rise_sigma"],
+                    nosing=c["line"],
+                    tread_m=tread,
+                    tread_sigma_m=tread_sigma,
+                    lower_height_m=min(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
+                    upper_height_m=max(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
+                )
+            )
+        stairs.append(Stairs(tuple(steps)))
+    return stairs, curbs
+
+
+def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list[Ramp]:
+    """One plane per component of sloped cells; its start line on the terrace it is entered
+    from (the adjacent terrace nearest the heel)."""
+    from scipy import ndimage
+
+    comp, n = ndimage.label(sloped)
+    out = []
+    for k in range(1, n + 1):
+        i, j = np.nonzero(comp == k)
+        if i.size < cfg.min_ramp_cells:
+            continue
+        x, y, z = g.x_of(i), g.y_of(j), g.h[i, j]
+        w = 1.0 / np.maximum(g.var[i, j], 1e-12)
+        xm, ym = float(np.average(x, weights=w)), float(np.average(y, weights=w))
+        a = np.column_stack([np.ones_like(x), x - xm, y - ym])
+        normal = a.T @ (a * w[:, None])
+        if np.linalg.cond(normal) > 1e12:
+            continue  # cells along one line: no plane
+        coef = np.linalg.solve(normal, a.T @ (w * z))
+        res = z - a @ coef
+        dof = max(i.size - 3, 1)
+        s2 = float((w * res**2).sum() / dof)
+        cov = np.linalg.inv(normal) * s2
+        gx, gy = float(coef[1]), float(coef[2])
+        grad = math.hypot(gx, gy)
+        along = ((x - xm) * gx + (y - ym) * gy) / max(grad, 1e-12)
+        if grad < math.tan(math.radians(cfg.ramp_min_deg)) or np.ptp(along) < cfg.min_ramp_length_m:
+            continue  # the flanks of an edge, not a ramp
+        jac = np.array([gx, gy]) / max(grad, 1e-12)
+        slope_sigma = math.sqrt(float(jac @ cov[1:, 1:] @ jac)) / (1 + grad * grad)
+        perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
+        yaw_sigma = math.sqrt(max(float(perp @ cov[1:, 1:] @ perp), 0.0))
+        start = _ramp_start(g, comp == k, labels, terraces, coef, (xm, ym), cov)
+        out.append(
+            Ramp(
+                slope_rad=math.atan(grad),
+                slope_sigma_rad=slope_sigma,
+                uphill_yaw_rad=math.atan2(gy, gx),
+                uphill_yaw_sigma_rad=yaw_sigma,
+                start=start,
+                n_cells=int(i.size),
+                rms_m=float(np.sqrt(np.mean(res**2))),
+                x_range_m=(float(x.min() - g.cell / 2), float(x.max() + g.cell / 2)),
+            )
+        )
+    return out
+
+
+def _ramp_start(g: _Grid, mask, labels, terraces: dict, coef, centre, cov) -> EdgeLine | None:
+    from scipy import ndimage
+
+    ring = ndimage.binary_dilation(mask, iterations=4) & ~mask
+    near = [t for t in np.unique(labels[ring]) if t in terraces]
+    if not near:
+        return None
+    t = min(near, key=lambda t: terraces[t]["i"][0])
+    c, gx, gy = (float(v) for v in coef)
+    if abs(gx) < 1e-6:
+        return None
+    xm, ym = centre
+    j = np.nonzero(mask)[1]
+    lo, hi = float(g.y_of(j.min())), float(g.y_of(j.max()))
+    yr = min(max(0.0, lo), hi)
+    h0 = terraces[t]["h"]
+    x = xm + (h0 - c - gy * (yr - ym)) / gx
+    # σ of the line's position from the plane's offset and the terrace height
+    var_c = float(cov[0, 0]) + terraces[t]["ind"] ** 2
+    b = -gy / gx
+    return EdgeLine(
+        x_m=float(x), y_m=yr, yaw_rad=math.atan(-b), sigma_m=math.sqrt(var_c) / math.hypot(gx, gy),
+        yaw_sigma_rad=float("nan"), y_range_m=(lo, hi), rows=int(np.unique(j).size),
+    )  # fmt: skip

@@ -1,0 +1,117 @@
+"""The toe's clearance: an analytic toe path over an analytic step, the stance-time
+prediction's warning just above and just below the threshold, the toe from the leg model."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from graph_slam.terrain.clearance import (
+    ClearanceConfig,
+    clearance_along,
+    predict_clearance,
+    reference_swing,
+    toe_path,
+)
+from graph_slam.terrain.features_extract import extract_features
+from tests.test_terrain_features import CELL, X0, Y0, grid
+
+
+def view_of(h, var):
+    """What the clearance reads of a TerrainView, from the arrays."""
+    return SimpleNamespace(
+        height_m=h, sigma_m=np.sqrt(var), origin_xy_m=np.array([X0, Y0]), cell_m=CELL, toe_x_m=0.2
+    )
+
+
+def test_clearance_of_an_analytic_toe_path_over_an_analytic_step():
+    edge, rise = 0.713, 0.15
+
+    def surface(x, y):
+        return np.where(x >= edge, rise, 0.0)
+
+    h, var = grid(surface, 0.001, seed=1)
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    assert len(feats.curbs) == 1
+    # a parabola whose lowest point over the step is at the nosing: z = rise + c + k (x - edge)²
+    x = np.linspace(0.3, 1.2, 400)
+    for c in (0.005, 0.02, 0.05):
+        z = rise + c + 2.0 * (x - edge) ** 2
+        path = np.column_stack([x, np.full_like(x, 0.05), z])
+        true = float(np.min(z - surface(x, 0.0)))
+        got = clearance_along(view_of(h, var), feats, path)
+        assert abs(got.min_m - true) <= 0.003, (c, got)
+        assert got.edge == "curbs[0]" and abs(got.x_m - edge) <= 0.01
+        assert 0 < got.sigma_m < 0.005
+
+
+def _box_case(height):
+    def surface(x, y):
+        return np.where((x >= 0.8) & (x < 1.0) & (np.abs(y) < 0.15), height, 0.0)
+
+    h, var = grid(surface, 0.0005, seed=2)
+    return view_of(h, var), extract_features(h, var, (X0, Y0), CELL)
+
+
+def test_prediction_warns_just_below_the_threshold_and_not_just_above():
+    cfg = ClearanceConfig(lift_m=0.08)
+    view, feats = _box_case(0.03)
+    path, kind = reference_swing(view, feats, (0.2, 0.0), cfg)
+    assert kind == "level"
+    # the reference path's lowest point over the box top (x in [0.8, 1.0]) sets the clearance
+    over = (path[:, 0] >= 0.8) & (path[:, 0] < 1.0) & cfg.mid_swing_mask(len(path))
+    lift_over_box = float(path[over, 2].min())
+    for margin, warn in ((0.002, False), (-0.002, True)):
+        height = lift_over_box - cfg.warn_below_m - margin
+        view, feats = _box_case(height)
+        assert len(feats.boxes) == 1
+        c = predict_clearance(view, feats, (0.2, 0.0), cfg)
+        assert abs(c.min_m - (cfg.warn_below_m + margin)) <= 0.0015, (margin, c)
+        assert c.warning is warn and c.edge.startswith("boxes[0]")
+
+
+def test_level_ground_gives_the_reference_lift_and_no_warning():
+    h, var = grid(lambda x, y: np.zeros_like(x), 0.001, seed=3)
+    view = view_of(h, var)
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    c = predict_clearance(view, feats)
+    assert not c.warning and c.edge == "ground" and c.min_m > 0
+
+
+def test_toe_path_follows_the_leg_model():
+    from kinematics.leg_model import LegModel
+
+    model = LegModel()
+    q = np.array([[0.1, 0.05], [0.6, -0.1]])
+    pose = np.eye(4)
+    pose[:3, 3] = [0.3, 0.0, 0.8]
+    got = toe_path(np.stack([pose, pose]), q, model)
+    for k in range(2):
+        want = pose @ model.frame_T_frame("camera_optical", "toe", q[k])
+        assert np.allclose(got[k], want[:3, 3])
+    assert not np.allclose(got[0], got[1])
+    assert math.isfinite(got.sum())
+
+
+@pytest.mark.parametrize("n", [0])
+def test_unknown_terrain_gives_no_clearance(n):
+    h = np.full((100, 60), np.nan)
+    c = clearance_along(view_of(h, h), extract_features(h, h, (X0, Y0), CELL), np.zeros((3, 3)))
+    assert c.edge == "unknown" and math.isnan(c.min_m)
+
+
+def test_a_flight_beside_the_path_leaves_the_reference_level():
+    from graph_slam.terrain.clearance import terrain_type
+    from tests.test_terrain_features import stairs_surface
+
+    def beside(x, y):  # the flight only at y < -0.2 m
+        return np.where(y < -0.2, stairs_surface()(x, y), 0.0)
+
+    h, var = grid(beside, 0.001, seed=4)
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    assert feats.stairs
+    assert terrain_type(feats, 0.2, 1.5, 0.0)[0] == "level"
+    assert terrain_type(feats, 0.2, 1.5, -0.4)[0] == "stairs_up"

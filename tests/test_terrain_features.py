@@ -1,0 +1,182 @@
+"""Terrain features on synthetic height grids with known answers (stairs, ramp, curb, box).
+
+Each grid is the stride-frame layout of the online grid (2 cm cells, x −0.2..1.8 m, y ±0.6 m);
+a cell's height is the mean of the analytic surface over it (8×8 samples: a cell across an
+edge is a mixture, as a fused cell is), plus seeded noise; its variance the noise's plus the
+samples' spread. Tolerances: the issue's targets (rise 3 mm, tread and nosing 8 mm, slope
+0.5°, curb and box height 3 mm, box depth 8 mm).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from graph_slam.terrain.features import TerrainFeatures
+from graph_slam.terrain.features_extract import extract_features
+
+CELL = 0.02
+X0, Y0, NX, NY = -0.2, -0.6, 100, 60
+RISE_TOL, TREAD_TOL, NOSING_TOL = 0.003, 0.008, 0.008
+SLOPE_TOL = math.radians(0.5)
+
+
+def grid(surface, noise_m=0.0, seed=0, unknown=None):
+    """Cell means of ``surface(x, y)`` over its 8×8 samples that ``unknown`` leaves seen (a
+    cell with under a quarter of them seen is NaN), seeded noise."""
+    sub = (np.arange(8) + 0.5) / 8 * CELL
+    xs = X0 + (np.arange(NX)[:, None] * CELL + sub[None, :]).ravel()
+    ys = Y0 + (np.arange(NY)[:, None] * CELL + sub[None, :]).ravel()
+    xx, yy = np.meshgrid(xs, ys, indexing="ij")
+    z = surface(xx, yy).reshape(NX, 8, NY, 8)
+    seen = np.ones_like(z, bool) if unknown is None else ~unknown(xx, yy).reshape(z.shape)
+    n = seen.sum(axis=(1, 3))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        h = np.where(seen, z, 0.0).sum(axis=(1, 3)) / n
+        var = np.where(seen, (z - h[:, None, :, None]) ** 2, 0.0).sum(axis=(1, 3)) / n
+    var = var + max(noise_m, 1e-4) ** 2
+    if noise_m:
+        h = h + np.random.default_rng(seed).normal(0.0, noise_m, h.shape)
+    hidden = n < 16
+    return np.where(hidden, np.nan, h), np.where(hidden, np.nan, var)
+
+
+def features(h, var):
+    return extract_features(h, var, (X0, Y0), CELL)
+
+
+def stairs_surface(first=0.513, rise=0.17, tread=0.28, n=4, yaw_deg=0.0):
+    t = math.tan(math.radians(yaw_deg))
+
+    def f(x, y):
+        u = x + t * y  # nosing k at x = first + k·tread - tan(yaw)·y
+        k = np.clip(np.floor((u - first) / tread) + 1, 0, n)
+        return k * rise
+
+    return f
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.002])
+def test_staircase_rises_treads_nosings(noise):
+    f = features(*grid(stairs_surface(), noise, seed=1))
+    assert len(f.stairs) == 1 and not f.curbs and not f.boxes
+    (st,) = f.stairs
+    assert st.n_steps == 4 and st.ascending
+    for k, step in enumerate(st.steps):
+        assert abs(step.rise_m - 0.17) <= RISE_TOL
+        assert abs(step.nosing.x_m - (0.513 + 0.28 * k)) <= NOSING_TOL
+        assert abs(step.nosing.yaw_rad) <= math.radians(1.0)
+        assert 0 < step.nosing.sigma_m < 0.01 and 0 < step.rise_sigma_m < 0.003
+        if k < 3:
+            assert abs(step.tread_m - 0.28) <= TREAD_TOL
+        else:
+            assert math.isnan(step.tread_m)
+
+
+def test_staircase_partial_view_and_yaw():
+    # seen only to x = 1.0 m and on y < 0.3 m: two nosings
+    h, var = grid(stairs_surface(yaw_deg=10.0), 0.001, seed=2,
+                  unknown=lambda x, y: (x > 1.0) | (y > 0.3))  # fmt: skip
+    (st,) = features(h, var).stairs
+    assert st.n_steps == 2
+    for k, step in enumerate(st.steps):
+        assert abs(step.nosing.x_at(0.0) - (0.513 + 0.28 * k)) <= NOSING_TOL
+        assert abs(step.nosing.yaw_rad - math.radians(10.0)) <= math.radians(1.5)
+        assert abs(step.rise_m - 0.17) <= RISE_TOL
+    assert abs(st.steps[0].tread_m - 0.28 * math.cos(math.radians(10))) <= TREAD_TOL
+
+
+def test_descending_stairs_with_the_shadow_behind_each_nosing():
+    down = stairs_surface(first=0.507, rise=-0.16, tread=0.3, n=3)
+
+    def shadow(x, y):  # 5 cm beyond each nosing not seen from above
+        u = (x - 0.507) % 0.3
+        return (x > 0.507) & (x < 0.507 + 0.3 * 3) & (u < 0.05)
+
+    (st,) = features(*grid(down, 0.001, seed=3, unknown=shadow)).stairs
+    assert st.n_steps == 3 and not st.ascending
+    for k, step in enumerate(st.steps):
+        assert abs(step.rise_m + 0.16) <= RISE_TOL
+        assert abs(step.nosing.x_m - (0.507 + 0.3 * k)) <= NOSING_TOL
+        assert step.nosing.occluded
+
+
+@pytest.mark.parametrize("slope_deg", [5.0, 8.0, 10.0])
+def test_ramp_slope_direction_start(slope_deg):
+    g = math.tan(math.radians(slope_deg))
+    h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=4)
+    f = features(h, var)
+    assert len(f.ramps) == 1 and not f.stairs and not f.curbs
+    (ramp,) = f.ramps
+    assert abs(ramp.slope_rad - math.radians(slope_deg)) <= SLOPE_TOL
+    assert abs(ramp.uphill_yaw_rad) <= math.radians(2.0)
+    assert ramp.start is not None and abs(ramp.start.x_m - 0.6) <= 0.01
+    assert 0 < ramp.slope_sigma_rad < SLOPE_TOL
+
+
+@pytest.mark.parametrize("height", [0.10, -0.15])
+def test_curb_height_and_edge(height):
+    h, var = grid(lambda x, y: np.where(x >= 0.711, height, 0.0), 0.001, seed=5)
+    f = features(h, var)
+    assert len(f.curbs) == 1 and not f.stairs, f
+    (curb,) = f.curbs
+    assert abs(curb.height_m - height) <= 0.003
+    assert abs(curb.edge.x_m - 0.711) <= NOSING_TOL
+
+
+def test_box_height_leading_edge_depth():
+    def box(x, y):
+        return np.where((x >= 0.903) & (x < 1.1062) & (y >= -0.4) & (y < -0.1333), 0.1905, 0.0)
+
+    def shadow(x, y):  # the floor behind the box hidden for 6 cm
+        return (x >= 1.1062) & (x < 1.166) & (y >= -0.4) & (y < -0.1333)
+
+    f = features(*grid(box, 0.001, seed=6, unknown=shadow))
+    assert len(f.boxes) == 1 and not f.stairs and not f.curbs
+    (b,) = f.boxes
+    assert abs(b.height_m - 0.1905) <= 0.003
+    assert abs(b.leading.x_m - 0.903) <= NOSING_TOL
+    assert abs(b.depth_m - 0.2032) <= 0.008
+
+
+def test_level_floor_has_no_feature_and_json_round_trip():
+    h, var = grid(lambda x, y: np.zeros_like(x), 0.002, seed=7)
+    assert features(h, var).count() == 0
+    f = features(*grid(stairs_surface(), 0.001, seed=8))
+    back = TerrainFeatures.from_dict(json.loads(json.dumps(f.to_dict())))
+    assert back.to_dict() == f.to_dict() and back.stairs[0].steps[1] == f.stairs[0].steps[1]
+    assert f.ahead(0.9).stairs[0].n_steps == 4  # the flight reaches beyond 0.9 m
+    assert not f.ahead(2.0).stairs
+    # the controller's line names the next nosing ahead of the toe (0.793 m from x = 0.6 m)
+    assert "next +17.0" in f.summary(0.6) and ", 19." in f.summary(0.6)
+
+
+def test_sloped_cells_along_one_line_give_no_plane():
+    from graph_slam.terrain.features import FeatureConfig, _Grid
+    from graph_slam.terrain.features_extract import _ramps
+
+    g = math.tan(math.radians(8.0))
+    h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=9)
+    sloped = np.zeros(h.shape, bool)
+    sloped[45:80, 30] = True  # one row of cells: the plane's y slope is undetermined
+    cells = _Grid(h, var, np.zeros_like(h), X0, Y0, CELL)
+    assert _ramps(cells, sloped, np.zeros(h.shape, int), {}, FeatureConfig()) == []
+
+
+def test_box_depth_with_flying_pixels_in_its_shadow():
+    # behind the box: 4 cm of cells holding only flying pixels (heights in between), then 5 cm
+    # not seen, then the floor
+    def scene(x, y):
+        on = (y >= -0.4) & (y < -0.1333)
+        top = np.where((x >= 0.903) & (x < 1.1062) & on, 0.1905, 0.0)
+        return np.where((x >= 1.1062) & (x < 1.1462) & on, 0.09, top)
+
+    def shadow(x, y):
+        return (x >= 1.1462) & (x < 1.196) & (y >= -0.4) & (y < -0.1333)
+
+    (b,) = features(*grid(scene, 0.001, seed=10, unknown=shadow)).boxes
+    assert abs(b.depth_m - 0.2032) <= 0.008
+    assert b.leading.occluded is False
