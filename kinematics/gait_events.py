@@ -633,7 +633,8 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
         res["sign"] = sign
         results.append(res)
     best = max(results, key=lambda r: (r["score"], len(r["strikes"])))
-    strikes, merged = merge_close_strikes(np.asarray(best["strikes"]), cfg.min_stride_s, imu.source)
+    best, refined, sign_flag = _impact_sign_and_strikes(imu, t, omega, results, best)
+    strikes, merged = merge_close_strikes(refined.strikes_s, cfg.min_stride_s, imu.source)
     toe_offs = np.asarray(best["toe_offs"])
     if toe_offs.size:
         toe_offs, _ = merge_close_strikes(toe_offs, cfg.min_stride_s * 0.5)
@@ -655,8 +656,51 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
             "template_score": best["score"],
             "input_rate_hz": rate,
             "swing_peaks": float(best["n_peaks"]),
+            "impact_strikes": float(refined.from_impact),
+            "impact_strength": refined.strength,
+            "template_bias_s": refined.template_bias_s,
+            "sign_evidence_rad_s": refined.sign_evidence_rad_s,
+            "sign_disagreement": float(sign_flag),
         },
     )
+
+
+def _impact_sign_and_strikes(imu: ImuSeries, t: np.ndarray, omega: np.ndarray, results, best):
+    """The axis sign and strikes from the impact transient (:mod:`kinematics.gait_impact`).
+
+    The strike set that lies at impacts (the larger impact strength) is refined to the impact
+    onsets; the flexion rate's drop across those onsets gives the sign. When there are impacts,
+    that sign decides; when it disagrees with the template's choice, a warning says so and the
+    result is flagged (``sign_disagreement``). Without impacts, the template's choice stands."""
+    from kinematics.gait_impact import refine_strikes
+
+    t_in = np.asarray(imu.t_s, dtype=float)
+    refinements = []
+    for res in results:
+        rate = np.interp(t_in, t, res["sign"] * omega)
+        refinements.append(refine_strikes(t_in, imu.accel_m_s2, rate, np.asarray(res["strikes"])))
+    k_best = results.index(best)
+    with_impacts = [i for i, r in enumerate(refinements) if r.from_impact >= 3]
+    if not with_impacts:
+        return best, refinements[k_best], False
+    k = max(with_impacts, key=lambda i: refinements[i].strength)
+    evidence = refinements[k].sign_evidence_rad_s
+    if not math.isfinite(evidence) or evidence == 0:
+        return best, refinements[k_best], False
+    # evidence > 0: result k's sign is the flexion sense; else the other one is
+    k_sign = k if evidence > 0 else 1 - k
+    disagree = k_sign != k_best or k_sign != k
+    if disagree:
+        logger.warning(
+            "%s: the flexion sign from the impact transients (%+.0f) and from the %s disagree; "
+            "taking the impact transients' sign",
+            imu.source,
+            results[k_sign]["sign"],
+            "template fit" if k_sign != k_best else "strike placement",
+        )
+    if k_sign != k:  # the strikes at impacts under the other sign: re-run the refinement there
+        return results[k_sign], refinements[k_sign], True
+    return results[k_sign], refinements[k_sign], disagree
 
 
 def detect_from_load_cell(
