@@ -30,14 +30,14 @@ def read_xsens_txt(path: str | Path) -> ImuSeries:
         lines = path.read_text(encoding="utf-8", errors="strict").splitlines()
     except (OSError, UnicodeDecodeError) as err:
         raise GaitInputError(f"{path}: cannot read Xsens text export ({err})") from None
+    body = next((i for i, line in enumerate(lines) if not line.startswith("//")), len(lines))
     rate = None
-    body = 0
-    for body, line in enumerate(lines):
-        if not line.startswith("//"):
-            break
+    for line in lines[:body]:
         found = re.search(r"(?:Sample rate|Update Rate):\s*([0-9.]+)\s*Hz", line)
         if found:
             rate = float(found.group(1))
+    if body >= len(lines):
+        raise GaitInputError(f"{path}: no table after the header lines")
     if rate is None or rate <= 0:
         raise GaitInputError(f"{path}: no 'Sample rate' or 'Update Rate' header line")
     header = lines[body].split("\t")
@@ -104,7 +104,9 @@ def read_reference_strikes(path: str | Path) -> np.ndarray:
             try:
                 out.append(float(t_text))
             except ValueError:
-                raise GaitInputError(f"{path}: line {line_no}: {t_text!r} is not a number") from None
+                raise GaitInputError(
+                    f"{path}: line {line_no}: {t_text!r} is not a number"
+                ) from None
     return np.asarray(out)
 
 
