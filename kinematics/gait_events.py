@@ -659,48 +659,53 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
             "impact_strikes": float(refined.from_impact),
             "impact_strength": refined.strength,
             "template_bias_s": refined.template_bias_s,
-            "sign_evidence_rad_s": refined.sign_evidence_rad_s,
+            "burst_ratio": best["burst_ratio"],
             "sign_disagreement": float(sign_flag),
         },
     )
 
 
 def _impact_sign_and_strikes(imu: ImuSeries, t: np.ndarray, omega: np.ndarray, results, best):
-    """The axis sign and strikes from the impact transient (:mod:`kinematics.gait_impact`).
+    """The axis sign from the impact transients, and the strikes placed on them
+    (:mod:`kinematics.gait_impact`).
 
-    The strike set that lies at impacts (the larger impact strength) is refined to the impact
-    onsets; the flexion rate's drop across those onsets gives the sign. When there are impacts,
-    that sign decides; when it disagrees with the template's choice, a warning says so and the
-    result is flagged (``sign_disagreement``). Without impacts, the template's choice stands."""
-    from kinematics.gait_impact import refine_strikes
+    When the accelerometer shows impacts, the sign whose strikes carry the bursts (burst ratio
+    above ``min_burst_ratio`` while the other sign's is below one) wins; when it differs from
+    the template's choice, a warning says so and ``sign_disagreement`` is set. Without impacts,
+    or when the ratios do not decide, the template's choice stands."""
+    from kinematics.gait_impact import (
+        ImpactConfig,
+        burst_ratio,
+        envelope,
+        refine_strikes,
+        typical_peak,
+    )
 
+    cfg = ImpactConfig()
     t_in = np.asarray(imu.t_s, dtype=float)
-    refinements = []
-    for res in results:
-        rate = np.interp(t_in, t, res["sign"] * omega)
-        refinements.append(refine_strikes(t_in, imu.accel_m_s2, rate, np.asarray(res["strikes"])))
-    k_best = results.index(best)
-    with_impacts = [i for i, r in enumerate(refinements) if r.from_impact >= 3]
-    if not with_impacts:
-        return best, refinements[k_best], False
-    k = max(with_impacts, key=lambda i: refinements[i].strength)
-    evidence = refinements[k].sign_evidence_rad_s
-    if not math.isfinite(evidence) or evidence == 0:
-        return best, refinements[k_best], False
-    # evidence > 0: result k's sign is the flexion sense; else the other one is
-    k_sign = k if evidence > 0 else 1 - k
-    disagree = k_sign != k_best or k_sign != k
+    env = envelope(t_in, imu.accel_m_s2, cfg)
+    ratios = [
+        burst_ratio(t_in, env, np.asarray(r["strikes"]), np.asarray(r["toe_offs"]), cfg)
+        for r in results
+    ]
+    k_best = next(k for k, r in enumerate(results) if r is best)
+    k_chosen, disagree = k_best, False
+    strong = max(typical_peak(t_in, env, np.asarray(r["strikes"]), cfg)[1] for r in results)
+    for k in range(len(results) if strong >= cfg.min_strength else 0):
+        other = ratios[1 - k]
+        if ratios[k] >= cfg.min_burst_ratio and (not math.isfinite(other) or other < 1.0):
+            k_chosen, disagree = k, k != k_best
     if disagree:
         logger.warning(
-            "%s: the flexion sign from the impact transients (%+.0f) and from the %s disagree; "
-            "taking the impact transients' sign",
+            "%s: the flexion sign from the impact transients (strikes where the bursts are: "
+            "ratio %.1f against %.1f) disagrees with the template fit; taking the impacts'",
             imu.source,
-            results[k_sign]["sign"],
-            "template fit" if k_sign != k_best else "strike placement",
+            max(ratios),
+            min(ratios),
         )
-    if k_sign != k:  # the strikes at impacts under the other sign: re-run the refinement there
-        return results[k_sign], refinements[k_sign], True
-    return results[k_sign], refinements[k_sign], disagree
+    chosen = {**results[k_chosen], "burst_ratio": ratios[k_chosen]}
+    refined = refine_strikes(t_in, env, np.asarray(chosen["strikes"]), cfg)
+    return chosen, refined, disagree
 
 
 def detect_from_load_cell(

@@ -39,6 +39,7 @@ from kinematics.gait_phase_config import (
     GaitState,
     OnlineEvent,
 )
+from kinematics.gait_phase_impact import StrikeTiming, impact_strikes_in_buffer
 from kinematics.phase_model import measurement, measurement_jacobian, phase_reference
 from kinematics.thigh_attitude import (
     SagittalAxis,
@@ -90,6 +91,9 @@ class OnlineGaitEstimator:
         self._next_strike = 0
         self._next_toe_off = 0
         self._last_event_t = {"foot_strike": -math.inf, "toe_off": -math.inf}
+        self.timing = StrikeTiming(self.cfg.strike_timing)
+        self._strides: deque[float] = deque(maxlen=3)
+        self._armed_for: int | None = None
 
     # --- public ------------------------------------------------------------------------------
     def update(
@@ -165,8 +169,23 @@ class OnlineGaitEstimator:
         for name in ("reacquired", "phase_jumps", "saturated"):
             self.counts[name] += best.counts[name]
         self.counts["axis_flipped"] += int(best is trials[1])
-        # events found in the buffer are emitted now: they carry this sample's time
-        self.events = [OnlineEvent(e.kind, e.t_s, t_s, e.phase_sigma_cyc) for e in best.events]
+        # events found in the buffer are emitted now: they carry this sample's time, and the
+        # strikes among them are placed on their impacts (the whole buffer is past by now)
+        strikes = impact_strikes_in_buffer(
+            t_b, a_b, np.array([e.t_s for e in best.events if e.kind == "foot_strike"]),
+            self.cfg.strike_timing,
+        )  # fmt: skip
+        it = iter(strikes)
+        self.events = [
+            OnlineEvent(
+                e.kind, next(it) if e.kind == "foot_strike" else e.t_s, t_s, e.phase_sigma_cyc
+            )
+            for e in best.events
+        ]
+        if self.events:
+            fs = [e.t_s for e in self.events if e.kind == "foot_strike"]
+            if fs:
+                self._last_event_t["foot_strike"] = fs[-1]
         self.state = GaitState(**{**self.state.__dict__, "flags": self.state.flags | flags})
         return list(self.events)
 
@@ -196,6 +215,8 @@ class OnlineGaitEstimator:
 
     def _step(self, t_s, gyro, accel, saturated, flags, detected_t_s) -> list[OnlineEvent]:
         thigh = self._thigh_update(t_s, gyro, accel, saturated)
+        self.timing.sample(t_s, accel)
+        self._recheck_sign()
         dt = thigh.t_s - (self.state.t_s if self.state is not None else thigh.t_s)
         dt = dt if math.isfinite(dt) and dt > 0 else 0.0
         walking = self._walking_now(thigh, dt)
@@ -355,47 +376,114 @@ class OnlineGaitEstimator:
         ekf = self._ekf
         if ekf is None:
             return []
-        phase, rate = float(ekf.x[0]), max(float(ekf.x[1]), 1e-3)
+        rate = max(float(ekf.x[1]), 1e-3)
+        phase = float(ekf.x[0]) - self.timing.bias_s * rate  # calibrated (see gait_phase_impact)
         sigma = math.sqrt(float(ekf.P[0, 0]))
         sf = self.ref.at_rate("stance_fraction", rate)
         out = []
-        for kind, target in (
-            ("foot_strike", float(self._next_strike)),
-            ("toe_off", self._next_toe_off + sf),
-        ):
-            if phase < target:
-                continue
-            if kind == "foot_strike":
-                self._next_strike = math.floor(phase) + 1
-            else:
-                self._next_toe_off = math.floor(phase - sf) + 1
-            t_event = t_s - (phase - target) / rate
-            if t_event - self._last_event_t[kind] < self.cfg.min_event_spacing_s:
-                continue
-            if kind == "foot_strike" and 0.6 < t_event - self._last_event_t[kind] < 2.5:
-                self._stride_s = t_event - self._last_event_t[kind]
-            self._last_event_t[kind] = t_event
-            out.append(OnlineEvent(kind, t_event, detected_t_s, sigma))
+        strike = self._strike_time(t_s, phase, rate)
+        if strike is not None:
+            out += self._emit("foot_strike", strike, detected_t_s, sigma)
+        target = self._next_toe_off + sf
+        if phase >= target:
+            self._next_toe_off = math.floor(phase - sf) + 1
+            t_to = t_s - (phase - target) / rate
+            emitted = self._emit("toe_off", t_to, detected_t_s, sigma)
+            if emitted:
+                self.timing.toe_off(t_to)
+            out += emitted
         self.events += out
         return out
+
+    def _strike_time(self, t_s: float, phase: float, rate: float) -> float | None:
+        """The foot strike emitted at this sample, if any: the impact onset in the strike's
+        window (impact mode), else the calibrated phase crossing the integer, else (impact
+        mode, no onset by the window's end) the calibrated prediction."""
+        timing = self.timing
+        w0, w1 = timing.cfg.window_s
+        target = self._next_strike
+        pred = t_s + (target - phase) / rate
+        win = timing.window
+        if win is None and target != self._armed_for and t_s >= pred + w0:
+            win = timing.arm(target, pred + w1, pred - timing.bias_s, pred)
+            self._armed_for = target
+        if win is not None:
+            onset = timing.poll()
+            if onset is not None or t_s >= win.close_at_s:
+                strike = timing.close(onset)
+                self.counts["impact_strikes"] += int(onset is not None)
+                if win.emitted:
+                    return None
+                self._next_strike = max(self._next_strike, win.target + 1)
+                return strike if strike is not None else win.calibrated_s
+            if timing.impact_mode and not win.emitted:
+                return None  # wait for the impact, or the window's end
+        if phase < target:
+            return None
+        if win is not None and win.target == target:
+            win.emitted = True
+        self._next_strike = math.floor(phase) + 1
+        return t_s - (phase - target) / rate
+
+    def _emit(self, kind: str, t_event: float, detected_t_s: float, sigma: float):
+        if t_event - self._last_event_t[kind] < self.cfg.min_event_spacing_s:
+            return []
+        if kind == "foot_strike" and 0.6 < t_event - self._last_event_t[kind] < 2.5:
+            self._stride_s = t_event - self._last_event_t[kind]
+            self._strides.append(self._stride_s)
+        self._last_event_t[kind] = t_event
+        return [OnlineEvent(kind, t_event, detected_t_s, sigma)]
+
+    def _recheck_sign(self) -> None:
+        """Re-examine the axis sign at every sample once a few strides are seen: when the bursts
+        at the toe-offs stand above those at the strikes (a strike is a shock, a toe-off is not),
+        the axis is the wrong way round: flip it, count it, and start the phase lock again."""
+        if self.thigh is None or not self.timing.sign_is_wrong(self.cfg.sign_recheck_strides):
+            return
+        self.counts["axis_flipped"] += 1
+        self.counts["sign_disagreement"] += 1
+        self.thigh.flip()
+        self._standing_angle = -self._standing_angle
+        self.timing.forget_bursts()
+        self._lose_lock(forget=True)
 
     def _lose_lock(self, forget: bool = True) -> None:
         """Drop the phase (re-acquired at the next walking sample); ``forget`` also drops the
         walking history (offset, scale, cadence): after standing or a gap."""
         self._ekf = None
+        self.timing.window = None
+        self._armed_for = None
         if forget:
             self._walking = False
             self._ms = 0.0
             self._walk_angles.clear()
             self._walk_dt.clear()
             self._stride_s = None
+            self._strides.clear()
+
+    def _phase_out(self, t_s: float) -> float:
+        """The phase reported: with impacts, linear in time from the last strike over the
+        median of the last three strides (the latest before three are known, the EKF's cadence
+        before one is) (the phase's definition; the reference curve's shape
+        does not bend it); else the EKF's, shifted by the learned strike bias."""
+        ekf = self._ekf
+        last = self._last_event_t["foot_strike"]
+        if self.timing.impact_mode and t_s - last < 2.5:
+            if len(self._strides) >= 3:
+                stride = float(np.median(self._strides))
+            elif self._strides:  # the first strides after a start shorten: the latest
+                stride = self._strides[-1]
+            else:
+                stride = 1.0 / max(float(ekf.x[1]), 0.3)
+            return float(min((t_s - last) / stride, 0.999))
+        return float((ekf.x[0] - self.timing.bias_s * max(float(ekf.x[1]), 1e-3)) % 1.0)
 
     def _set_state(self, t_s: float, thigh: ThighState | None, flags: int) -> None:
         ekf = self._ekf if self._walking else None
         self.state = GaitState(
             t_s=t_s,
             walking=ekf is not None,
-            phase_cyc=float(ekf.x[0] % 1.0) if ekf is not None else math.nan,
+            phase_cyc=self._phase_out(t_s) if ekf is not None else math.nan,
             phase_sigma_cyc=math.sqrt(float(ekf.P[0, 0])) if ekf is not None else math.nan,
             rate_cyc_s=float(ekf.x[1]) if ekf is not None else math.nan,
             angle_rad=thigh.angle_rad if thigh is not None else math.nan,

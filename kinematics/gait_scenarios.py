@@ -114,11 +114,17 @@ def simulate_walks(
             w = np.minimum(
                 _smoothstep((ph - 0.3) / 0.25), 1 - _smoothstep((ph - (end - 0.2)) / 0.2)
             )
-            v = np.round(b.speed_at(ph), 2)
+            # the curve between the speeds of a 0.01 m/s grid, interpolated (a rounded speed
+            # would step the angle, and a step is a spurious shock in the accelerometer)
+            v = b.speed_at(ph) * 100.0
+            lo = np.floor(v)
+            frac = v - lo
             curve = np.empty_like(ph)
-            for s in np.unique(v):
-                m = v == s
-                curve[m] = thigh_angle(ph[m] % 1.0, float(s))
+            for s in np.unique(lo):
+                m = lo == s
+                a = thigh_angle(ph[m] % 1.0, float(s) / 100.0)
+                c = thigh_angle(ph[m] % 1.0, min(float(s) + 1.0, 180.0) / 100.0)
+                curve[m] = a + frac[m] * (c - a)
             sag[inside] = stand[inside] + w * (curve - stand[inside])
             add[inside] = w * math.radians(3.0) * np.sin(2 * np.pi * ph + 0.5)
             rot[inside] = w * math.radians(5.0) * np.sin(2 * np.pi * ph - 0.8)

@@ -241,6 +241,12 @@ class ThighAngleFilter:
             kf.x[0] = initial_angle_rad
             kf.P[0, 0] = 0.05**2
 
+    def flip(self) -> None:
+        """Reverse the flexion sense: the axis, the angle, the rate and the bias change sign."""
+        self.axis = flipped(self.axis)
+        self._e2 = -self._e2
+        self.kf.x = -self.kf.x
+
     def gravity_angle(self, accel: np.ndarray) -> float:
         """Sagittal angle measured by gravity: the thigh flexing by θ about the axis turns the
         sensor-frame gravity by -θ."""
