@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 
@@ -93,6 +94,7 @@ class OnlineGaitEstimator:
         self._last_event_t = {"foot_strike": -math.inf, "toe_off": -math.inf}
         self.timing = StrikeTiming(self.cfg.strike_timing)
         self._strides: deque[float] = deque(maxlen=3)
+        self._buffer_stride_s: float | None = None
         self._armed_for: int | None = None
 
     # --- public ------------------------------------------------------------------------------
@@ -182,12 +184,61 @@ class OnlineGaitEstimator:
             )
             for e in best.events
         ]
-        if self.events:
-            fs = [e.t_s for e in self.events if e.kind == "foot_strike"]
-            if fs:
-                self._last_event_t["foot_strike"] = fs[-1]
+        missed = self._strike_before_lock(t_b, g_b, a_b, t_s)
+        if missed is not None:
+            self.events = sorted(
+                [*self.events, OnlineEvent("foot_strike", missed, t_s, math.nan)],
+                key=lambda e: e.t_s,
+            )
+        fs = [e.t_s for e in self.events if e.kind == "foot_strike"]
+        if fs:
+            self._last_event_t["foot_strike"] = fs[-1]
+            self._learn_bursts(t_b, a_b, fs)
+        self._buffer_stride_s = _last_cycle_s(t_b, g_b @ self.thigh.axis.axis)
         self.state = GaitState(**{**self.state.__dict__, "flags": self.state.flags | flags})
         return list(self.events)
+
+    def _strike_before_lock(self, t_b, g_b, a_b, t_s: float) -> float | None:
+        """A strike in the learning buffer that the replay did not emit (the phase locks a
+        little after walking starts): the strongest impact burst of the buffer that lies
+        0.35 s or more from every emitted strike, taken when the thigh is flexed at it (ahead
+        of its mean angle over the buffer's motion: at contact the foot is in front of the
+        body; at toe-off, behind)."""
+        from kinematics.gait_impact import envelope, onset_near
+
+        cfg = self.cfg.strike_timing.impact
+        axis = self.thigh.axis if self.thigh is not None else None
+        if axis is None or len(t_b) < 10:
+            return None
+        env = envelope(t_b, a_b, cfg)
+        floor = max(float(np.median(env)), 1e-12)
+        emitted = [e.t_s for e in self.events if e.kind == "foot_strike"]
+        free = np.array([all(abs(t - e) >= 0.35 for e in emitted) for t in t_b])
+        free &= t_b <= t_s - 0.1
+        if not free.any() or env[free].max() < cfg.min_strength * floor:
+            return None
+        k = int(np.flatnonzero(free)[np.argmax(env[free])])
+        onset = onset_near(t_b, env, float(t_b[k]), float(env[k]), replace(cfg, window_s=(-0.3, 0.0)))
+        if not math.isfinite(onset):
+            return None
+        rate = g_b @ axis.axis - axis.gyro_bias_rad_s
+        angle = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t_b))])
+        moving = np.abs(rate) > 0.5
+        if moving.sum() < 10 or np.interp(onset, t_b, angle) <= angle[moving].mean():
+            return None
+        return onset - cfg.lag_s
+
+    def _learn_bursts(self, t_b, a_b, strikes_s) -> None:
+        """The bursts of the strikes found in the learning buffer start the typical peak."""
+        from kinematics.gait_impact import envelope
+
+        cfg = self.cfg.strike_timing
+        env = envelope(t_b, a_b, cfg.impact)
+        self.timing.peaks.clear()
+        for ts in strikes_s:
+            m = (t_b >= ts + cfg.window_s[0]) & (t_b <= ts + cfg.window_s[1])
+            if m.any():
+                self.timing.peaks.append(float(env[m].max()))
 
     def _adopt(self, other: OnlineGaitEstimator) -> None:
         keep = {"cfg", "learner", "counts", "events", "_shadow", "_shadow_until_s", "_sum_mark"}
@@ -473,6 +524,8 @@ class OnlineGaitEstimator:
                 stride = float(np.median(self._strides))
             elif self._strides:  # the first strides after a start shorten: the latest
                 stride = self._strides[-1]
+            elif self._buffer_stride_s is not None:  # the cycle seen while learning the axis
+                stride = self._buffer_stride_s
             else:
                 stride = 1.0 / max(float(ekf.x[1]), 0.3)
             return float(min((t_s - last) / stride, 0.999))
@@ -490,3 +543,20 @@ class OnlineGaitEstimator:
             rate_rad_s=thigh.rate_rad_s if thigh is not None else math.nan,
             flags=flags,
         )
+
+
+def _last_cycle_s(t_s: np.ndarray, rate: np.ndarray) -> float | None:
+    """The last whole cycle of a flexion rate: between its last two rises through +35 % of
+    its peak after falling below -35 % (None when not plausible, 0.7-2.5 s)."""
+    level = 0.35 * float(np.max(np.abs(rate))) if rate.size else 0.0
+    rises, armed = [], False
+    for t, r in zip(t_s, rate, strict=True):
+        if r < -level:
+            armed = True
+        elif r > level and armed:
+            rises.append(float(t))
+            armed = False
+    if len(rises) < 2:
+        return None
+    cycle = rises[-1] - rises[-2]
+    return cycle if 0.7 <= cycle <= 2.5 else None

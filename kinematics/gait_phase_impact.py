@@ -196,20 +196,26 @@ class StrikeTiming:
 
 
 def impact_strikes_in_buffer(
-    t_s: np.ndarray, accel_m_s2: np.ndarray, strikes_s: np.ndarray, config: StrikeTimingConfig
+    t_s: np.ndarray,
+    accel_m_s2: np.ndarray,
+    strikes_s: np.ndarray,
+    config: StrikeTimingConfig,
+    only_impacts: bool = False,
 ) -> np.ndarray:
     """Strikes found in a past buffer (the estimator's learning buffer, emitted once the axis
     is fixed) moved to their impact onsets minus ``lag_s``: the onset at ``threshold_fraction``
     of the largest burst in each strike's window, when that burst stands ``min_strength``
-    times above the buffer's median envelope; the others are kept."""
+    times above the buffer's median envelope; the others are kept (dropped with
+    ``only_impacts``)."""
     strikes = np.asarray(strikes_s, dtype=float)
     if strikes.size == 0 or len(t_s) < 10:
-        return strikes
+        return strikes[:0] if only_impacts else strikes
     cfg = config.impact
     t = np.asarray(t_s, dtype=float)
     env = envelope(t, accel_m_s2, cfg)
     floor = max(float(np.median(env)), 1e-12)
     out = strikes.copy()
+    found = np.zeros(strikes.size, dtype=bool)
     window_cfg = ImpactConfig(**{**cfg.__dict__, "window_s": config.window_s})
     for i, ts in enumerate(strikes):
         m = (t >= ts + config.window_s[0]) & (t <= ts + config.window_s[1])
@@ -221,4 +227,5 @@ def impact_strikes_in_buffer(
         onset = onset_near(t, env, ts, peak, window_cfg)
         if math.isfinite(onset):
             out[i] = onset - cfg.lag_s
-    return out
+            found[i] = True
+    return out[found] if only_impacts else out

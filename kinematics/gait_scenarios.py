@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from kinematics.gait_curves import stance_fraction, stride_time_s, thigh_angle
+from kinematics.gait_curves import stride_time_s
+from kinematics.gait_patterns import ABLE_BODIED, GaitPattern, shock
 from kinematics.gait_synth import (
     ImuNoise,
     _imu_from_pose_functions,
@@ -84,10 +85,13 @@ def simulate_walks(
     noise: ImuNoise | None = None,
     seed: int = 0,
     stride_time_jitter: float = 0.02,
+    pattern: GaitPattern = ABLE_BODIED,
 ) -> Scenario:
     """Stand ``stand_s``, walk bout 1 (one speed per stride), stand, walk bout 2, ..., stand.
 
-    ``speeds_per_bout=[]`` gives standing only (``stand_s`` long)."""
+    ``speeds_per_bout=[]`` gives standing only (``stand_s`` long). ``pattern``: the gait's
+    departure from the reference (:mod:`kinematics.gait_patterns`: prosthetic or sound side,
+    treadmill, heel-strike shock)."""
     rng = np.random.default_rng(seed)
     bouts, total = _bouts(speeds_per_bout, stand_s, rng, stride_time_jitter)
     sway_f = rng.uniform(0.15, 0.5, 3)
@@ -122,8 +126,8 @@ def simulate_walks(
             curve = np.empty_like(ph)
             for s in np.unique(lo):
                 m = lo == s
-                a = thigh_angle(ph[m] % 1.0, float(s) / 100.0)
-                c = thigh_angle(ph[m] % 1.0, min(float(s) + 1.0, 180.0) / 100.0)
+                a = pattern.thigh(ph[m] % 1.0, float(s) / 100.0)
+                c = pattern.thigh(ph[m] % 1.0, min(float(s) + 1.0, 180.0) / 100.0)
                 curve[m] = a + frac[m] * (c - a)
             sag[inside] = stand[inside] + w * (curve - stand[inside])
             add[inside] = w * math.radians(3.0) * np.sin(2 * np.pi * ph + 0.5)
@@ -139,7 +143,7 @@ def simulate_walks(
     fine_t = np.arange(0.0, total, dt / 4)
     _, _, _, vel, ph_fine = fields(fine_t)
     pos = np.zeros((fine_t.size, 3))
-    pos[:, 0] = np.cumsum(vel) * (dt / 4)
+    pos[:, 0] = 0.0 if pattern.treadmill else np.cumsum(vel) * (dt / 4)
     pos[:, 2] = 0.9 + 0.02 * (vel / 1.8) * np.cos(4 * np.pi * ph_fine)  # smooth bob
     splines = [CubicSpline(fine_t, pos[:, i]) for i in range(3)]
 
@@ -162,8 +166,12 @@ def simulate_walks(
     for b in bouts:
         strikes += list(b.knots_t[1:-1])
         for k in range(b.speeds.size):
-            sf = stance_fraction(float(b.speed_at(np.array([k + 0.6]))[0]))
+            sf = pattern.stance(float(b.speed_at(np.array([k + 0.6]))[0]))
             toe_offs.append(_invert(b.phase_fn, k + sf, b.knots_t))
+    if pattern.impact_m_s2 > 0:
+        mount = np.eye(3) if thigh_R_sensor is None else np.asarray(thigh_R_sensor)
+        accel = imu.accel_m_s2 + shock(imu.t_s, np.asarray(strikes), pattern.impact_m_s2) @ mount
+        imu = ImuSeries(imu.t_s, imu.gyro_rad_s, accel, imu.source)
     return Scenario(
         imu=imu,
         foot_strikes_s=np.asarray(strikes),
