@@ -51,16 +51,16 @@ class GaitPattern:
     def stance(self, speed_m_s: float) -> float:
         from kinematics.gait_curves import stance_fraction
 
-        return self.stance_fraction if self.stance_fraction is not None else stance_fraction(
-            speed_m_s
+        return (
+            self.stance_fraction if self.stance_fraction is not None else stance_fraction(speed_m_s)
         )
 
     def warp(self, phase: np.ndarray, speed_m_s: float) -> np.ndarray:
         """The reference phase shown at ``phase`` (in [0, 1)): the toe-off moved to
         :meth:`stance`."""
-        from kinematics.gait_curves import stance_fraction
-
         from scipy.interpolate import CubicSpline
+
+        from kinematics.gait_curves import stance_fraction
 
         ref, sf = stance_fraction(speed_m_s), self.stance(speed_m_s)
         p = np.asarray(phase, dtype=float) % 1.0

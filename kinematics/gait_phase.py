@@ -218,7 +218,9 @@ class OnlineGaitEstimator:
         if not free.any() or env[free].max() < cfg.min_strength * floor:
             return None
         k = int(np.flatnonzero(free)[np.argmax(env[free])])
-        onset = onset_near(t_b, env, float(t_b[k]), float(env[k]), replace(cfg, window_s=(-0.3, 0.0)))
+        onset = onset_near(
+            t_b, env, float(t_b[k]), float(env[k]), replace(cfg, window_s=(-0.3, 0.0))
+        )
         if not math.isfinite(onset):
             return None
         rate = g_b @ axis.axis - axis.gyro_bias_rad_s
