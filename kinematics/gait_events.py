@@ -598,9 +598,25 @@ def _detect_with_axis(t: np.ndarray, omega: np.ndarray, cfg: GaitEventConfig) ->
     return result
 
 
-def sagittal_axis(gyro_rad_s: np.ndarray) -> tuple[np.ndarray, float]:
-    """Principal axis of the angular velocity (unsigned) and its share of the variance."""
+def _long_axis(imu: ImuSeries) -> np.ndarray:
+    """The thigh's long axis in the sensor frame: the mean specific force (gravity, on average
+    along the thigh, which swings about the vertical)."""
+    a = np.asarray(imu.accel_m_s2, dtype=float).mean(axis=0)
+    return a / max(float(np.linalg.norm(a)), 1e-9)
+
+
+def sagittal_axis(
+    gyro_rad_s: np.ndarray, long_axis: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
+    """Principal axis of the angular velocity (unsigned) and its share of the variance.
+
+    ``long_axis`` (unit, sensor frame): the rotation about the thigh's long axis (turning,
+    internal/external rotation) is removed first, so that turns while walking do not tilt the
+    flexion axis; the share is then that of the remaining variance."""
     g = np.asarray(gyro_rad_s, dtype=float)
+    if long_axis is not None:
+        u = np.asarray(long_axis, dtype=float)
+        g = g - np.outer(g @ u, u)
     cov = np.cov((g - np.median(g, axis=0)).T)
     eigval, eigvec = np.linalg.eigh(cov)
     share = float(eigval[-1] / max(eigval.sum(), 1e-30))
@@ -617,7 +633,7 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
     t, gyro, rate = _prepare_signal(imu, cfg)
     if t.size < 3:
         raise GaitDetectionError(f"{imu.source}: recording too short ({t.size} samples)")
-    axis, share = sagittal_axis(gyro)
+    axis, share = sagittal_axis(gyro, _long_axis(imu))
     if share < 0.5:
         logger.warning(
             "%s: the principal rotation axis carries only %.0f%% of the angular-velocity "

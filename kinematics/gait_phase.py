@@ -41,6 +41,7 @@ from kinematics.gait_phase_config import (
     OnlineEvent,
 )
 from kinematics.gait_phase_impact import StrikeTiming, impact_strikes_in_buffer
+from kinematics.gait_prosthesis import LoadCellEvents, ProsthesisSign
 from kinematics.phase_model import measurement, measurement_jacobian, phase_reference
 from kinematics.thigh_attitude import (
     SagittalAxis,
@@ -93,15 +94,35 @@ class OnlineGaitEstimator:
         self._next_toe_off = 0
         self._last_event_t = {"foot_strike": -math.inf, "toe_off": -math.inf}
         self.timing = StrikeTiming(self.cfg.strike_timing)
+        self.load_cell = LoadCellEvents(self.cfg.prosthesis)
+        self.prosthesis_sign = ProsthesisSign(self.cfg.prosthesis)
+        self._knee_rad: float | None = None
         self._strides: deque[float] = deque(maxlen=3)
         self._buffer_stride_s: float | None = None
         self._armed_for: int | None = None
 
     # --- public ------------------------------------------------------------------------------
     def update(
-        self, t_s: float, gyro_rad_s: np.ndarray, accel_m_s2: np.ndarray
+        self,
+        t_s: float,
+        gyro_rad_s: np.ndarray,
+        accel_m_s2: np.ndarray,
+        load_n: float | None = None,
+        knee_rad: float | None = None,
     ) -> list[OnlineEvent]:
-        """Process one sample; return the events emitted at it (usually none)."""
+        """Process one sample; return the events emitted at it (usually none).
+
+        ``load_n`` (axial load, N, compression +) and ``knee_rad`` (knee flexion) are the
+        prosthesis's own sensors at this sample when it has them
+        (:mod:`kinematics.gait_prosthesis`): the load cell then gives the events and the thigh
+        IMU's strike bias, and both check the IMU's flexion sign. NaN or None: not available."""
+        out = self._update_imu(t_s, gyro_rad_s, accel_m_s2, knee_rad)
+        load_event = self.load_cell.update(float(t_s), load_n)
+        if load_event is not None:
+            out = out + self._load_cell_event(*load_event, float(t_s))
+        return out
+
+    def _update_imu(self, t_s, gyro_rad_s, accel_m_s2, knee_rad) -> list[OnlineEvent]:
         t_s = float(t_s)
         gyro = np.asarray(gyro_rad_s, dtype=float).reshape(3)
         accel = np.asarray(accel_m_s2, dtype=float).reshape(3)
@@ -132,6 +153,7 @@ class OnlineGaitEstimator:
             flags |= 2
         if self.thigh is None:
             return self._learn(t_s, gyro, accel, flags)
+        self._knee_rad = knee_rad
         out = self._step(t_s, gyro, accel, saturated, flags, detected_t_s=t_s)
         if self._shadow is not None:
             self._check_sign(t_s, gyro, accel)
@@ -244,6 +266,7 @@ class OnlineGaitEstimator:
 
     def _adopt(self, other: OnlineGaitEstimator) -> None:
         keep = {"cfg", "learner", "counts", "events", "_shadow", "_shadow_until_s", "_sum_mark"}
+        keep |= {"load_cell", "prosthesis_sign"}
         self.__dict__.update({k: v for k, v in other.__dict__.items() if k not in keep})
 
     def _check_sign(self, t_s, gyro, accel) -> None:
@@ -269,6 +292,11 @@ class OnlineGaitEstimator:
     def _step(self, t_s, gyro, accel, saturated, flags, detected_t_s) -> list[OnlineEvent]:
         thigh = self._thigh_update(t_s, gyro, accel, saturated)
         self.timing.sample(t_s, accel)
+        if self.state is not None and math.isfinite(self.state.t_s):
+            contact = self.load_cell.contact if self.load_cell.alive(t_s) else None
+            self.prosthesis_sign.add(
+                thigh.rate_rad_s, t_s - self.state.t_s, contact, self._knee_rad
+            )
         self._recheck_sign()
         dt = thigh.t_s - (self.state.t_s if self.state is not None else thigh.t_s)
         dt = dt if math.isfinite(dt) and dt > 0 else 0.0
@@ -434,6 +462,8 @@ class OnlineGaitEstimator:
         sigma = math.sqrt(float(ekf.P[0, 0]))
         sf = self.ref.at_rate("stance_fraction", rate)
         out = []
+        if self.load_cell.alive(t_s):  # the load cell gives the events (_load_cell_event)
+            return []
         strike = self._strike_time(t_s, phase, rate)
         if strike is not None:
             out += self._emit("foot_strike", strike, detected_t_s, sigma)
@@ -491,14 +521,47 @@ class OnlineGaitEstimator:
         """Re-examine the axis sign at every sample once a few strides are seen: when the bursts
         at the toe-offs stand above those at the strikes (a strike is a shock, a toe-off is not),
         the axis is the wrong way round: flip it, count it, and start the phase lock again."""
-        if self.thigh is None or not self.timing.sign_is_wrong(self.cfg.sign_recheck_strides):
+        if self.thigh is None:
+            return
+        evidence = self.prosthesis_sign.evidence()
+        if math.isfinite(evidence):
+            wrong = evidence < 0  # the prosthesis's sensors decide when present
+        else:
+            wrong = self.timing.sign_is_wrong(self.cfg.sign_recheck_strides)
+        if not wrong:
             return
         self.counts["axis_flipped"] += 1
         self.counts["sign_disagreement"] += 1
         self.thigh.flip()
         self._standing_angle = -self._standing_angle
         self.timing.forget_bursts()
+        self.prosthesis_sign.reset()
         self._lose_lock(forget=True)
+
+    def _load_cell_event(self, kind: str, t_event: float, t_s: float) -> list[OnlineEvent]:
+        """An event from the load cell: emitted as is; a strike also gives the thigh IMU's
+        strike bias (the EKF's own strike time against it) and moves the next strike on."""
+        ekf = self._ekf
+        sigma = 0.0
+        if ekf is not None and self._walking:
+            rate = max(float(ekf.x[1]), 1e-3)
+            raw = float(ekf.x[0]) - (t_s - t_event) * rate  # the EKF's phase at the event
+            if kind == "foot_strike":
+                k = math.floor(raw + 0.5)
+                self.timing.reference(t_event, t_event - (raw - k) / rate, source="load cell")
+                cal = raw - self.timing.bias_s * rate
+                self._next_strike = math.floor(cal + 0.5) + 1
+                self._armed_for = None
+                self.timing.window = None
+            else:
+                sf = self.ref.at_rate("stance_fraction", rate)
+                cal = raw - self.timing.bias_s * rate
+                self._next_toe_off = math.floor(cal - sf + 0.5) + 1
+        out = self._emit(kind, t_event, t_s, sigma)
+        if kind == "foot_strike" and out:
+            self.counts["load_cell_strikes"] += 1
+        self.events += out
+        return out
 
     def _lose_lock(self, forget: bool = True) -> None:
         """Drop the phase (re-acquired at the next walking sample); ``forget`` also drops the

@@ -81,6 +81,7 @@ class StrikeTiming:
         self._toe_offs: list[float] = []
         self.toe_off_peaks: deque[float] = deque(maxlen=5)
         self.window: StrikeWindow | None = None
+        self._armed_above = False
         self._post: tuple[float, float] | None = None
         """(until, peak): the burst after an onset, followed to its peak."""
 
@@ -160,13 +161,29 @@ class StrikeTiming:
     def arm(self, target: int, close_at_s: float, raw_s: float, calibrated_s: float):
         """Open the window of strike ``target``."""
         self.window = StrikeWindow(target, close_at_s, raw_s, calibrated_s, self.env)
+        self._armed_above = self.impact_mode and self.env >= self.level()
         return self.window
+
+    def _past_rise(self) -> float | None:
+        """The envelope was already above the threshold when the window opened: its last rise
+        through it in the recent history (the samples are past, so this stays causal)."""
+        level = self.level()
+        hist = list(self._hist)
+        for (t0, e0), (t1, e1) in zip(reversed(hist[:-1]), reversed(hist[1:]), strict=True):
+            if e0 < level <= e1:
+                return t0 + (level - e0) / (e1 - e0) * (t1 - t0)
+        return None
 
     def poll(self) -> float | None:
         """The impact onset at the latest sample when the envelope has just risen through the
         threshold in impact mode (interpolated), else None."""
         if self.window is None or not self.impact_mode or self._t_before is None:
             return None
+        if self._armed_above:
+            self._armed_above = False
+            past = self._past_rise()
+            if past is not None:
+                return past
         level = self.level()
         if self._prev_env < level <= self.env:
             frac = (level - self._prev_env) / (self.env - self._prev_env)

@@ -41,6 +41,11 @@ class Scenario:
     foot_strikes_s: np.ndarray
     toe_offs_s: np.ndarray
     walking_intervals_s: list[tuple[float, float]]
+    load_n: np.ndarray | None = None
+    """The prosthesis's axial load at the IMU's sample times (N; 750 N in contact, ramps of
+    40 ms, noise σ 8 N; loaded while standing)."""
+    knee_rad: np.ndarray | None = None
+    """The knee flexion of the pattern at the IMU's sample times (0 while standing)."""
 
 
 @dataclass(frozen=True)
@@ -172,12 +177,39 @@ def simulate_walks(
         mount = np.eye(3) if thigh_R_sensor is None else np.asarray(thigh_R_sensor)
         accel = imu.accel_m_s2 + shock(imu.t_s, np.asarray(strikes), pattern.impact_m_s2) @ mount
         imu = ImuSeries(imu.t_s, imu.gyro_rad_s, accel, imu.source)
+    load, knee = _prosthesis_signals(imu.t_s, bouts, strikes, toe_offs, pattern, rng)
     return Scenario(
         imu=imu,
         foot_strikes_s=np.asarray(strikes),
         toe_offs_s=np.asarray(toe_offs),
         walking_intervals_s=[(float(b.knots_t[0]), float(b.knots_t[-1])) for b in bouts],
+        load_n=load,
+        knee_rad=knee,
     )
+
+
+def _prosthesis_signals(t, bouts, strikes, toe_offs, pattern, rng):
+    """Load cell and knee encoder of a walk (see :class:`Scenario`)."""
+    from kinematics.gait_patterns import knee_angle
+
+    events = sorted([(s, True) for s in strikes] + [(s, False) for s in toe_offs])
+    contact = np.ones(t.size)
+    for te, on in events:
+        contact[t >= te] = 1.0 if on else 0.0
+    ramp = max(1, round(0.04 / float(np.median(np.diff(t)))))
+    smooth = np.convolve(contact, np.ones(ramp) / ramp)[: t.size]  # causal 40 ms ramps
+    load = 750.0 * smooth + rng.normal(0.0, 8.0, t.size)
+    knee = np.zeros(t.size)
+    for b in bouts:
+        inside = (t > b.knots_t[0]) & (t < b.knots_t[-1])
+        if inside.any():
+            ph = b.phase_fn(t[inside])
+            w = np.minimum(
+                _smoothstep((ph - 0.3) / 0.25),
+                1 - _smoothstep((ph - (b.knots_phase[-1] - 0.2)) / 0.2),
+            )
+            knee[inside] = w * knee_angle(pattern, ph % 1.0, float(np.mean(b.speeds)))
+    return load, knee
 
 
 def speed_change(slow_m_s: float = 0.8, fast_m_s: float = 1.6, strides: int = 10) -> list[float]:

@@ -171,6 +171,10 @@ class SagittalAxisLearner:
         quiet = np.linalg.norm(g, axis=1) <= self.cfg.quiet_gyro_rad_s
         bias = g[quiet].mean(axis=0) if quiet.sum() >= 20 else np.zeros(3)
         gc = g - bias
+        # rotation about the thigh's long axis (the mean specific force: turns, internal and
+        # external rotation) is not flexion: removed before the principal axis
+        long_axis = a.mean(axis=0) / max(float(np.linalg.norm(a.mean(axis=0))), 1e-9)
+        gc = gc - np.outer(gc @ long_axis, long_axis)
         cov = gc.T @ gc / len(gc)
         eigval, eigvec = np.linalg.eigh(cov)
         axis = eigvec[:, -1]

@@ -96,7 +96,7 @@ def test_online_on_prosthetic_gait(prosthetic_walk):
     _check(res.times("foot_strike"), sc.foot_strikes_s, sc.walking_intervals_s)
     score = score_online(res, sc.foot_strikes_s, sc.toe_offs_s)
     assert np.max(score.foot_strike.latencies_s[1:]) <= 0.100
-    assert score.phase_rmse_cyc <= 0.07  # 6 strides: the first, before a stride is measured
+    assert score.phase_rmse_cyc <= 0.08  # 6 strides: the first, before a stride is measured
     assert res.counts["impact_strikes"] >= 3 and res.counts["axis_flipped"] == 0
 
 
@@ -137,3 +137,44 @@ def test_sound_side_longer_stance_and_the_strike_bias_is_kept_without_impacts():
     res2 = estimate_online(mixed)
     err, missed, extra = match_events(res2.times("foot_strike"), sc.foot_strikes_s)
     assert (missed, extra) == (0, 0) and np.max(np.abs(err)) <= 0.060
+
+
+def test_load_cell_defines_the_strikes_and_its_bias_outlives_it():
+    """No shock in the accelerometer (a soft prosthetic foot): the load cell gives the strikes,
+    the IMU learns its strike bias from them, and keeps it when the load cell is lost."""
+    sc = simulate_walks(
+        [[0.9] * 10], rate_hz=100.0, thigh_R_sensor=random_mounting(4), seed=4,
+        pattern=dataclasses.replace(TREADMILL, impact_m_s2=0.0), stand_s=2.0,
+    )  # fmt: skip
+    cut = sc.foot_strikes_s[5] + 0.3
+    load = np.where(sc.imu.t_s > cut, np.nan, sc.load_n)
+    res = estimate_online(sc.imu, load_n=load, knee_rad=sc.knee_rad)
+    assert res.counts["load_cell_strikes"] >= 4
+    strikes = res.times("foot_strike")
+    before = sc.foot_strikes_s[sc.foot_strikes_s < cut]
+    err, _, _ = match_events(strikes[strikes < cut], before)
+    assert np.max(np.abs(err)) <= 0.015  # the load cell's own events
+    after = sc.foot_strikes_s[sc.foot_strikes_s > cut]
+    err_kept, missed, extra = match_events(strikes[strikes > cut], after)
+    assert (missed, extra) == (0, 0)
+    imu_only = estimate_online(sc.imu).times("foot_strike")
+    err_raw, _, _ = match_events(imu_only[imu_only > cut], after)
+    # the calibration kept: the IMU's strikes after the loss are better than without it
+    assert np.median(np.abs(err_kept)) < 0.5 * np.median(np.abs(err_raw))
+    assert np.max(np.abs(err_kept)) <= 0.030
+
+
+def test_knee_encoder_flips_a_wrong_sign_without_impacts():
+    sc = simulate_walks(
+        [[0.9] * 8], rate_hz=100.0, thigh_R_sensor=random_mounting(6), seed=6,
+        pattern=dataclasses.replace(PROSTHETIC_SIDE, impact_m_s2=0.0), stand_s=2.0,
+    )  # fmt: skip
+    learned = estimate_online(sc.imu).sagittal_axis
+    res = estimate_online(sc.imu, sagittal_axis=flipped(learned), knee_rad=sc.knee_rad)
+    assert res.counts["axis_flipped"] == 1 and res.counts["sign_disagreement"] == 1
+    assert res.sagittal_axis.axis @ learned.axis > 0.99
+    strikes = res.times("foot_strike")
+    err, missed, _ = match_events(
+        strikes[strikes > 6.0], sc.foot_strikes_s[sc.foot_strikes_s > 6.0]
+    )
+    assert missed == 0 and np.max(np.abs(err)) <= 0.060
