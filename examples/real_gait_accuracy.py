@@ -15,6 +15,8 @@ arrangement of the sensor), prints per data set and detector (offline
   the first of each walk (emitted once the sensor's axis is learned from a whole cycle);
 * phase RMSE against the phase linear between reference strikes (offline: linear between the
   detected strikes);
+* the femur walks, which have no contact reference: the left and right strikes found, and
+  how many right strides hold exactly one left strike at 35-65 % of the stride;
 * the mounting test (real walks): the walk seen by a sensor in each of the 24 right-handed axis
   arrangements; an arrangement is *swapped* when the median distance from its strikes to the
   reference strikes (the Xsens walk) or to the identity arrangement's strikes (the femur walks)
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import logging
 import math
 from pathlib import Path
@@ -199,6 +202,25 @@ def mounting_test(walk: Walk, online: bool, quick: bool) -> tuple[int, int, int]
     return len(arrangements), swapped, changed
 
 
+def alternation(femurs: list[Walk], online: bool) -> str:
+    """The femur walks have no contact reference: each left strike should fall within the
+    right's stride at 35-65 % of it (the legs alternate), and each right stride hold one."""
+    run = run_online if online else run_offline
+    right, left = (np.sort(run(w, Tally())) for w in femurs)
+    ok = strides = 0
+    for a, b in itertools.pairwise(right):
+        if b - a > 2.5:
+            continue
+        strides += 1
+        inside = left[(left > a) & (left < b)]
+        ok += int(inside.size == 1 and 0.35 <= (inside[0] - a) / (b - a) <= 0.65)
+    det = "online" if online else "offline"
+    return (
+        f"* OpenSense femurs, {det}: {right.size} right and {left.size} left strikes; "
+        f"{ok} of {strides} right strides hold exactly one left strike at 35-65 % of the stride"
+    )
+
+
 HEADER = (
     "| data | detector | ref. strikes | found | missed | extra | median abs ms | worst abs ms | "
     "events standing | latency p95 ms (all / after the first) | phase RMSE % (worst walk) | mountings swapped / changed |"
@@ -230,6 +252,10 @@ def main() -> None:
                 + " | ".join(cells)
                 + f" | {swapped} / {changed} of {n} |"
             )
+    femurs = [w for w in walks if "femur" in w.name]
+    if len(femurs) == 2:
+        for online in (False, True):
+            print(alternation(femurs, online))
     groups: dict[str, list[Walk]] = {}
     for walk in synthetic_walks(args.quick):
         groups.setdefault(walk.name, []).append(walk)

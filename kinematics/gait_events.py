@@ -22,6 +22,10 @@ Thigh IMU in an unknown mounting orientation (:func:`detect_from_thigh_imu`):
 5. foot strikes closer than the plausible minimum stride time are merged, with a warning,
    and counted.
 
+When the accelerometer shows heel-strike shocks (:mod:`kinematics.gait_impact`), the axis
+sign is the one whose strikes carry the shocks (a toe-off has none), and each strike is moved
+to its shock's onset minus the impact lag (the template's shape bias is then gone).
+
 Gait phase (:func:`gait_phase`): linear in time between consecutive foot strikes of a walking
 bout (0 at a strike, 1 at the next); NaN outside walking.
 """

@@ -19,7 +19,11 @@ Per sample (:meth:`OnlineGaitEstimator.update`):
    blended with the reference's values until a cycle is available);
 5. a foot strike when the phase crosses an integer, a toe-off when it crosses k + the reference
    stance fraction at the current cadence; each with its detection time (this sample) and its
-   estimated time ``t - (φ - φ_event) / r``.
+   estimated time ``t - (φ - φ_event) / r``. With heel-strike shocks in the accelerometer the
+   strike is the shock's onset in a window around that prediction, and the phase's strike
+   bias is learned from them (:mod:`kinematics.gait_phase_impact`); with a prosthesis's load
+   cell its events are emitted and give that bias (:mod:`kinematics.gait_prosthesis`); the
+   axis sign is re-examined from where the shocks fall, or from the load cell or knee encoder.
 
 :func:`kinematics.gait_online.estimate_online` runs a whole series through the estimator one
 sample at a time (a loop; no look-ahead by construction).
