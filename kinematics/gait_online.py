@@ -35,6 +35,10 @@ class OnlineGaitResult:
     sagittal_axis: SagittalAxis | None = None
     """The axis the estimator ended with (None: never fixed); pass it to a later recording with
     the same mounting to skip learning."""
+    strike_bias_s: float = 0.0
+    """The phase model's strike bias learned at the end (reference strike − its own)."""
+    strike_bias_source: str = "none"
+    """Where it was learned: ``impact``, ``load cell`` or ``none``."""
 
     def times(self, kind: str, detected: bool = False) -> np.ndarray:
         """Estimated (or detection) times of the events of ``kind``."""
@@ -87,6 +91,8 @@ def estimate_online(
         events=list(est.events),
         counts=dict(est.counts),
         sagittal_axis=est.thigh.axis if est.thigh is not None else None,
+        strike_bias_s=est.timing.bias_s,
+        strike_bias_source=est.timing.bias_source,
     )
 
 
