@@ -40,6 +40,10 @@ class StrikeTimingConfig:
     window_s: tuple[float, float] = (-0.10, 0.30)
     """The strike's search window around the calibrated prediction (a shock 0.3 s after the
     prediction still belongs to it: the next event, a toe-off, is 0.5 s or more away)."""
+    flip_burst_ratio: float = 5.0
+    """The axis is flipped when the bursts at the toe-offs stand this many times above those at
+    the strikes (real walks: strikes 15× the toe-offs; a smooth signal's sharp thigh reversal
+    near toe-off reaches 2-3× a strike window's noise)."""
     bias_strides: int = 8
     """The phase bias is the median over this many recent strides."""
     history_s: float = 0.4
@@ -115,8 +119,8 @@ class StrikeTiming:
         self._toe_offs.append(t_s)
 
     def sign_is_wrong(self, min_strides: int) -> bool:
-        """The bursts at the toe-offs stand ``min_burst_ratio`` above those at the strikes over
-        the last ``min_strides`` or more of each (impacts present)."""
+        """Each of the last ``min_strides`` toe-offs' bursts stands ``flip_burst_ratio`` above the
+        strikes' (median of the last five) and is strong (an impact)."""
         if (
             min_strides <= 0
             or len(self.toe_off_peaks) < min_strides
@@ -124,9 +128,9 @@ class StrikeTiming:
         ):
             return False
         strikes = float(np.median(list(self.peaks)[-5:]))
-        toe_offs = float(np.median(self.toe_off_peaks))
+        toe_offs = float(min(list(self.toe_off_peaks)[-min_strides:]))  # each of them
         strong = toe_offs >= self.cfg.impact.min_strength * self.floor
-        return strong and toe_offs >= self.cfg.impact.min_burst_ratio * max(strikes, 1e-12)
+        return strong and toe_offs >= self.cfg.flip_burst_ratio * max(strikes, 1e-12)
 
     def forget_bursts(self) -> None:
         """After a flip: the bursts seen so far belong to the other events."""
