@@ -79,6 +79,9 @@ class GaitEventConfig:
     """Allowed ratio of the measured to the template angular-velocity spread in a window."""
     min_window_fraction: float = 0.6
     """At the ends of a recording, use an alignment window cut to at least this fraction."""
+    use_impacts: bool = True
+    """Place the strikes on the accelerometer's heel-strike shocks and check the axis sign with
+    them when the shocks are there (:mod:`kinematics.gait_impact`); False: the template only."""
     # load cell
     min_contact_s: float = 0.15
     min_swing_s: float = 0.15
@@ -653,7 +656,13 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
         res["sign"] = sign
         results.append(res)
     best = max(results, key=lambda r: (r["score"], len(r["strikes"])))
-    best, refined, sign_flag = _impact_sign_and_strikes(imu, t, omega, results, best)
+    if cfg.use_impacts:
+        best, refined, sign_flag = _impact_sign_and_strikes(imu, t, omega, results, best)
+    else:
+        from kinematics.gait_impact import ImpactRefinement
+
+        refined = ImpactRefinement(np.asarray(best["strikes"]), 0, 0.0, 0.0)
+        best, sign_flag = {**best, "burst_ratio": math.nan}, False
     strikes, merged = merge_close_strikes(refined.strikes_s, cfg.min_stride_s, imu.source)
     toe_offs = np.asarray(best["toe_offs"])
     if toe_offs.size:
