@@ -16,7 +16,7 @@ A :class:`GaitPattern` changes the reference curves (:mod:`kinematics.gait_curve
 * **treadmill**: the hip does not progress (the belt moves under the foot);
 * **shock**: at each strike the accelerometer gets a burst along the thigh (axial, with an
   anterior part): ``impact_m_s2 · (τ/τr) e^{1-τ/τr} · sin(2π f τ)`` for τ ≥ 0 after contact,
-  τr = 15 ms, f = 25 Hz, the shape of the bursts on the real Xsens walk (a peak 20-40 ms after
+  τr = 30 ms, f = 25 Hz, the shape of the bursts on the real Xsens walk (a peak 30-45 ms after
   contact, 15-20 m/s² above 1 g). ``impact_m_s2 = 0``: no shock (the reference generator's
   smooth signals).
 """
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SHOCK_RISE_S = 0.015
+SHOCK_RISE_S = 0.03
 SHOCK_HZ = 25.0
 SHOCK_DIRECTION_THIGH = np.array([0.4, 0.0, 1.0]) / math.hypot(0.4, 1.0)
 """Burst direction in the thigh frame of the generator (x forward, z along the thigh, up)."""

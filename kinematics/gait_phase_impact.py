@@ -237,9 +237,11 @@ def impact_strikes_in_buffer(
     floor = max(float(np.median(env)), 1e-12)
     out = strikes.copy()
     found = np.zeros(strikes.size, dtype=bool)
-    window_cfg = ImpactConfig(**{**cfg.__dict__, "window_s": config.window_s})
+    # the phase's first strikes are the least certain: a window reaching 0.3 s either side
+    window = (-0.3, config.window_s[1])
+    window_cfg = ImpactConfig(**{**cfg.__dict__, "window_s": window})
     for i, ts in enumerate(strikes):
-        m = (t >= ts + config.window_s[0]) & (t <= ts + config.window_s[1])
+        m = (t >= ts + window[0]) & (t <= ts + window[1])
         if not m.any():
             continue
         peak = float(env[m].max())
