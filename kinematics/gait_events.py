@@ -22,6 +22,10 @@ Thigh IMU in an unknown mounting orientation (:func:`detect_from_thigh_imu`):
 5. foot strikes closer than the plausible minimum stride time are merged, with a warning,
    and counted.
 
+When the accelerometer shows heel-strike shocks (:mod:`kinematics.gait_impact`), the axis
+sign is the one whose strikes carry the shocks (a toe-off has none), and each strike is moved
+to its shock's onset minus the impact lag (the template's shape bias is then gone).
+
 Gait phase (:func:`gait_phase`): linear in time between consecutive foot strikes of a walking
 bout (0 at a strike, 1 at the next); NaN outside walking.
 """
@@ -75,6 +79,9 @@ class GaitEventConfig:
     """Allowed ratio of the measured to the template angular-velocity spread in a window."""
     min_window_fraction: float = 0.6
     """At the ends of a recording, use an alignment window cut to at least this fraction."""
+    use_impacts: bool = True
+    """Place the strikes on the accelerometer's heel-strike shocks and check the axis sign with
+    them when the shocks are there (:mod:`kinematics.gait_impact`); False: the template only."""
     # load cell
     min_contact_s: float = 0.15
     min_swing_s: float = 0.15
@@ -598,9 +605,25 @@ def _detect_with_axis(t: np.ndarray, omega: np.ndarray, cfg: GaitEventConfig) ->
     return result
 
 
-def sagittal_axis(gyro_rad_s: np.ndarray) -> tuple[np.ndarray, float]:
-    """Principal axis of the angular velocity (unsigned) and its share of the variance."""
+def _long_axis(imu: ImuSeries) -> np.ndarray:
+    """The thigh's long axis in the sensor frame: the mean specific force (gravity, on average
+    along the thigh, which swings about the vertical)."""
+    a = np.asarray(imu.accel_m_s2, dtype=float).mean(axis=0)
+    return a / max(float(np.linalg.norm(a)), 1e-9)
+
+
+def sagittal_axis(
+    gyro_rad_s: np.ndarray, long_axis: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
+    """Principal axis of the angular velocity (unsigned) and its share of the variance.
+
+    ``long_axis`` (unit, sensor frame): the rotation about the thigh's long axis (turning,
+    internal/external rotation) is removed first, so that turns while walking do not tilt the
+    flexion axis; the share is then that of the remaining variance."""
     g = np.asarray(gyro_rad_s, dtype=float)
+    if long_axis is not None:
+        u = np.asarray(long_axis, dtype=float)
+        g = g - np.outer(g @ u, u)
     cov = np.cov((g - np.median(g, axis=0)).T)
     eigval, eigvec = np.linalg.eigh(cov)
     share = float(eigval[-1] / max(eigval.sum(), 1e-30))
@@ -617,7 +640,7 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
     t, gyro, rate = _prepare_signal(imu, cfg)
     if t.size < 3:
         raise GaitDetectionError(f"{imu.source}: recording too short ({t.size} samples)")
-    axis, share = sagittal_axis(gyro)
+    axis, share = sagittal_axis(gyro, _long_axis(imu))
     if share < 0.5:
         logger.warning(
             "%s: the principal rotation axis carries only %.0f%% of the angular-velocity "
@@ -633,7 +656,14 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
         res["sign"] = sign
         results.append(res)
     best = max(results, key=lambda r: (r["score"], len(r["strikes"])))
-    strikes, merged = merge_close_strikes(np.asarray(best["strikes"]), cfg.min_stride_s, imu.source)
+    if cfg.use_impacts:
+        best, refined, sign_flag = _impact_sign_and_strikes(imu, t, omega, results, best)
+    else:
+        from kinematics.gait_impact import ImpactRefinement
+
+        refined = ImpactRefinement(np.asarray(best["strikes"]), 0, 0.0, 0.0)
+        best, sign_flag = {**best, "burst_ratio": math.nan}, False
+    strikes, merged = merge_close_strikes(refined.strikes_s, cfg.min_stride_s, imu.source)
     toe_offs = np.asarray(best["toe_offs"])
     if toe_offs.size:
         toe_offs, _ = merge_close_strikes(toe_offs, cfg.min_stride_s * 0.5)
@@ -655,8 +685,56 @@ def detect_from_thigh_imu(imu: ImuSeries, config: GaitEventConfig | None = None)
             "template_score": best["score"],
             "input_rate_hz": rate,
             "swing_peaks": float(best["n_peaks"]),
+            "impact_strikes": float(refined.from_impact),
+            "impact_strength": refined.strength,
+            "template_bias_s": refined.template_bias_s,
+            "burst_ratio": best["burst_ratio"],
+            "sign_disagreement": float(sign_flag),
         },
     )
+
+
+def _impact_sign_and_strikes(imu: ImuSeries, t: np.ndarray, omega: np.ndarray, results, best):
+    """The axis sign from the impact transients, and the strikes placed on them
+    (:mod:`kinematics.gait_impact`).
+
+    When the accelerometer shows impacts, the sign whose strikes carry the bursts (burst ratio
+    above ``min_burst_ratio`` while the other sign's is below one) wins; when it differs from
+    the template's choice, a warning says so and ``sign_disagreement`` is set. Without impacts,
+    or when the ratios do not decide, the template's choice stands."""
+    from kinematics.gait_impact import (
+        ImpactConfig,
+        burst_ratio,
+        envelope,
+        refine_strikes,
+        typical_peak,
+    )
+
+    cfg = ImpactConfig()
+    t_in = np.asarray(imu.t_s, dtype=float)
+    env = envelope(t_in, imu.accel_m_s2, cfg)
+    ratios = [
+        burst_ratio(t_in, env, np.asarray(r["strikes"]), np.asarray(r["toe_offs"]), cfg)
+        for r in results
+    ]
+    k_best = next(k for k, r in enumerate(results) if r is best)
+    k_chosen, disagree = k_best, False
+    strong = max(typical_peak(t_in, env, np.asarray(r["strikes"]), cfg)[1] for r in results)
+    for k in range(len(results) if strong >= cfg.min_strength else 0):
+        other = ratios[1 - k]
+        if ratios[k] >= cfg.min_burst_ratio and (not math.isfinite(other) or other < 1.0):
+            k_chosen, disagree = k, k != k_best
+    if disagree:
+        logger.warning(
+            "%s: the flexion sign from the impact transients (strikes where the bursts are: "
+            "ratio %.1f against %.1f) disagrees with the template fit; taking the impacts'",
+            imu.source,
+            max(ratios),
+            min(ratios),
+        )
+    chosen = {**results[k_chosen], "burst_ratio": ratios[k_chosen]}
+    refined = refine_strikes(t_in, env, np.asarray(chosen["strikes"]), cfg)
+    return chosen, refined, disagree
 
 
 def detect_from_load_cell(

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from kinematics.gait_phase_impact import StrikeTimingConfig
+from kinematics.gait_prosthesis import ProsthesisConfig
 from kinematics.thigh_attitude import ThighAttitudeConfig
 
 COUNT_NAMES = (
@@ -16,6 +18,9 @@ COUNT_NAMES = (
     "phase_jumps",
     "axis_flipped",
     "stops",
+    "impact_strikes",
+    "sign_disagreement",
+    "load_cell_strikes",
 )
 
 
@@ -68,6 +73,14 @@ class GaitPhaseConfig:
     """After the axis is fixed, the other sign keeps running this long; the estimator switches to
     it if its mean NIS since then is lower by ``sign_switch_margin`` (counted)."""
     sign_switch_margin: float = 0.5
+    sign_recheck_strides: int = 2
+    """After the axis is fixed, the sign is re-examined once this many strike and toe-off
+    windows are seen, and at every sample after: when the impact bursts sit at the toe-offs
+    rather than at the strikes (or, with a prosthesis's load cell or knee encoder, the thigh
+    flexes in stance and extends in swing), the axis is flipped (counted as ``axis_flipped``
+    and ``sign_disagreement``; 0 turns the impact check off)."""
+    strike_timing: StrikeTimingConfig = field(default_factory=StrikeTimingConfig)
+    prosthesis: ProsthesisConfig = field(default_factory=ProsthesisConfig)
     attitude: ThighAttitudeConfig = field(default_factory=ThighAttitudeConfig)
 
 

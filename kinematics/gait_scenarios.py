@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from kinematics.gait_curves import stance_fraction, stride_time_s, thigh_angle
+from kinematics.gait_curves import stride_time_s
+from kinematics.gait_patterns import ABLE_BODIED, GaitPattern, shock
 from kinematics.gait_synth import (
     ImuNoise,
     _imu_from_pose_functions,
@@ -40,6 +41,11 @@ class Scenario:
     foot_strikes_s: np.ndarray
     toe_offs_s: np.ndarray
     walking_intervals_s: list[tuple[float, float]]
+    load_n: np.ndarray | None = None
+    """The prosthesis's axial load at the IMU's sample times (N; 750 N in contact, ramps of
+    40 ms, noise σ 8 N; loaded while standing)."""
+    knee_rad: np.ndarray | None = None
+    """The knee flexion of the pattern at the IMU's sample times (0 while standing)."""
 
 
 @dataclass(frozen=True)
@@ -84,10 +90,13 @@ def simulate_walks(
     noise: ImuNoise | None = None,
     seed: int = 0,
     stride_time_jitter: float = 0.02,
+    pattern: GaitPattern = ABLE_BODIED,
 ) -> Scenario:
     """Stand ``stand_s``, walk bout 1 (one speed per stride), stand, walk bout 2, ..., stand.
 
-    ``speeds_per_bout=[]`` gives standing only (``stand_s`` long)."""
+    ``speeds_per_bout=[]`` gives standing only (``stand_s`` long). ``pattern``: the gait's
+    departure from the reference (:mod:`kinematics.gait_patterns`: prosthetic or sound side,
+    treadmill, heel-strike shock)."""
     rng = np.random.default_rng(seed)
     bouts, total = _bouts(speeds_per_bout, stand_s, rng, stride_time_jitter)
     sway_f = rng.uniform(0.15, 0.5, 3)
@@ -114,11 +123,17 @@ def simulate_walks(
             w = np.minimum(
                 _smoothstep((ph - 0.3) / 0.25), 1 - _smoothstep((ph - (end - 0.2)) / 0.2)
             )
-            v = np.round(b.speed_at(ph), 2)
+            # the curve between the speeds of a 0.01 m/s grid, interpolated (a rounded speed
+            # would step the angle, and a step is a spurious shock in the accelerometer)
+            v = b.speed_at(ph) * 100.0
+            lo = np.floor(v)
+            frac = v - lo
             curve = np.empty_like(ph)
-            for s in np.unique(v):
-                m = v == s
-                curve[m] = thigh_angle(ph[m] % 1.0, float(s))
+            for s in np.unique(lo):
+                m = lo == s
+                a = pattern.thigh(ph[m] % 1.0, float(s) / 100.0)
+                c = pattern.thigh(ph[m] % 1.0, min(float(s) + 1.0, 180.0) / 100.0)
+                curve[m] = a + frac[m] * (c - a)
             sag[inside] = stand[inside] + w * (curve - stand[inside])
             add[inside] = w * math.radians(3.0) * np.sin(2 * np.pi * ph + 0.5)
             rot[inside] = w * math.radians(5.0) * np.sin(2 * np.pi * ph - 0.8)
@@ -133,7 +148,7 @@ def simulate_walks(
     fine_t = np.arange(0.0, total, dt / 4)
     _, _, _, vel, ph_fine = fields(fine_t)
     pos = np.zeros((fine_t.size, 3))
-    pos[:, 0] = np.cumsum(vel) * (dt / 4)
+    pos[:, 0] = 0.0 if pattern.treadmill else np.cumsum(vel) * (dt / 4)
     pos[:, 2] = 0.9 + 0.02 * (vel / 1.8) * np.cos(4 * np.pi * ph_fine)  # smooth bob
     splines = [CubicSpline(fine_t, pos[:, i]) for i in range(3)]
 
@@ -156,14 +171,45 @@ def simulate_walks(
     for b in bouts:
         strikes += list(b.knots_t[1:-1])
         for k in range(b.speeds.size):
-            sf = stance_fraction(float(b.speed_at(np.array([k + 0.6]))[0]))
+            sf = pattern.stance(float(b.speed_at(np.array([k + 0.6]))[0]))
             toe_offs.append(_invert(b.phase_fn, k + sf, b.knots_t))
+    if pattern.impact_m_s2 > 0:
+        mount = np.eye(3) if thigh_R_sensor is None else np.asarray(thigh_R_sensor)
+        accel = imu.accel_m_s2 + shock(imu.t_s, np.asarray(strikes), pattern.impact_m_s2) @ mount
+        imu = ImuSeries(imu.t_s, imu.gyro_rad_s, accel, imu.source)
+    load, knee = _prosthesis_signals(imu.t_s, bouts, strikes, toe_offs, pattern, rng)
     return Scenario(
         imu=imu,
         foot_strikes_s=np.asarray(strikes),
         toe_offs_s=np.asarray(toe_offs),
         walking_intervals_s=[(float(b.knots_t[0]), float(b.knots_t[-1])) for b in bouts],
+        load_n=load,
+        knee_rad=knee,
     )
+
+
+def _prosthesis_signals(t, bouts, strikes, toe_offs, pattern, rng):
+    """Load cell and knee encoder of a walk (see :class:`Scenario`)."""
+    from kinematics.gait_patterns import knee_angle
+
+    events = sorted([(s, True) for s in strikes] + [(s, False) for s in toe_offs])
+    contact = np.ones(t.size)
+    for te, on in events:
+        contact[t >= te] = 1.0 if on else 0.0
+    ramp = max(1, round(0.04 / float(np.median(np.diff(t)))))
+    smooth = np.convolve(contact, np.ones(ramp) / ramp)[: t.size]  # causal 40 ms ramps
+    load = 750.0 * smooth + rng.normal(0.0, 8.0, t.size)
+    knee = np.zeros(t.size)
+    for b in bouts:
+        inside = (t > b.knots_t[0]) & (t < b.knots_t[-1])
+        if inside.any():
+            ph = b.phase_fn(t[inside])
+            w = np.minimum(
+                _smoothstep((ph - 0.3) / 0.25),
+                1 - _smoothstep((ph - (b.knots_phase[-1] - 0.2)) / 0.2),
+            )
+            knee[inside] = w * knee_angle(pattern, ph % 1.0, float(np.mean(b.speeds)))
+    return load, knee
 
 
 def speed_change(slow_m_s: float = 0.8, fast_m_s: float = 1.6, strides: int = 10) -> list[float]:

@@ -171,6 +171,10 @@ class SagittalAxisLearner:
         quiet = np.linalg.norm(g, axis=1) <= self.cfg.quiet_gyro_rad_s
         bias = g[quiet].mean(axis=0) if quiet.sum() >= 20 else np.zeros(3)
         gc = g - bias
+        # rotation about the thigh's long axis (the mean specific force: turns, internal and
+        # external rotation) is not flexion: removed before the principal axis
+        long_axis = a.mean(axis=0) / max(float(np.linalg.norm(a.mean(axis=0))), 1e-9)
+        gc = gc - np.outer(gc @ long_axis, long_axis)
         cov = gc.T @ gc / len(gc)
         eigval, eigvec = np.linalg.eigh(cov)
         axis = eigvec[:, -1]
@@ -240,6 +244,12 @@ class ThighAngleFilter:
         if initial_angle_rad is not None:
             kf.x[0] = initial_angle_rad
             kf.P[0, 0] = 0.05**2
+
+    def flip(self) -> None:
+        """Reverse the flexion sense: the axis, the angle, the rate and the bias change sign."""
+        self.axis = flipped(self.axis)
+        self._e2 = -self._e2
+        self.kf.x = -self.kf.x
 
     def gravity_angle(self, accel: np.ndarray) -> float:
         """Sagittal angle measured by gravity: the thigh flexing by θ about the axis turns the

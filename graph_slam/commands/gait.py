@@ -62,9 +62,21 @@ def register(app: typer.Typer) -> None:
             f"{imu_csv}: {events.foot_strikes_s.size} foot strikes, {events.toe_offs_s.size} "
             f"toe-offs; {events.merged_strikes} foot strikes merged (closer than the minimum "
             f"stride time), {events.rejected} candidates rejected; sagittal axis (sensor "
-            f"frame, flexion +) {axis_text}" + (f"; wrote {out}" if out is not None else ""),
+            f"frame, flexion +) {axis_text}; {_impact_text(events.details)}"
+            + (f"; wrote {out}" if out is not None else ""),
             err=True,
         )
+
+
+def _impact_text(details: dict) -> str:
+    """How the strikes were placed and how the sign was decided (offline detector)."""
+    n = int(details.get("impact_strikes", 0))
+    if n == 0:
+        return "no heel-strike shocks: strikes from the template fit"
+    text = f"{n} strikes on heel-strike shocks (burst ratio {details['burst_ratio']:.1f})"
+    if details.get("sign_disagreement"):
+        text += "; FLAG: the template fit chose the other flexion sign"
+    return text
 
 
 def _online(imu_csv: Path, imu, out: Path | None) -> None:
@@ -78,11 +90,18 @@ def _online(imu_csv: Path, imu, out: Path | None) -> None:
         for e in result.events:
             typer.echo(f"{e.t_s:.6f},{e.kind},{e.detected_t_s:.6f}")
     n_fs = sum(e.kind == "foot_strike" for e in result.events)
+    if result.counts.get("sign_disagreement"):
+        typer.echo(
+            f"{imu_csv}: FLAG: the flexion sign was re-examined and flipped "
+            f"{result.counts['axis_flipped']} time(s) (see docs/kinematics.md)",
+            err=True,
+        )
     counts = ", ".join(f"{k} {v}" for k, v in result.counts.items())
     delays = [e.detected_t_s - e.t_s for e in result.events]
     delay = f"{1e3 * max(delays):.0f} ms" if delays else "–"
     typer.echo(
         f"{imu_csv}: online: {n_fs} foot strikes, {len(result.events) - n_fs} toe-offs; "
-        f"longest detection delay {delay}; {counts}" + (f"; wrote {out}" if out else ""),
+        f"longest detection delay {delay}; strike bias {1e3 * result.strike_bias_s:+.0f} ms "
+        f"learned from {result.strike_bias_source}; {counts}" + (f"; wrote {out}" if out else ""),
         err=True,
     )

@@ -268,10 +268,11 @@ def camera_imu_strikes(imu: ImuSeries, imu_time_offset_s: float = 0.0) -> np.nda
     """Foot strikes the offline thigh-IMU detector finds in the camera's IMU, on the camera
     clock (IMU stamps + ``imu_time_offset_s``). The IMU may be mounted in any orientation."""
     from kinematics import KinematicsError
-    from kinematics.gait_events import detect_from_thigh_imu
+    from kinematics.gait_events import GaitEventConfig, detect_from_thigh_imu
 
     try:
-        events = detect_from_thigh_imu(imu)
+        # the template's strikes: prosthesis_log.clock.imu_strike_bias_s is measured for them
+        events = detect_from_thigh_imu(imu, GaitEventConfig(use_impacts=False))
     except KinematicsError as err:
         raise ClockOffsetError(
             f"{imu.source}: foot strikes cannot be detected in the camera IMU ({err}); set "

@@ -1,0 +1,273 @@
+"""Gait events and phase on real thigh IMUs and on synthetic prosthetic gait: both detectors.
+
+For every real walk in ``../shared/data/real_thigh_imu/`` (the Xsens thigh walk with 20 foot
+strikes from its shank sensor; the two OpenSense femur IMUs, which have no contact reference)
+and for a synthetic prosthetic-gait set (the prosthesis side and the sound side of
+:mod:`kinematics.gait_patterns`, overground and on a treadmill, one walk per right-handed axis
+arrangement of the sensor), prints per data set and detector (offline
+:func:`kinematics.gait_events.detect_from_thigh_imu`, online
+:func:`kinematics.gait_online.estimate_online`):
+
+* strikes: reference, found, missed, extra (matched within 0.25 s); median and worst |error|;
+* events (strikes and toe-offs) while standing (before the walk starts: the gyro norm, low-passed
+  at 2 Hz, first above 0.5 rad/s);
+* online: detection latency p95 (detection − reference strike), over all strikes and without
+  the first of each walk (emitted once the sensor's axis is learned from a whole cycle);
+* phase RMSE against the phase linear between reference strikes (offline: linear between the
+  detected strikes);
+* the femur walks, which have no contact reference: the left and right strikes found, and
+  how many right strides hold exactly one left strike at 35-65 % of the stride;
+* the mounting test (real walks): the walk seen by a sensor in each of the 24 right-handed axis
+  arrangements; an arrangement is *swapped* when the median distance from its strikes to the
+  reference strikes (the Xsens walk) or to the identity arrangement's strikes (the femur walks)
+  exceeds a quarter stride, *changed* when any strike moved by more than 20 ms.
+
+    python examples/real_gait_accuracy.py [--data ../shared/data/real_thigh_imu] [--quick]
+
+``--quick``: 6 arrangements instead of 24 and a smaller synthetic set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import itertools
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from kinematics.gait_events import detect_from_thigh_imu, gait_phase, match_events
+from kinematics.gait_online import estimate_online
+from kinematics.gait_patterns import PROSTHETIC_SIDE, SOUND_SIDE
+from kinematics.gait_phase_metrics import reference_phase, score_online
+from kinematics.gait_real import (
+    read_reference_strikes,
+    read_xsens_txt,
+    rearranged,
+    right_handed_arrangements,
+)
+from kinematics.gait_scenarios import simulate_walks
+from kinematics.gait_synth import random_mounting
+from kinematics.imu import ImuSeries
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = REPO.parent / "shared" / "data" / "real_thigh_imu"
+
+
+@dataclasses.dataclass
+class Walk:
+    name: str
+    imu: ImuSeries
+    strikes_s: np.ndarray | None
+    """Reference strikes (None: no contact reference)."""
+
+
+def walk_start_s(imu: ImuSeries) -> float:
+    from scipy.signal import butter, sosfiltfilt
+
+    rate = 1.0 / float(np.median(np.diff(imu.t_s)))
+    g = sosfiltfilt(butter(2, 2.0, fs=rate, output="sos"), imu.gyro_rad_s, axis=0)
+    moving = np.flatnonzero(np.linalg.norm(g, axis=1) > 0.5)
+    return float(imu.t_s[moving[0]]) if moving.size else math.inf
+
+
+def real_walks(data: Path) -> list[Walk]:
+    walks = []
+    xsens = data / "walking_xsens_upperLeg.txt"
+    if xsens.exists():
+        ref = read_reference_strikes(data / "reference_events.csv")
+        walks.append(Walk("Xsens thigh walk (120 Hz)", read_xsens_txt(xsens), ref))
+    for name, side in (("00B4227C.txt", "right"), ("00B421EE.txt", "left")):
+        if (data / name).exists():
+            imu = read_xsens_txt(data / name)
+            walks.append(Walk(f"OpenSense {side} femur (100 Hz, turns)", imu, None))
+    return walks
+
+
+def synthetic_walks(quick: bool) -> list[Walk]:
+    arrangements = right_handed_arrangements()
+    sets = [
+        ("prosthesis side, overground 0.9 m/s", PROSTHETIC_SIDE, 0.9),
+        ("prosthesis side, treadmill 1.1 m/s", dataclasses.replace(PROSTHETIC_SIDE, treadmill=True), 1.1),
+        ("sound side, treadmill 0.7 m/s", dataclasses.replace(SOUND_SIDE, treadmill=True), 0.7),
+    ]  # fmt: skip
+    walks = []
+    n = 2 if quick else 8
+    for name, pattern, speed in sets:
+        for k in range(n):
+            idx = (len(walks) * 5 + k) % 24
+            mount = arrangements[idx] @ random_mounting(100 + k) if k % 2 else arrangements[idx]
+            sc = simulate_walks(
+                [[speed] * 12],
+                rate_hz=200.0 if k % 2 == 0 else 100.0,
+                thigh_R_sensor=mount,
+                seed=100 + len(walks),
+                pattern=pattern,
+            )
+            walks.append(Walk(name, sc.imu, sc.foot_strikes_s))
+    return walks
+
+
+@dataclasses.dataclass
+class Tally:
+    true: int = 0
+    found: int = 0
+    missed: int = 0
+    extra: int = 0
+    standing: int = 0
+    errors: list = dataclasses.field(default_factory=list)
+    latency: list = dataclasses.field(default_factory=list)
+    latency_rest: list = dataclasses.field(default_factory=list)
+    rmse: list = dataclasses.field(default_factory=list)
+
+    def cells(self, online: bool) -> list[str]:
+        e = np.abs(np.asarray(self.errors)) * 1e3
+        lat = np.asarray(self.latency) * 1e3
+        rest = np.asarray(self.latency_rest) * 1e3
+        return [
+            f"{self.true}",
+            f"{self.found}",
+            f"{self.missed}",
+            f"{self.extra}",
+            f"{np.median(e):.0f}" if e.size else "–",
+            f"{e.max():.0f}" if e.size else "–",
+            f"{self.standing}",
+            f"{np.percentile(lat, 95):.0f} / {np.percentile(rest, 95):.0f}"
+            if online and rest.size
+            else "–",
+            f"{100 * np.nanmax(self.rmse):.1f}" if self.rmse else "–",
+        ]
+
+
+def run_offline(walk: Walk, tally: Tally) -> np.ndarray:
+    ev = detect_from_thigh_imu(walk.imu)
+    start = walk_start_s(walk.imu)
+    tally.standing += int(np.sum(np.concatenate([ev.foot_strikes_s, ev.toe_offs_s]) < start))
+    tally.found += ev.foot_strikes_s.size
+    if walk.strikes_s is not None:
+        err, missed, extra = match_events(ev.foot_strikes_s, walk.strikes_s)
+        tally.true += walk.strikes_s.size
+        tally.missed += missed
+        tally.extra += extra
+        tally.errors += list(err)
+        t = walk.imu.t_s
+        ref = reference_phase(t, walk.strikes_s)
+        est = gait_phase(t, ev.foot_strikes_s)
+        both = np.isfinite(ref) & np.isfinite(est)
+        if both.any():
+            d = np.mod(est[both] - ref[both] + 0.5, 1.0) - 0.5
+            tally.rmse.append(float(np.sqrt(np.mean(d**2))))
+    return ev.foot_strikes_s
+
+
+def run_online(walk: Walk, tally: Tally) -> np.ndarray:
+    res = estimate_online(walk.imu)
+    strikes = res.times("foot_strike")
+    start = walk_start_s(walk.imu)
+    tally.standing += sum(1 for e in res.events if e.t_s < start or e.detected_t_s < start)
+    tally.found += strikes.size
+    if walk.strikes_s is not None:
+        sc = score_online(res, walk.strikes_s, np.zeros(0))
+        tally.true += sc.foot_strike.true
+        tally.missed += sc.foot_strike.missed
+        tally.extra += sc.foot_strike.extra
+        tally.errors += list(sc.foot_strike.errors_s)
+        tally.latency += list(sc.foot_strike.latencies_s)
+        tally.latency_rest += list(sc.foot_strike.latencies_s[1:])
+        tally.rmse.append(sc.phase_rmse_cyc)
+    return strikes
+
+
+def mounting_test(walk: Walk, online: bool, quick: bool) -> tuple[int, int, int]:
+    """(arrangements, swapped, changed) over the right-handed axis arrangements."""
+    run = run_online if online else run_offline
+    base = run(walk, Tally())
+    reference = walk.strikes_s if walk.strikes_s is not None else base
+    stride = float(np.median(np.diff(reference))) if reference.size > 1 else 1.2
+    arrangements = right_handed_arrangements()[:: 4 if quick else 1]
+    swapped = changed = 0
+    for r in arrangements:
+        strikes = run(Walk(walk.name, rearranged(walk.imu, r), walk.strikes_s), Tally())
+        if strikes.size == 0 or reference.size == 0:
+            swapped += int(strikes.size != reference.size)
+            continue
+        dist = np.array([np.min(np.abs(reference - s)) for s in strikes])
+        swapped += int(np.median(dist) > 0.25 * stride)
+        moved = strikes.size != base.size or (
+            base.size and np.max(np.abs(np.sort(strikes) - np.sort(base))) > 0.02
+        )
+        changed += int(bool(moved))
+    return len(arrangements), swapped, changed
+
+
+def alternation(femurs: list[Walk], online: bool) -> str:
+    """The femur walks have no contact reference: each left strike should fall within the
+    right's stride at 35-65 % of it (the legs alternate), and each right stride hold one."""
+    run = run_online if online else run_offline
+    right, left = (np.sort(run(w, Tally())) for w in femurs)
+    ok = strides = 0
+    for a, b in itertools.pairwise(right):
+        if b - a > 2.5:
+            continue
+        strides += 1
+        inside = left[(left > a) & (left < b)]
+        ok += int(inside.size == 1 and 0.35 <= (inside[0] - a) / (b - a) <= 0.65)
+    det = "online" if online else "offline"
+    return (
+        f"* OpenSense femurs, {det}: {right.size} right and {left.size} left strikes; "
+        f"{ok} of {strides} right strides hold exactly one left strike at 35-65 % of the stride"
+    )
+
+
+HEADER = (
+    "| data | detector | ref. strikes | found | missed | extra | median abs ms | worst abs ms | "
+    "events standing | latency p95 ms (all / after the first) | phase RMSE % (worst walk) | mountings swapped / changed |"
+)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    logging.basicConfig(level=logging.ERROR)
+    print(HEADER)
+    print("|" + "---|" * 12)
+    walks = real_walks(args.data)
+    if not walks:
+        print(f"(no real walks in {args.data})")
+    for walk in walks:
+        for online in (False, True):
+            tally = Tally()
+            (run_online if online else run_offline)(walk, tally)
+            n, swapped, changed = mounting_test(walk, online, args.quick)
+            cells = tally.cells(online)
+            if walk.strikes_s is None:
+                cells = ["–", cells[1], "–", "–", "–", "–", cells[6], "–", "–"]
+            name = "online" if online else "offline"
+            print(
+                f"| {walk.name} | {name} | "
+                + " | ".join(cells)
+                + f" | {swapped} / {changed} of {n} |"
+            )
+    femurs = [w for w in walks if "femur" in w.name]
+    if len(femurs) == 2:
+        for online in (False, True):
+            print(alternation(femurs, online))
+    groups: dict[str, list[Walk]] = {}
+    for walk in synthetic_walks(args.quick):
+        groups.setdefault(walk.name, []).append(walk)
+    for name, members in groups.items():
+        for online in (False, True):
+            tally = Tally()
+            for walk in members:
+                (run_online if online else run_offline)(walk, tally)
+            label = f"synthetic {name} ({len(members)} mountings)"
+            det = "online" if online else "offline"
+            print(f"| {label} | {det} | " + " | ".join(tally.cells(online)) + " | – |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,254 @@
+"""Online strike timing for the gait-phase estimator: the impact transient and the phase bias.
+
+The phase EKF (:mod:`kinematics.gait_phase`) follows the shape of a reference thigh curve; where
+a wearer's thigh reaches its flexion peak relative to contact differs from that curve (tens of
+milliseconds on real walks), so its strike phase carries a bias. :class:`StrikeTiming` measures
+that bias online and removes it:
+
+* every sample feeds the causal impact envelope (:class:`kinematics.gait_impact.ImpactEnvelope`);
+* around each strike the EKF predicts, a window opens (``window_s`` of :class:`ImpactConfig`
+  around the calibrated prediction); the largest envelope value inside it is the stride's burst
+  peak. Once a strike window has held a burst ``min_strength`` times above the median
+  envelope, **impact mode** is on: the strike is emitted at the envelope's rise through
+  ``threshold_fraction`` of that median peak, at ``onset − lag_s`` (detection 25-40 ms after
+  contact);
+* each strike placed on an impact (or given by a load cell, :meth:`StrikeTiming.reference`)
+  adds a sample of the EKF's strike bias (reference time − the EKF's own strike time); the bias
+  is the median of the last ``bias_strides`` samples and shifts the phase the estimator reports,
+  its toe-offs, and its strikes when no impact is seen. The bias is kept when the impacts or
+  the load cell disappear;
+* the bursts around the estimator's toe-offs are followed too: at strikes the leg takes a
+  shock, at toe-offs it does not, so when the bursts at its toe-offs stand well above those at
+  its strikes (:func:`kinematics.gait_impact.burst_ratio`), its axis is the wrong way round and
+  it flips it (:meth:`StrikeTiming.sign_is_wrong`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinematics.gait_impact import ImpactConfig, ImpactEnvelope, envelope, onset_near
+
+
+@dataclass(frozen=True)
+class StrikeTimingConfig:
+    impact: ImpactConfig = field(default_factory=ImpactConfig)
+    window_s: tuple[float, float] = (-0.10, 0.30)
+    """The strike's search window around the calibrated prediction (a shock 0.3 s after the
+    prediction still belongs to it: the next event, a toe-off, is 0.5 s or more away)."""
+    flip_burst_ratio: float = 5.0
+    """The axis is flipped when the bursts at the toe-offs stand this many times above those at
+    the strikes (real walks: strikes 15× the toe-offs; a smooth signal's sharp thigh reversal
+    near toe-off reaches 2-3× a strike window's noise)."""
+    bias_strides: int = 8
+    """The phase bias is the median over this many recent strides."""
+    history_s: float = 0.4
+    """Envelope history kept for the toe-offs' bursts."""
+
+
+@dataclass
+class StrikeWindow:
+    """The open search window of one strike (times in s)."""
+
+    target: int
+    close_at_s: float
+    raw_s: float
+    """The EKF's own strike time (uncalibrated)."""
+    calibrated_s: float
+    peak: float
+    emitted: bool = False
+
+
+class StrikeTiming:
+    """See the module docstring. The estimator opens a window per strike (:meth:`arm`), polls
+    it every sample (:meth:`poll`) and closes it (:meth:`close`)."""
+
+    def __init__(self, config: StrikeTimingConfig | None = None) -> None:
+        self.cfg = config or StrikeTimingConfig()
+        self.envelope = ImpactEnvelope(self.cfg.impact)
+        self.env = 0.0
+        self._prev_env = 0.0
+        self._t_now: float | None = None
+        self._t_before: float | None = None
+        self._envs: deque[float] = deque(maxlen=400)
+        self._n = 0
+        self.peaks: deque[float] = deque(maxlen=8)
+        """Burst peak of each strike window (strong or not)."""
+        self.bias_samples: deque[float] = deque(maxlen=self.cfg.bias_strides)
+        self.bias_s = 0.0
+        self.bias_source = "none"
+        self._hist: deque[tuple[float, float]] = deque()
+        self._toe_offs: list[float] = []
+        self.toe_off_peaks: deque[float] = deque(maxlen=5)
+        self.window: StrikeWindow | None = None
+        self._armed_above = False
+        self._post: tuple[float, float] | None = None
+        """(until, peak): the burst after an onset, followed to its peak."""
+
+    # --- per sample ----------------------------------------------------------------------
+    def sample(self, t_s: float, accel_m_s2: np.ndarray) -> None:
+        self._prev_env, self._t_before, self._t_now = self.env, self._t_now, t_s
+        self.env = self.envelope.update(t_s, accel_m_s2)
+        self._n += 1
+        if self._n % 5 == 0:
+            self._envs.append(self.env)
+        self._hist.append((t_s, self.env))
+        while self._hist and self._hist[0][0] < t_s - self.cfg.history_s:
+            self._hist.popleft()
+        w0, w1 = self.cfg.window_s
+        while self._toe_offs and t_s >= self._toe_offs[0] + w1:
+            t_to = self._toe_offs.pop(0)
+            inside = [e for t, e in self._hist if t_to + w0 <= t <= t_to + w1]
+            if inside:
+                self.toe_off_peaks.append(max(inside))
+        if self.window is not None:
+            self.window.peak = max(self.window.peak, self.env)
+        if self._post is not None:
+            until, peak = self._post
+            self._post = (until, max(peak, self.env))
+            if t_s >= until:
+                self.peaks.append(self._post[1])
+                self._post = None
+
+    def toe_off(self, t_s: float) -> None:
+        """An emitted toe-off: its burst is measured once its window has passed."""
+        self._toe_offs.append(t_s)
+
+    def sign_is_wrong(self, min_strides: int) -> bool:
+        """Each of the last ``min_strides`` toe-offs' bursts stands ``flip_burst_ratio`` above the
+        strikes' (median of the last five) and is strong (an impact)."""
+        if (
+            min_strides <= 0
+            or len(self.toe_off_peaks) < min_strides
+            or len(self.peaks) < min_strides
+        ):
+            return False
+        strikes = float(np.median(list(self.peaks)[-5:]))
+        toe_offs = float(min(list(self.toe_off_peaks)[-min_strides:]))  # each of them
+        strong = toe_offs >= self.cfg.impact.min_strength * self.floor
+        return strong and toe_offs >= self.cfg.flip_burst_ratio * max(strikes, 1e-12)
+
+    def forget_bursts(self) -> None:
+        """After a flip: the bursts seen so far belong to the other events."""
+        self.peaks.clear()
+        self.toe_off_peaks.clear()
+        self._toe_offs.clear()
+        self.bias_samples.clear()
+        self.bias_s = 0.0
+
+    # --- state ---------------------------------------------------------------------------
+    @property
+    def floor(self) -> float:
+        """The median envelope (recent samples): the level the bursts are measured against."""
+        return max(float(np.median(self._envs)), 1e-12) if self._envs else math.inf
+
+    @property
+    def typical_peak(self) -> float:
+        """Median of the strike windows' strong burst peaks (nan before the first)."""
+        strong = [p for p in self.peaks if p >= self.cfg.impact.min_strength * self.floor]
+        return float(np.median(strong)) if strong else math.nan
+
+    @property
+    def impact_mode(self) -> bool:
+        """Strikes are timed by impacts once a strike window has held a strong burst."""
+        return len(self._envs) >= 20 and math.isfinite(self.typical_peak)
+
+    def level(self) -> float:
+        """The onset threshold: ``threshold_fraction`` of the typical peak."""
+        return self.cfg.impact.threshold_fraction * self.typical_peak
+
+    # --- strike windows ------------------------------------------------------------------
+    def arm(self, target: int, close_at_s: float, raw_s: float, calibrated_s: float):
+        """Open the window of strike ``target``."""
+        self.window = StrikeWindow(target, close_at_s, raw_s, calibrated_s, self.env)
+        self._armed_above = self.impact_mode and self.env >= self.level()
+        return self.window
+
+    def _past_rise(self) -> float | None:
+        """The envelope was already above the threshold when the window opened: its last rise
+        through it in the recent history (the samples are past, so this stays causal)."""
+        level = self.level()
+        hist = list(self._hist)
+        for (t0, e0), (t1, e1) in zip(reversed(hist[:-1]), reversed(hist[1:]), strict=True):
+            if e0 < level <= e1:
+                return t0 + (level - e0) / (e1 - e0) * (t1 - t0)
+        return None
+
+    def poll(self) -> float | None:
+        """The impact onset at the latest sample when the envelope has just risen through the
+        threshold in impact mode (interpolated), else None."""
+        if self.window is None or not self.impact_mode or self._t_before is None:
+            return None
+        if self._armed_above:
+            self._armed_above = False
+            past = self._past_rise()
+            if past is not None:
+                return past
+        level = self.level()
+        if self._prev_env < level <= self.env:
+            frac = (level - self._prev_env) / (self.env - self._prev_env)
+            return self._t_before + frac * (self._t_now - self._t_before)
+        return None
+
+    def close(self, onset_s: float | None) -> float | None:
+        """Close the window; return the strike time from the onset (None without one). The
+        window's burst peak joins the typical peak; an onset adds a bias sample."""
+        win, self.window = self.window, None
+        if win is None:
+            return None
+        if onset_s is None:
+            if win.peak > 0:
+                self.peaks.append(win.peak)
+            return None
+        self._post = (onset_s + 0.1, win.peak)
+        strike = onset_s - self.cfg.impact.lag_s
+        self.reference(strike, win.raw_s, source="impact")
+        return strike
+
+    def reference(self, strike_s: float, raw_strike_s: float, source: str) -> None:
+        """A strike time known from elsewhere (impact, load cell) against the EKF's own."""
+        self.bias_samples.append(strike_s - raw_strike_s)
+        self.bias_s = float(np.median(self.bias_samples))
+        self.bias_source = source
+
+
+def impact_strikes_in_buffer(
+    t_s: np.ndarray,
+    accel_m_s2: np.ndarray,
+    strikes_s: np.ndarray,
+    config: StrikeTimingConfig,
+    only_impacts: bool = False,
+) -> np.ndarray:
+    """Strikes found in a past buffer (the estimator's learning buffer, emitted once the axis
+    is fixed) moved to their impact onsets minus ``lag_s``: the onset at ``threshold_fraction``
+    of the largest burst in each strike's window, when that burst stands ``min_strength``
+    times above the buffer's median envelope; the others are kept (dropped with
+    ``only_impacts``)."""
+    strikes = np.asarray(strikes_s, dtype=float)
+    if strikes.size == 0 or len(t_s) < 10:
+        return strikes[:0] if only_impacts else strikes
+    cfg = config.impact
+    t = np.asarray(t_s, dtype=float)
+    env = envelope(t, accel_m_s2, cfg)
+    floor = max(float(np.median(env)), 1e-12)
+    out = strikes.copy()
+    found = np.zeros(strikes.size, dtype=bool)
+    # the phase's first strikes are the least certain: a window reaching 0.3 s either side
+    window = (-0.3, config.window_s[1])
+    window_cfg = ImpactConfig(**{**cfg.__dict__, "window_s": window})
+    for i, ts in enumerate(strikes):
+        m = (t >= ts + window[0]) & (t <= ts + window[1])
+        if not m.any():
+            continue
+        peak = float(env[m].max())
+        if peak < cfg.min_strength * floor:
+            continue
+        onset = onset_near(t, env, ts, peak, window_cfg)
+        if math.isfinite(onset):
+            out[i] = onset - cfg.lag_s
+            found[i] = True
+    return out[found] if only_impacts else out
