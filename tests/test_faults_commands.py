@@ -13,6 +13,8 @@ from fault_helpers import (
     write_manifest,
 )
 
+from graph_slam.session.atomic import MARKER_NAME, marker_text
+
 
 def test_compare_without_ground_truth_labels_the_speed_unknown(synthetic_session) -> None:
     from graph_slam.report.compare import SessionSpec, _speed_of
@@ -135,6 +137,7 @@ def test_simulate_refuses_an_existing_session_naming_the_flag(tmp_path, capsys) 
     target = tmp_path / "s"
     target.mkdir()
     (target / "session.yaml").write_text("schema_version: 1\n")
+    (target / MARKER_NAME).write_text(marker_text("simulate"))
     code, _, err = cli(["simulate", "--out", target, "--strides", "1"], capsys)
     assert code == 2
     line = one_line_error(err, str(target), "pass --overwrite")

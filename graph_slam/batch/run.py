@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -90,8 +90,8 @@ def run_batch(
     options = options or ClusterOptions()
     require_dask()
     resolved = load_spec(spec_path)
-    out = check_study_folder(out)
-    mark_folder(out)
+    out = check_study_folder(out, [s.path for s in resolved.sessions])
+    mark_folder(out, command="batch")
     (out / STUDY_MARKER).write_text("a graph-slam batch study; a re-run resumes it\n")
     tasks = plan_tasks(resolved, out)
     states: dict[str, dict[str, Any]] = {}
@@ -122,13 +122,18 @@ def is_study_folder(path: Path) -> bool:
     return isinstance(study, dict) and study.get("schema") == STUDY_SCHEMA
 
 
-def check_study_folder(out: str | Path) -> Path:
+def check_study_folder(out: str | Path, inputs: Sequence[str | Path] = ()) -> Path:
     """The study folder ``out``, before any work: missing, empty, or a study a batch wrote
-    (resumed); any other folder is refused with :class:`BatchError` and left untouched."""
-    from graph_slam.session.atomic import check_output, written_by_us
+    (resumed), and neither inside nor around a session of the study (``inputs``); any other
+    folder is refused with :class:`BatchError` or :class:`OutputError` and left untouched."""
+    from graph_slam.session.atomic import check_inputs, check_output, written_by, written_by_us
 
     out = Path(out)
-    if out.is_dir() and not out.is_symlink() and any(out.iterdir()) and not is_study_folder(out):
+    check_inputs(out, inputs)
+    study = out.is_dir() and not out.is_symlink() and any(out.iterdir())
+    if study and is_study_folder(out) and written_by(out) == "":
+        return out  # a study an older batch wrote (its marker names no command): resumed
+    if study and not is_study_folder(out):
         why = (
             "it holds another graph-slam command's output (compare, run, demo, ...)"
             if written_by_us(out)
@@ -139,7 +144,7 @@ def check_study_folder(out: str | Path) -> Path:
             "a batch writes into a new or empty folder or resumes its own study, choose another "
             "--out"
         )
-    return check_output(out, overwrite=True)
+    return check_output(out, overwrite=True, command="batch", inputs=inputs)
 
 
 def _run_pending(

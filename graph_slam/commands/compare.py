@@ -133,12 +133,12 @@ def _check_demo_out(out: Path, overwrite: bool) -> None:
     """The demo folder (marked as graph-slam's) and its parts, checked before any work."""
     from graph_slam.session.atomic import check_output, mark_folder
 
-    check_output(out, overwrite=overwrite)
+    check_output(out, overwrite=overwrite, command="demo")
     for speed, _, _ in DEMO_SPEEDS:
-        check_output(out / "sessions" / speed, overwrite=overwrite, session=True)
-    check_output(out / "report", overwrite=overwrite)
-    mark_folder(out)
-    mark_folder(out / "sessions")
+        check_output(out / "sessions" / speed, overwrite=overwrite, command="simulate")
+    check_output(out / "report", overwrite=overwrite, command="compare")
+    mark_folder(out, command="demo")
+    mark_folder(out / "sessions", command="demo")
 
 
 def has_display(env: dict[str, str] | None = None) -> bool:

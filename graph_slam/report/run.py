@@ -199,12 +199,13 @@ def run(
     t_start = time.perf_counter()
     cfg = config or RunConfig()
     reference = reference_variant(cfg)
-    _, opened = open_sessions(sessions)
+    specs, opened = open_sessions(sessions)
     _check_names(opened)
-    out = check_output(out, overwrite=overwrite)
+    inputs = [s.path for s in specs]
+    out = check_output(out, overwrite=overwrite, command="run", inputs=inputs)
     variants = [str(v) for v in cfg.variants]
     warnings = preflight(opened, variants, cfg.pipeline.event_source, scoring=False)
-    with atomic_folder(out, overwrite=overwrite) as tmp:
+    with atomic_folder(out, overwrite=overwrite, command="run", inputs=inputs) as tmp:
         report = _write_run(tmp, opened, cfg, reference, progress, warnings)
         report.wall_s = time.perf_counter() - t_start
         report.summary["wall_s"] = report.wall_s

@@ -285,12 +285,15 @@ def convert(
     src, dst = Path(src), Path(dst)
     config = config or ConvertConfig()
     check_paths(src, dst, overwrite)
-    check_output(dst, overwrite=overwrite, session=True)
+    inputs = [src] + ([config.prosthesis_log.path] if config.prosthesis_log.path else [])
+    check_output(dst, overwrite=overwrite, command="convert", inputs=inputs)
     adapter = select_adapter(src, config.format)
     recording = adapter.open(src, config)
     recording = merge_prosthesis_log(recording, config)
     recording = apply_calibration(recording, config)
-    with atomic_folder(dst, overwrite=overwrite, session=True, create=False) as tmp:
+    with atomic_folder(
+        dst, overwrite=overwrite, command="convert", inputs=inputs, create=False
+    ) as tmp:
         write_recording(
             recording,
             tmp,
