@@ -224,3 +224,140 @@ def test_planar_out_below_a_file(tmp_path, capsys) -> None:
     code, _, err = cli(["planar", "--out", blocker / "sub"], capsys)
     assert code == 2
     one_line_error(err, "sub", "cannot create the output folder")
+
+
+# --- every float setting finite; every option value a typed error (docs/reliability.md) ----
+
+INFINITE_SETTINGS = {
+    "match_margin_m": "match_margin_m: 1e400\n",
+    "pipeline.cloud.max_depth_m": "pipeline: {cloud: {max_depth_m: 1e400}}\n",
+    "terrain_deadline_interval_s": "terrain_deadline_interval_s: 1e400\n",
+    "pipeline.baseline.registration.levels.0.voxel_m": (
+        "pipeline: {baseline: {registration: {levels: [{voxel_m: 1e400, iterations: 5}]}}}\n"
+    ),
+    "pipeline.backend": "pipeline: {backend: {imu_rate_hz: .nan}}\n",
+}
+
+
+@pytest.mark.parametrize("field", list(INFINITE_SETTINGS))
+@pytest.mark.parametrize("command", ["compare", "run"])
+def test_an_infinite_setting_is_a_config_error_before_any_work(
+    synthetic_session, tmp_path, capsys, field, command
+) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(INFINITE_SETTINGS[field])
+    out = tmp_path / "r"
+    code, _, err = cli([command, synthetic_session, "--out", out, "--config", cfg], capsys)
+    assert code == 2, err
+    line = one_line_error(err, str(cfg), f"field '{field}")
+    assert "Extra inputs" in line or "not a finite number" in line, line
+    assert not out.exists()
+
+
+def test_every_float_of_every_config_model_must_be_finite() -> None:
+    """Each float field of each config model (built with its defaults) refuses inf and NaN,
+    naming the field: one rule in graph_slam.config, inherited by every model."""
+    import importlib
+    import pkgutil
+    import typing
+
+    from pydantic import ValidationError
+
+    import graph_slam
+    from graph_slam.config import ConfigModel
+
+    for mod in pkgutil.walk_packages(graph_slam.__path__, "graph_slam."):
+        if not mod.name.endswith("__main__"):
+            importlib.import_module(mod.name)
+    stack, models = [ConfigModel], set()
+    while stack:
+        for sub in stack.pop().__subclasses__():
+            models.add(sub)
+            stack.append(sub)
+    checked = 0
+    for model in sorted(models, key=lambda m: m.__qualname__):
+        try:
+            defaults = model().model_dump()
+        except ValidationError:
+            continue  # needs values: its float fields are checked where it is nested
+        for name, info in model.model_fields.items():
+            if float not in (info.annotation, *typing.get_args(info.annotation)):
+                continue
+            for bad in (float("inf"), float("nan")):
+                with pytest.raises(ValidationError) as caught:  # the rule or the field's bound
+                    model.model_validate({**defaults, name: bad})
+                assert caught.value.errors()[0]["loc"][0] == name, (model, name)
+            checked += 1
+    assert checked > 200, checked  # the configs hold hundreds of float settings
+
+
+def test_a_batch_configuration_with_an_infinite_value_is_refused(
+    synthetic_session, tmp_path, capsys
+) -> None:
+    pytest.importorskip("dask.distributed")
+    spec = tmp_path / "batch.yaml"
+    spec.write_text(
+        yaml.safe_dump(
+            {
+                "sessions": [str(synthetic_session)],
+                "variants": ["icp"],
+                "configurations": {"wide": {"match_margin_m": "1e400"}},
+            }
+        )
+    )
+    code, _, err = cli(["batch", spec, "--out", tmp_path / "b"], capsys)
+    assert code == 2
+    one_line_error(err, str(spec), "configurations.wide.match_margin_m", "not a finite number")
+    assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "needles"),
+    [
+        (["run", "{s}", "--map-dtype", "float16"], ["map_dtype", "'float32' or 'float64'"]),
+        (["run", "{s}", "--variants", "icp,icp"], ["--variants", "icp listed more than once"]),
+        (["demo", "--strides-scale", "inf"], ["--strides-scale", "inf"]),
+        (["planar", "--seed", "-3"], ["--seed", "greater than or equal to 0"]),
+        (
+            ["simulate", "--export", "realsense-sdk-bag", "--clock-offset", "nan"],
+            ["--clock-offset", "clock_offset_s", "not a finite number"],
+        ),
+        (["batch", "{spec}", "--scheduler", "notaurl"], ["--scheduler 'notaurl'", "tcp://"]),
+        (["batch", "{spec}", "--memory-limit", "lots"], ["--memory-limit", "'lots'", "4GiB"]),
+    ],
+    ids=["map-dtype", "variants-twice", "strides-scale", "planar-seed", "clock-offset",
+         "scheduler", "memory-limit"],
+)  # fmt: skip
+def test_a_bad_option_value_is_a_typed_error(
+    synthetic_session, tmp_path, capsys, argv, needles
+) -> None:
+    if "batch" in argv:
+        pytest.importorskip("dask.distributed")
+    spec = tmp_path / "batch.yaml"
+    spec.write_text(yaml.safe_dump({"sessions": [str(synthetic_session)], "variants": ["icp"]}))
+    out = tmp_path / "out"
+    argv = [a.format(s=synthetic_session, spec=spec) for a in argv] + ["--out", out]
+    code, _, err = cli(argv, capsys)
+    assert code == 2, err
+    one_line_error(err, *needles)
+    assert not out.exists()  # no empty study folder either
+
+
+@pytest.mark.parametrize("target", ["folder", "missing-parent", "the-input"])
+@pytest.mark.parametrize("online", [False, True], ids=["offline", "online"])
+def test_gait_events_out_that_cannot_be_written_is_one_line(
+    synthetic_session, tmp_path, capsys, target, online
+) -> None:
+    imu = synthetic_session / "imu.csv"
+    before = imu.read_bytes()
+    out, rule = {
+        "folder": (tmp_path, "is a folder"),
+        "missing-parent": (tmp_path / "nope" / "e.csv", "does not exist"),
+        "the-input": (imu, "is an input of this run"),
+    }[target]
+    code, _, err = cli(
+        ["gait-events", imu, "--out", out, *(["--online"] if online else [])], capsys
+    )
+    assert code == 2
+    one_line_error(err, str(out), rule)
+    assert imu.read_bytes() == before

@@ -37,6 +37,35 @@ def has_bokeh() -> bool:
     return importlib.util.find_spec("bokeh") is not None
 
 
+def check_cluster_options(scheduler: str | None, memory_limit: str, source: str) -> None:
+    """Before any work: ``scheduler`` is a Dask address (``tcp://host:port``, ``host:port``,
+    ``tls://``, ``inproc://``) and ``memory_limit`` a size (``4GiB``, ``500MB``) or ``auto``."""
+    require_dask()
+    from dask.utils import parse_bytes
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    if scheduler is not None:
+        try:
+            protocol, location = parse_address(scheduler)
+            if protocol != "inproc":
+                port = parse_host_port(location)[1]
+                if not 0 < port < 65536:
+                    raise ValueError(f"port {port} outside 1-65535")
+        except (ValueError, TypeError) as err:
+            raise BatchError(
+                f"--scheduler {scheduler!r}: not a Dask scheduler address ({err}); give "
+                "tcp://host:port, e.g. tcp://10.0.0.5:8786"
+            ) from None
+    if memory_limit != "auto":
+        try:
+            if parse_bytes(memory_limit) <= 0:
+                raise ValueError("not > 0")
+        except (ValueError, TypeError) as err:
+            raise BatchError(
+                f"{source}: memory limit {memory_limit!r} is not a size ({err}); give e.g. 4GiB"
+            ) from None
+
+
 @dataclass(frozen=True)
 class ClusterInfo:
     """What the batch runs on, for the user: a description and the dashboard (or why none)."""
@@ -80,7 +109,7 @@ def open_client(
         if scheduler is not None:
             try:
                 client = Client(scheduler, timeout="20s")
-            except (OSError, TimeoutError) as err:
+            except (OSError, TimeoutError, ValueError) as err:
                 raise BatchError(f"--scheduler {scheduler}: cannot connect ({err})") from None
             n = len(client.scheduler_info().get("workers", {}))
             info = ClusterInfo(f"scheduler {scheduler} ({n} workers now)", _dashboard(client))

@@ -82,7 +82,7 @@ def run_batch(
     on_cluster: ClusterCallback | None = None,
 ) -> BatchResult:
     """Run the study ``spec_path`` into ``out`` (created, or resumed when batch wrote it)."""
-    from graph_slam.batch.cluster import require_dask
+    from graph_slam.batch.cluster import check_cluster_options, require_dask
     from graph_slam.batch.pool_report import write_pooled_report
     from graph_slam.session.atomic import mark_folder
 
@@ -90,6 +90,11 @@ def run_batch(
     options = options or ClusterOptions()
     require_dask()
     resolved = load_spec(spec_path)
+    memory_limit = options.memory_limit or resolved.spec.cluster.memory_limit
+    where = (
+        "--memory-limit" if options.memory_limit else f"{spec_path}: field 'cluster.memory_limit'"
+    )
+    check_cluster_options(options.scheduler, memory_limit, where)
     out = check_study_folder(out, [s.path for s in resolved.sessions])
     mark_folder(out, command="batch")
     (out / STUDY_MARKER).write_text("a graph-slam batch study; a re-run resumes it\n")

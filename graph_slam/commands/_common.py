@@ -93,6 +93,9 @@ def workers_option_help(default: str) -> str:
 
 def with_workers(cfg, workers: int | None):
     """``cfg`` (a RunSettings) with ``workers`` over it (None: as it is)."""
+    from graph_slam.config import config_from_dict
+
     if workers is None:
         return cfg
-    return type(cfg).model_validate({**cfg.model_dump(), "workers": workers})
+    data = {**cfg.model_dump(), "workers": workers}
+    return config_from_dict(type(cfg), data, source="--workers")

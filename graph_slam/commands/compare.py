@@ -118,8 +118,8 @@ def _demo_strides(text: str | None, scale: float) -> list[int]:
     from graph_slam.errors import ConfigError
 
     if text is None:
-        if not scale > 0:
-            raise ConfigError(f"--strides-scale: must be > 0, got {scale}")
+        if not 0 < scale < 1e3:  # NaN and inf too
+            raise ConfigError(f"--strides-scale: must be > 0 and < 1000, got {scale}")
         return [max(1, round(n * scale)) for _, _, n in DEMO_SPEEDS]
     parts = [p.strip() for p in text.split(",")]
     if len(parts) != len(DEMO_SPEEDS) or not all(p.isdigit() and int(p) >= 1 for p in parts):

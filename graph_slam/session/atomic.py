@@ -196,3 +196,21 @@ def mark_folder(path: str | Path, *, command: str) -> Path:
     except OSError as err:
         raise OutputError(f"{path}: cannot create the output folder ({err.strerror})") from None
     return path
+
+
+def check_output_file(path: str | Path, *, inputs: Iterable[str | Path] = ()) -> Path:
+    """Refuse, before any work, a file target that cannot be written: a folder, a missing or
+    file-shaped parent, no permission, or one of the run's ``inputs``."""
+    path = Path(path)
+    for given in inputs:
+        if path.resolve() == Path(given).resolve():
+            raise OutputError(f"{path}: is an input of this run; choose another --out")
+    if path.is_dir():
+        raise OutputError(f"{path}: is a folder; --out takes a file path (e.g. {path / 'x.csv'})")
+    parent = path.absolute().parent
+    if not parent.is_dir():
+        what = "is a file" if parent.exists() else "does not exist"
+        raise OutputError(f"{path}: its folder {parent} {what}; create it or choose another --out")
+    if not os.access(parent, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise OutputError(f"{path}: cannot write it (permission denied)")
+    return path
