@@ -334,3 +334,19 @@ def test_imu_online_strides_need_the_imu_not_events(synthetic_session) -> None:
     write_manifest(synthetic_session, data)
     (found,) = variant_findings(open_session(synthetic_session), ["icp"], events_cut_strides=False)
     assert found.fatal and "IMU gait events" in found.message and "files.imu" in found.message
+
+
+@pytest.mark.parametrize("x_m", [float("nan"), float("inf"), -float("inf"), 1e300])
+def test_height_at_an_impossible_coordinate_is_nan(x_m) -> None:
+    """``FrameOutput.terrain.height_at`` (and the stride map's) answers NaN for a coordinate
+    off the grid, as its docstring promises, NaN and inf included (no ValueError)."""
+    from graph_slam.terrain.elevation import ElevationConfig, elevation_grid
+    from graph_slam.terrain.online import CellSums, OnlineElevationMap, OnlineTerrainConfig
+
+    cfg = OnlineTerrainConfig()
+    view = OnlineElevationMap(cfg, prior=CellSums.empty(int(np.prod(cfg.shape)))).view()
+    grid = elevation_grid(np.tile([0.5, 0.0, 0.1], (4, 1)), ElevationConfig())
+    for terrain in (view, grid):
+        assert np.isnan(terrain.height_at(x_m, 0.0)) and np.isnan(terrain.height_at(0.0, x_m))
+    assert np.isnan(view.sigma_at(x_m, 0.0))
+    assert grid.height_at(0.5, 0.0) == pytest.approx(0.1)

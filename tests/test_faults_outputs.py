@@ -218,3 +218,87 @@ def test_a_batch_study_inside_or_around_a_session_is_refused(synthetic_session, 
     _refused(["batch", spec, "--out", synthetic_session / "study"], capsys, "lies inside the input")
     _refused(["batch", spec, "--out", synthetic_session], capsys, "is an input of this run")
     assert snapshot(synthetic_session) == before
+
+
+# --- Ctrl-C of the parallel commands: one line, no worker traceback ------------------------
+
+
+def _ctrl_c(argv: list, when: str, cwd, timeout_s: float = 120.0) -> tuple[int, str]:
+    """Run ``graph-slam argv`` in its own process group (as a terminal runs it), send SIGINT
+    to the whole group (as Ctrl-C does) once a stderr line starts with ``when``; return the
+    exit code and the whole stderr. Bounded: killed after ``timeout_s``."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "graph_slam", *map(str, argv)],
+        cwd=cwd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        # a shell's background job ignores SIGINT, and a child would inherit that: restore it
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # noqa: PLW1509
+    )
+    timer = threading.Timer(timeout_s, lambda: os.killpg(proc.pid, signal.SIGKILL))
+    timer.start()
+    lines = []
+    try:
+        for line in proc.stderr:
+            lines.append(line)
+            if line.startswith(when):
+                os.killpg(proc.pid, signal.SIGINT)
+                when = "\0never"
+        code = proc.wait()
+    finally:
+        timer.cancel()
+    return code, "".join(lines)
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    """A simulated one-stride walk (the issue's `simulate --fast --strides 1 --seed 3`)."""
+    from graph_slam.sim import SimConfig, simulate
+
+    out = tmp_path_factory.mktemp("walk") / "walk"
+    simulate(SimConfig(strides=1, fast=True, seed=3, quicklook=False), out)
+    return out
+
+
+def test_ctrl_c_of_run_with_workers_is_one_line(walk, tmp_path) -> None:
+    out = tmp_path / "o"
+    argv = ["run", walk, "--out", out, "--workers", "2", "--variants", "icp,icp+imu"]
+    code, err = _ctrl_c(
+        argv,
+        "running variants:",  # the first progress line: the workers are running
+        tmp_path,
+    )
+    assert code == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert err.strip().splitlines()[-1] == f"interrupted: nothing written to {out}", err
+    assert not out.exists() and not list(tmp_path.glob(".o.partial-*"))
+
+
+def test_ctrl_c_of_batch_is_one_line(walk, tmp_path) -> None:
+    pytest.importorskip("dask.distributed")
+    import yaml
+
+    spec = tmp_path / "batch.yaml"
+    spec.write_text(
+        yaml.safe_dump(
+            {
+                "sessions": [str(walk)],
+                "variants": ["icp"],
+            }
+        )
+    )
+    code, err = _ctrl_c(
+        ["batch", spec, "--out", tmp_path / "b", "--workers", "1"], "local cluster:", tmp_path
+    )
+    assert code == 130, err
+    assert "Traceback" not in err and "CancelledError" not in err, err
+    assert "WARNING" not in err, err
+    assert err.strip().splitlines()[-1].startswith("interrupted: finished tasks are kept"), err

@@ -7,6 +7,7 @@ the estimator never does. Workers run with one BLAS/OpenMP thread per Dask threa
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import os
 from collections.abc import Iterator
@@ -66,6 +67,23 @@ def check_cluster_options(scheduler: str | None, memory_limit: str, source: str)
             ) from None
 
 
+def quiet_dask_logs(client=None) -> None:
+    """After a Ctrl-C: Dask's warnings about the tasks and workers it is told to stop (a
+    cancelled task, a worker killed on close) are expected, not news: silenced here and, via
+    ``client``, in the workers."""
+    _silence_dask_loggers()
+    if client is not None:
+        with contextlib.suppress(Exception):  # a worker already gone has nothing left to say
+            client.run(_silence_dask_loggers)
+
+
+def _silence_dask_loggers() -> None:
+    import logging
+
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
 @dataclass(frozen=True)
 class ClusterInfo:
     """What the batch runs on, for the user: a description and the dashboard (or why none)."""
@@ -100,6 +118,8 @@ def open_client(
     import dask
     from distributed import Client, LocalCluster
 
+    from graph_slam.report.parallel import sigint_ignored
+
     settings = {
         "distributed.scheduler.allowed-failures": retries,
         "distributed.scheduler.worker-saturation": 1.0,
@@ -119,14 +139,15 @@ def open_client(
                 client.close()
             return
         n_workers = workers or default_workers(threads_per_worker)
-        cluster = LocalCluster(
-            n_workers=n_workers,
-            threads_per_worker=threads_per_worker,
-            processes=True,
-            memory_limit=memory_limit,
-            dashboard_address=":0" if has_bokeh() else None,
-            env=WORKER_ENV,
-        )
+        with sigint_ignored():  # the workers inherit it: a Ctrl-C stops the batch, not them
+            cluster = LocalCluster(
+                n_workers=n_workers,
+                threads_per_worker=threads_per_worker,
+                processes=True,
+                memory_limit=memory_limit,
+                dashboard_address=":0" if has_bokeh() else None,
+                env=WORKER_ENV,
+            )
         client = Client(cluster)
         info = ClusterInfo(
             f"local cluster: {n_workers} worker(s) × {threads_per_worker} thread(s), "
@@ -135,6 +156,9 @@ def open_client(
         )
         try:
             yield client, info
+        except KeyboardInterrupt:
+            quiet_dask_logs(client)  # the running tasks are cancelled on purpose
+            raise
         finally:
             client.close()
             cluster.close()

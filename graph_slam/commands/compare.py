@@ -167,8 +167,12 @@ def register(app: typer.Typer) -> None:
         ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
+        from graph_slam.commands._common import exit_on_interrupt
+
         cfg = with_workers(_load_compare_config(config, variants), workers)
-        _print_report(_run_compare([session], out, cfg, overwrite))
+        with exit_on_interrupt(out):
+            report = _run_compare([session], out, cfg, overwrite)
+        _print_report(report)
 
     @app.command()
     def demo(

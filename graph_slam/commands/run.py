@@ -83,10 +83,10 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Run the variants on recordings (ground truth optional); write trajectories, maps,
         elevation grids, per-frame flags, timing and a report of what agrees."""
-        from graph_slam.commands._common import progress_bar
+        from graph_slam.commands._common import exit_on_interrupt, progress_bar
         from graph_slam.report import run
 
         cfg = with_workers(load_run_config(config, variants, kitti, map_dtype), workers)
-        with progress_bar("running variants") as update:
+        with exit_on_interrupt(out), progress_bar("running variants") as update:
             report = run(sessions, out, cfg, progress=update, overwrite=overwrite)
         _print_run(report)
