@@ -105,6 +105,39 @@ def test_strides_dropped_are_counted_with_their_reason(synthetic_session) -> Non
     assert "strides_dropped" not in {f.code for f in run_warnings(session, run, "load_cell")}
 
 
+def test_a_one_frame_tail_after_the_last_strike_is_no_stride(synthetic_session) -> None:
+    """A strike at the last frame leaves a one-frame tail: no stride, no "1 strides not scored
+    (1 fewer than 2 frames)" on every clean compare."""
+    from types import SimpleNamespace as stride
+
+    from graph_slam.report.checks import run_warnings
+    from graph_slam.session import open_session
+
+    t = open_session(synthetic_session).frame_times_s
+    n = t.size
+    (synthetic_session / "events.csv").write_text(
+        "t_s,kind,source\n"
+        + "".join(f"{float(x)!r},foot_strike,load_cell\n" for x in (t[3], t[n - 1]))
+    )
+    session = open_session(synthetic_session)
+    strides = [
+        stride(start="foot_strike", frame_indices=list(range(3, n - 1))),  # scored
+        stride(start="foot_strike", frame_indices=[n - 1]),  # the tail: one frame
+    ]
+    first = stride(t_s=t, strides=strides, counts={})
+    run = stride(results={"icp": first}, references=[stride(frame_indices=np.arange(3, n - 1))])
+    assert run_warnings(session, run, "load_cell") == []
+    strides[1] = stride(start="foot_strike", frame_indices=[n - 2])  # one frame, not the tail
+    strides[0].frame_indices = list(range(3, n - 2))
+    (synthetic_session / "events.csv").write_text(
+        "t_s,kind,source\n"
+        + "".join(f"{float(x)!r},foot_strike,load_cell\n" for x in (t[3], t[n - 2], t[n - 1]))
+    )
+    session = open_session(synthetic_session)
+    found = run_warnings(session, run, "load_cell")
+    assert [f.message for f in found] == ["1 strides not scored (1 fewer than 2 frames); 1 scored"]
+
+
 def test_foot_strikes_every_50_ms_are_a_caveat(synthetic_session) -> None:
     from graph_slam.session import open_session
     from graph_slam.session.plausibility import session_findings

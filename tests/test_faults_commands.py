@@ -361,3 +361,33 @@ def test_gait_events_out_that_cannot_be_written_is_one_line(
     assert code == 2
     one_line_error(err, str(out), rule)
     assert imu.read_bytes() == before
+
+
+@pytest.mark.parametrize("command", ["run", "compare"])
+def test_a_pipeline_variant_that_does_not_run_is_refused(
+    synthetic_session, tmp_path, capsys, command
+) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("pipeline: {variant: icp}\n")
+    out = tmp_path / "o"
+    argv = [command, synthetic_session, "--out", out, "--config", cfg]
+    code, _, err = cli([*argv, "--variants", "icp+imu+kin"], capsys)
+    assert code == 2
+    one_line_error(err, str(cfg), "field 'pipeline'", "variant icp is not among the variants")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "needles"),
+    [
+        ("reference: icp\nvariants: [icp+imu]\n", ["field 'reference'", "icp is not among"]),
+        ("variants: [icp, icp]\n", ["field 'variants'", "icp listed more than once"]),
+    ],
+    ids=["reference-not-run", "variants-twice"],
+)
+def test_run_config_errors_name_the_file(synthetic_session, tmp_path, capsys, text, needles):
+    cfg = tmp_path / "run.yaml"
+    cfg.write_text(text)
+    code, _, err = cli(["run", synthetic_session, "--out", tmp_path / "o", "--config", cfg], capsys)
+    assert code == 2
+    one_line_error(err, str(cfg), *needles)

@@ -35,14 +35,13 @@ def _parse_variants(text: str) -> list[str]:
 
 
 def _load_compare_config(path: Path | None, variants: str | None):
-    from graph_slam.config import load_config
+    from graph_slam.config import config_from_dict, load_config
     from graph_slam.report import CompareConfig
 
     cfg = load_config(CompareConfig, path)
     if variants is not None:
-        cfg = CompareConfig.model_validate(
-            {**cfg.model_dump(), "variants": _parse_variants(variants)}
-        )
+        data = {**cfg.model_dump(), "variants": _parse_variants(variants)}
+        cfg = config_from_dict(CompareConfig, data, f"{path or 'graph-slam'} (with --variants)")
     return cfg
 
 

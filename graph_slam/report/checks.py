@@ -62,16 +62,17 @@ def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
             continue
         if s.start != "foot_strike" or events.last_strike_at_or_before(float(t[idx[0]])) is None:
             continue  # the part before the first foot strike is no stride
+        last = events.next_strike_after(float(t[idx[-1]])) is None
+        if last and int(idx[-1]) == session.n_frames - 1:
+            continue  # the recording's tail after its last strike, like its head: no stride
         if idx.size < 2:
             why["fewer than 2 frames"] += 1
         elif _cut_short(idx, t, session):
             why["the run stopped inside it"] += 1
         elif session.ground_truth is None:
             why["no ground truth"] += 1
-        elif events.next_strike_after(float(t[idx[-1]])) is None:
-            if int(idx[-1]) < session.n_frames - 1:
-                why["no foot strike after it"] += 1
-            # else: the recording's tail after its last strike, like its head: no stride
+        elif last:
+            why["no foot strike after it"] += 1
         else:
             why["other"] += 1
     if not why:
