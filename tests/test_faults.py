@@ -383,3 +383,22 @@ def test_height_at_an_impossible_coordinate_is_nan(x_m) -> None:
         assert np.isnan(terrain.height_at(x_m, 0.0)) and np.isnan(terrain.height_at(0.0, x_m))
     assert np.isnan(view.sigma_at(x_m, 0.0))
     assert grid.height_at(0.5, 0.0) == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("fault", ["all-zero", "the-same-image"])
+def test_depth_that_cannot_be_registered_is_refused(synthetic_session, tmp_path, capsys, fault):
+    """No valid depth pixel in any frame, or one depth image repeated in every frame (a frozen
+    stream): validate and compare stop (before: "valid", then 0 registered / 10 frames
+    "registered" with zero motion)."""
+    from graph_slam.session.io import write_png
+
+    pngs = sorted((synthetic_session / "depth").glob("*.png"))
+    first = pngs[0].read_bytes()
+    for png in pngs:
+        if fault == "all-zero":
+            write_png(png, np.zeros((48, 64), dtype=np.uint16))  # the small session's size
+        else:
+            png.write_bytes(first)
+    rule = "no valid depth pixel" if fault == "all-zero" else "hold the same depth image"
+    validate_refuses(synthetic_session, capsys, "frames.csv", rule)
+    compare_refuses(synthetic_session, tmp_path, capsys, "frames.csv", rule)
