@@ -391,3 +391,96 @@ def test_run_config_errors_name_the_file(synthetic_session, tmp_path, capsys, te
     code, _, err = cli(["run", synthetic_session, "--out", tmp_path / "o", "--config", cfg], capsys)
     assert code == 2
     one_line_error(err, str(cfg), *needles)
+
+
+# --- prosthesis logs: a unit the mapping gets wrong stops the conversion --------------------
+
+LOG_MAPPING = {
+    "time": {"column": "time_ms", "unit": "ms"},
+    "knee": {"column": "knee", "unit": "deg"},
+    "ankle": {"column": "ankle", "unit": "deg"},
+    "load": {"column": "load", "foot_strike_above_n": 50, "toe_off_below_n": 20},
+}
+
+
+def _controller_log(path, *, knee_scale=1.0, load_scale=1.0, time_scale=1.0, jump_at=None):
+    """A 2 s walk at 100 Hz: time in ms, knee and ankle in degrees, load in newtons (750 N body
+    weight), each multiplied by its ``*_scale`` (a unit mistake); ``jump_at``: the clock is
+    reset (back to 0) at that row."""
+    import numpy as np
+
+    t_ms = np.arange(200) * 10.0
+    if jump_at is not None:
+        t_ms[jump_at:] -= t_ms[jump_at]
+    s = np.sin(2 * np.pi * np.arange(200) / 100.0)
+    knee, ankle, load = 30 + 30 * s, 5 * s, 750 * np.maximum(s, 0)
+    rows = ["time_ms,knee,ankle,load"] + [
+        f"{t * time_scale:.6f},{k * knee_scale:.6f},{a * knee_scale:.6f},{f * load_scale:.6f}"
+        for t, k, a, f in zip(t_ms, knee, ankle, load, strict=True)
+    ]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("fault", "log_kwargs", "mapping", "needles"),
+    [
+        ("radians-as-degrees", {"knee_scale": 3.14159 / 180}, {}, ["knee.unit: rad"]),
+        (
+            "degrees-as-radians",
+            {},
+            {"knee": {"column": "knee", "unit": "rad"}},
+            ["prosthesis_log.knee.unit is rad", "set prosthesis_log.knee.unit: deg"],
+        ),
+        ("load-in-kg", {"load_scale": 1 / 9.80665}, {}, ["in kg", "load.scale: 9.80665"]),
+        ("load-in-counts", {"load_scale": 40.0}, {}, ["not in newtons", "load.scale"]),
+        ("clock-reset", {"jump_at": 120}, {}, ["'time_ms' steps back by 1.19 s", "line 122"]),
+    ],
+    ids=lambda v: v if isinstance(v, str) else "",
+)
+def test_a_prosthesis_log_unit_mistake_stops_the_conversion(
+    tmp_path, capsys, fault, log_kwargs, mapping, needles
+) -> None:
+    log = _controller_log(tmp_path / "controller.csv", **log_kwargs)
+    cfg = tmp_path / "mapping.yaml"
+    cfg.write_text(yaml.safe_dump({"prosthesis_log": {**LOG_MAPPING, **mapping}}))
+    before = log.read_bytes()
+    code, _, err = cli(["convert", log, tmp_path / "s", "--config", cfg], capsys)
+    assert code == 2, err
+    one_line_error(err, str(log), *needles)
+    assert not (tmp_path / "s").exists() and log.read_bytes() == before
+
+
+def test_a_correct_prosthesis_log_converts(tmp_path, capsys) -> None:
+    log = _controller_log(tmp_path / "controller.csv")
+    cfg = tmp_path / "mapping.yaml"
+    cfg.write_text(yaml.safe_dump({"prosthesis_log": LOG_MAPPING}))
+    code, _, err = cli(["convert", log, tmp_path / "s", "--config", cfg], capsys)
+    assert code == 0, err
+
+
+def test_a_log_time_unit_against_the_camera_span(tmp_path, capsys) -> None:
+    """Milliseconds declared as seconds, merged into a camera recording: the spans disagree by
+    1000x and ms makes them agree (before: "set the offset by hand" for a decades-long shift)."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from graph_slam.errors import ConversionError
+    from graph_slam.session.adapters.log_checks import check_span
+
+    tum = Path(__file__).parent / "data" / "tum_fr1_xyz_mini"
+    log = _controller_log(tmp_path / "controller.csv", time_scale=0.1)  # 0.2 s, as the camera
+    cfg = tmp_path / "mapping.yaml"
+    wrong = {**LOG_MAPPING, "time": {"column": "time_ms", "unit": "s"}, "path": str(log)}
+    cfg.write_text(yaml.safe_dump({"prosthesis_log": {**wrong, "time_offset_s": 1305031102.1}}))
+    code, _, err = cli(["convert", tum, tmp_path / "s", "--config", cfg], capsys)
+    assert code == 2, err
+    one_line_error(err, str(log), "the log's time is in ms, not s", "time.unit: ms")
+    assert not (tmp_path / "s").exists()
+    camera = np.linspace(0.0, 20.0, 600)
+    with pytest.raises(ConversionError, match="time is in us, not ms"):
+        check_span(log, np.linspace(0, 20e3, 100), camera, "ms")  # microseconds as ms
+    assert check_span(log, np.linspace(0, 600.0, 100), camera, "s") is None  # a longer log
+    caveat = check_span(log, np.linspace(0, 2e5, 100), camera, "s")  # no unit fits
+    assert caveat is not None and "check prosthesis_log.time.unit" in caveat
