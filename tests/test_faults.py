@@ -402,3 +402,35 @@ def test_depth_that_cannot_be_registered_is_refused(synthetic_session, tmp_path,
     rule = "no valid depth pixel" if fault == "all-zero" else "hold the same depth image"
     validate_refuses(synthetic_session, capsys, "frames.csv", rule)
     compare_refuses(synthetic_session, tmp_path, capsys, "frames.csv", rule)
+
+
+@pytest.mark.parametrize("variant", ["icp", "imu+kin"])
+def test_the_streaming_strike_and_frame_contract(synthetic_session, variant) -> None:
+    """``foot_strike(t)`` with t NaN / inf / not after the previous strike / after the next
+    frame, and frames out of order, are typed errors; a strike too close to the previous one
+    is used and counted (docs/pipelines.md)."""
+    from graph_slam.errors import EstimationError
+    from graph_slam.pipelines import PipelineConfig
+    from graph_slam.pipelines.runner import open_pipeline
+
+    cfg = PipelineConfig(variant=variant, mount_pitch_deg=35.0, event_source=None)
+    s, st, pipe = open_pipeline(synthetic_session, cfg)
+    pipe.add_imu(st.imu_t_s, st.gyro_rad_s, st.accel_m_s2)
+    pipe.add_joints(st.joints_t_s, st.knee_rad, st.ankle_rad)
+    f = list(s.iter_frames(0, 4))
+    for bad in (float("nan"), float("inf"), "soon"):
+        with pytest.raises(EstimationError, match=r"foot_strike: t_s = .* not a"):
+            pipe.foot_strike(bad)
+    pipe.add_frame(f[0], True)
+    pipe.foot_strike(f[0].t_s + 0.002)
+    with pytest.raises(EstimationError, match="not after the previous strike"):
+        pipe.foot_strike(f[0].t_s)  # in the past
+    pipe.add_frame(f[1], True)
+    pipe.foot_strike(f[0].t_s + 0.003)  # 1 ms after the last strike: used and counted
+    pipe.add_frame(f[2], True)
+    with pytest.raises(EstimationError, match="not after the previous frame"):
+        pipe.add_frame(f[1], True)
+    pipe.foot_strike(f[3].t_s + 1.0)  # announced before it happened
+    with pytest.raises(EstimationError, match="lies after the next frame"):
+        pipe.add_frame(f[3], True)
+    assert pipe.finish().counts["foot_strikes_too_close"] == 1

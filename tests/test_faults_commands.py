@@ -484,3 +484,39 @@ def test_a_log_time_unit_against_the_camera_span(tmp_path, capsys) -> None:
     assert check_span(log, np.linspace(0, 600.0, 100), camera, "s") is None  # a longer log
     caveat = check_span(log, np.linspace(0, 2e5, 100), camera, "s")  # no unit fits
     assert caveat is not None and "check prosthesis_log.time.unit" in caveat
+
+
+def test_the_pooled_report_names_the_sessions_it_could_not_score(tmp_path) -> None:
+    """A session without ground truth has no scored stride: the pooled study says so and names
+    it, rather than leaving it out of the tables in silence."""
+    from pathlib import Path
+
+    from graph_slam.batch.pool import pool_study
+    from graph_slam.batch.spec import ResolvedSpec, SessionEntry
+    from graph_slam.batch.tasks import Task
+    from graph_slam.report import CompareConfig
+    from graph_slam.variants import Variant
+
+    cfg = CompareConfig(variants=["icp"])
+    sessions = [SessionEntry("walk", Path("walk")), SessionEntry("street", Path("street"))]
+    resolved = ResolvedSpec(
+        tmp_path / "batch.yaml", None, sessions, [Variant("icp")], {"default": cfg}
+    )
+    tasks = [
+        Task(f"{s.key}__icp__default", str(s.path), s.key, "icp", "default", {}, "h", "f")
+        for s in sessions
+    ]
+    frames = {"recorded": 40, "registered": 40, "bridged": 0}
+    scored = {
+        "index": 0,
+        "speed": "Normal",
+        "number": 1,
+        "frames": frames,
+        "trajectory": {"rmse_aligned_m": 0.02},
+    }
+    docs = {
+        tasks[0].id: {"variants": {"icp": {"strides": [scored], "timing": None}}},
+        tasks[1].id: {"variants": {"icp": {"strides": [], "timing": None}}},  # no ground truth
+    }
+    pooled = pool_study(resolved, tasks, docs)
+    assert pooled["default"]["sessions_not_scored"] == ["street"]

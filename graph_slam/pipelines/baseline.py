@@ -28,6 +28,7 @@ from graph_slam.frontend import LocalMap, build_pyramid, register
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.protocol import frame_cloud, sensor_registration
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
+from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.strides.joints import JointBuffer
 from graph_slam.strides.kinematics import imu_up_in_model
@@ -83,6 +84,7 @@ class ThesisBaseline:
         self._map: LocalMap | None = None
         self._stride: _OpenStride | None = None
         self._pending_strike = False
+        self.strike_clock = StrikeClock()
         self._world_T_stride = np.eye(4)
 
     # ------------------------------------------------------------------ streams
@@ -95,6 +97,7 @@ class ThesisBaseline:
         self.joints.add(t_s, knee_rad, ankle_rad)
 
     def foot_strike(self, t_s: float) -> None:
+        t_s = self.strike_clock.strike(t_s)
         self._close_stride()
         self.gravity.foot_strike(t_s)
         self._pending_strike = True
@@ -123,6 +126,7 @@ class ThesisBaseline:
 
     # ------------------------------------------------------------------ frames
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
+        self.strike_clock.frame(frame.t_s)
         t0 = time.perf_counter()
         index = self.results.n_frames
         cloud = frame_cloud(
@@ -246,5 +250,6 @@ class ThesisBaseline:
             "with_pose": reg,
             "without_pose": n - reg,
             **{f"joints_{k}": v for k, v in self.joints.counts.items()},
+            **self.strike_clock.counts(),
         }
         return self.results

@@ -32,6 +32,7 @@ from graph_slam.pipelines.protocol import (
     with_camera_floor,
 )
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
+from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 log = logging.getLogger(__name__)
@@ -114,6 +115,7 @@ class GraphPipeline:
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
+        self.strike_clock = StrikeClock()
 
     @staticmethod
     def _imu_guess_for(config: PipelineConfig) -> bool:
@@ -133,8 +135,8 @@ class GraphPipeline:
     def foot_strike(self, t_s: float) -> None:
         """Note the strike; the stride is closed at the next frame (or at ``finish``), whose
         depth gives the floor for the new anchor's tilt (:meth:`_strike_with_up`)."""
-        self._pending_strike = float(t_s)
-        self.gravity.foot_strike(t_s)
+        self._pending_strike = self.strike_clock.strike(t_s)
+        self.gravity.foot_strike(self._pending_strike)
 
     def _strike_with_up(self, t_frame_s: float, cloud, stages: dict):
         """Close the stride at the pending strike. The new anchor's up vector (IMU frame at the
@@ -271,6 +273,7 @@ class GraphPipeline:
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
         map cloud; strides the back end closed get their terrain maps."""
+        self.strike_clock.frame(frame.t_s)
         t0 = time.perf_counter()
         index = self.results.n_frames
         stages: dict[str, float] = {}
@@ -413,5 +416,6 @@ class GraphPipeline:
             "icp_rejected": int(sum(s.n_icp_rejected for s in res.strides)),
             **{f"imu_{k}": v for k, v in res.imu_counts.items()},
             **{f"joints_{k}": v for k, v in self.slam.leg.joints.counts.items()},
+            **self.strike_clock.counts(),
         }
         return self.results

@@ -88,7 +88,10 @@ def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
 
 
 def rejected_samples(session, results: dict) -> list[Finding]:
-    """Per variant: the IMU and encoder samples its pipeline rejected, by reason."""
+    """Per variant: the IMU and encoder samples its pipeline rejected, by reason, and the
+    foot strikes too close to the previous one (:mod:`graph_slam.pipelines.strikes`)."""
+    from graph_slam.pipelines.strikes import MIN_STRIKE_INTERVAL_S, TOO_CLOSE_KEY
+
     out = []
     for variant, res in results.items():
         bad = {
@@ -96,6 +99,17 @@ def rejected_samples(session, results: dict) -> list[Finding]:
             for k, v in res.counts.items()
             if v and k.startswith(("imu_", "joints_")) and not k.endswith("_used")
         }
+        too_close = res.counts.get(TOO_CLOSE_KEY, 0)
+        if too_close:
+            out.append(
+                Finding(
+                    "strikes_too_close",
+                    str(session.path),
+                    f"variant {variant}: {too_close} foot strike(s) less than "
+                    f"{MIN_STRIKE_INTERVAL_S:g} s after the previous one (each cut a stride "
+                    "there)",
+                )
+            )
         if bad:
             detail = ", ".join(f"{k} {v}" for k, v in sorted(bad.items()))
             out.append(
