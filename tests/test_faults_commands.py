@@ -520,3 +520,19 @@ def test_the_pooled_report_names_the_sessions_it_could_not_score(tmp_path) -> No
     }
     pooled = pool_study(resolved, tasks, docs)
     assert pooled["default"]["sessions_not_scored"] == ["street"]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["bench", "session-io", "--minutes", "nan"],
+        ["bench", "session-io", "--rate-hz", "inf"],
+        ["bench", "registration", "--rate-hz", "nan"],
+        ["bench", "simulate", "--strides", "0"],
+    ],
+    ids=lambda a: "-".join(a[1:3]),
+)
+def test_a_bad_bench_option_is_a_typed_error(capsys, argv) -> None:
+    code, _, err = cli(argv, capsys)
+    assert code == 2, err
+    one_line_error(err, argv[2].removeprefix("--") if argv[1] == "simulate" else argv[2])
