@@ -9,6 +9,7 @@ import pytest
 
 from graph_slam.errors import OutputError
 from graph_slam.session.atomic import (
+    LEGACY_SIGNS,
     MARKER_NAME,
     atomic_folder,
     check_output,
@@ -302,3 +303,21 @@ def test_ctrl_c_of_batch_is_one_line(walk, tmp_path) -> None:
     assert "Traceback" not in err and "CancelledError" not in err, err
     assert "WARNING" not in err, err
     assert err.strip().splitlines()[-1].startswith("interrupted: finished tasks are kept"), err
+
+
+def test_a_folder_an_older_version_marked_is_known_by_its_files(tmp_path) -> None:
+    """Markers written before they named the command: the folder's files tell which command
+    wrote it, so `--overwrite` keeps working on one's own older outputs and still never
+    replaces another command's."""
+    older = "written by graph-slam; --overwrite may replace this folder\n"
+    for k, (command, names) in enumerate(LEGACY_SIGNS):
+        folder = tmp_path / f"out{k}"
+        folder.mkdir()
+        (folder / MARKER_NAME).write_text(older)
+        for name in names:
+            (folder / name).write_text("x")
+        assert written_by(folder) == command
+        check_output(folder, overwrite=True, command=command)
+        other = "run" if command != "run" else "compare"
+        with pytest.raises(OutputError, match=f"was written by `graph-slam {command}`"):
+            check_output(folder, overwrite=True, command=other)

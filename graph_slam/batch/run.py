@@ -131,14 +131,11 @@ def check_study_folder(out: str | Path, inputs: Sequence[str | Path] = ()) -> Pa
     """The study folder ``out``, before any work: missing, empty, or a study a batch wrote
     (resumed), and neither inside nor around a session of the study (``inputs``); any other
     folder is refused with :class:`BatchError` or :class:`OutputError` and left untouched."""
-    from graph_slam.session.atomic import check_inputs, check_output, written_by, written_by_us
+    from graph_slam.session.atomic import check_inputs, check_output, written_by_us
 
     out = Path(out)
     check_inputs(out, inputs)
-    study = out.is_dir() and not out.is_symlink() and any(out.iterdir())
-    if study and is_study_folder(out) and written_by(out) == "":
-        return out  # a study an older batch wrote (its marker names no command): resumed
-    if study and not is_study_folder(out):
+    if out.is_dir() and not out.is_symlink() and any(out.iterdir()) and not is_study_folder(out):
         why = (
             "it holds another graph-slam command's output (compare, run, demo, ...)"
             if written_by_us(out)

@@ -42,19 +42,38 @@ def marker_text(command: str) -> str:
     )
 
 
+LEGACY_SIGNS = (
+    ("batch", (".graph-slam-batch",)),
+    ("batch", ("study.json",)),
+    ("demo", ("sessions", "report")),
+    ("run", ("run.json",)),
+    ("compare", ("metrics.json", "report.md")),
+    ("convert", ("session.yaml", "conversion_report.yaml")),
+    ("simulate", ("session.yaml", "sim_config.yaml")),
+    ("simulate --export realsense-sdk-bag", ("export.yaml",)),
+)
+"""For a marker an older graph-slam wrote (it names no command): the command whose files the
+folder holds, first match (every entry must be present)."""
+
+
 def written_by(path: str | Path) -> str | None:
-    """The command whose marker ``path`` holds; ``""`` for a marker that names none (an older
-    graph-slam); None when there is no marker (not written by graph-slam)."""
-    marker = Path(path) / MARKER_NAME
+    """The command whose marker ``path`` holds; for a marker an older graph-slam wrote (no
+    command in it) the command its files show (:data:`LEGACY_SIGNS`), else ``""``; None when
+    there is no marker (not written by graph-slam)."""
+    path = Path(path)
+    marker = path / MARKER_NAME
     if not marker.is_file():
         return None
     try:
         text = marker.read_text(encoding="utf-8", errors="replace")
     except OSError:
-        return ""
+        text = ""
     for line in text.splitlines():
         if line.startswith(_COMMAND_KEY):
             return line[len(_COMMAND_KEY) :].strip()
+    for command, names in LEGACY_SIGNS:
+        if all((path / name).exists() for name in names):
+            return command
     return ""
 
 
