@@ -9,9 +9,10 @@ Every command that writes a folder (``simulate``, ``convert``, ``run``, ``compar
 - the target must not be an input of the run, lie inside one, or contain one (``inputs``);
 - an existing target is replaced only with ``--overwrite``, and only when the same command
   wrote it: its marker file :data:`MARKER_NAME` names the command (every folder written here
-  gets one). A folder another command wrote (a session, a study, a report), one whose marker
-  names no command (an older graph-slam), and a user's own folder are never replaced; an empty
-  folder is fine;
+  gets one; an older graph-slam's marker names none, and the folder's files tell it:
+  :data:`LEGACY_SIGNS`). A folder another command wrote (a session, a study, a report), one
+  whose command cannot be told, and a user's own folder are never replaced; an empty folder is
+  fine;
 - an interrupted run (an exception, Ctrl-C) removes its temporary folder, so nothing
   half-written is ever left at the target; a run killed outright leaves only a hidden sibling
   ``.<name>.partial-<pid>`` that the next run at the same target removes.
