@@ -317,6 +317,7 @@ def test_a_batch_configuration_with_an_infinite_value_is_refused(
         (["run", "{s}", "--map-dtype", "float16"], ["map_dtype", "'float32' or 'float64'"]),
         (["run", "{s}", "--variants", "icp,icp"], ["--variants", "icp listed more than once"]),
         (["demo", "--strides-scale", "inf"], ["--strides-scale", "inf"]),
+        (["demo", "--seed", "-1", "--strides", "1,1,1"], ["demo options", "field 'seed'"]),
         (["planar", "--seed", "-3"], ["--seed", "greater than or equal to 0"]),
         (
             ["simulate", "--export", "realsense-sdk-bag", "--clock-offset", "nan"],
@@ -325,7 +326,7 @@ def test_a_batch_configuration_with_an_infinite_value_is_refused(
         (["batch", "{spec}", "--scheduler", "notaurl"], ["--scheduler 'notaurl'", "tcp://"]),
         (["batch", "{spec}", "--memory-limit", "lots"], ["--memory-limit", "'lots'", "4GiB"]),
     ],
-    ids=["map-dtype", "variants-twice", "strides-scale", "planar-seed", "clock-offset",
+    ids=["map-dtype", "variants-twice", "strides-scale", "demo-seed", "planar-seed", "clock-offset",
          "scheduler", "memory-limit"],
 )  # fmt: skip
 def test_a_bad_option_value_is_a_typed_error(

@@ -236,6 +236,7 @@ def register(app: typer.Typer) -> None:
         default (docs/benchmarks.md, "Demo").
         """
         from graph_slam.commands._common import progress_bar
+        from graph_slam.config import config_from_dict
         from graph_slam.report import SessionSpec
         from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
@@ -245,18 +246,27 @@ def register(app: typer.Typer) -> None:
         cfg = _with_preset(_load_compare_config(config, variants), preset)
         cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
         cfg = with_workers(cfg, workers)
+        sim_cfgs = [
+            config_from_dict(
+                SimConfig,
+                dict(
+                    scene="thesis-boxes",
+                    speed_m_s=SPEEDS_M_S[speed],
+                    strides=n_strides,
+                    seed=seed,
+                    drops="bursty",
+                    resolution=size,
+                    quicklook=False,
+                ),
+                source="graph-slam demo options",
+            )  # every option checked before the folder is made
+            for (speed, _, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True)
+        ]
         _check_demo_out(out, overwrite)
         specs = []
-        for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):
-            sim_cfg = SimConfig(
-                scene="thesis-boxes",
-                speed_m_s=SPEEDS_M_S[speed],
-                strides=n_strides,
-                seed=seed,
-                drops="bursty",
-                resolution=size,
-                quicklook=False,
-            )
+        for (speed, label, _), n_strides, sim_cfg in zip(
+            DEMO_SPEEDS, counts, sim_cfgs, strict=True
+        ):
             with progress_bar(f"simulating {label.lower()} ({n_strides} strides)") as update:
                 path = simulate(
                     sim_cfg, out / "sessions" / speed, overwrite=overwrite, progress=update
