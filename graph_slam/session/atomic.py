@@ -38,8 +38,8 @@ _COMMAND_KEY = "command: "
 def marker_text(command: str) -> str:
     """The marker file's content for a folder ``command`` wrote."""
     return (
-        f"written by graph-slam {command}; only `graph-slam {command} --overwrite` may replace "
-        f"this folder\n{_COMMAND_KEY}{command}\n"
+        f"written by `graph-slam {command}`; only the same command may replace this folder, "
+        f"never another one\n{_COMMAND_KEY}{command}\n"
     )
 
 
