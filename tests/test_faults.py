@@ -412,6 +412,7 @@ def test_the_streaming_strike_and_frame_contract(synthetic_session, variant) -> 
     from graph_slam.errors import EstimationError
     from graph_slam.pipelines import PipelineConfig
     from graph_slam.pipelines.runner import open_pipeline
+    from graph_slam.session import RgbdFrame
 
     cfg = PipelineConfig(variant=variant, mount_pitch_deg=35.0, event_source=None)
     s, st, pipe = open_pipeline(synthetic_session, cfg)
@@ -430,6 +431,11 @@ def test_the_streaming_strike_and_frame_contract(synthetic_session, variant) -> 
     pipe.add_frame(f[2], True)
     with pytest.raises(EstimationError, match="not after the previous frame"):
         pipe.add_frame(f[1], True)
+    with pytest.raises(EstimationError, match="frame is a NoneType, not a"):
+        pipe.add_frame(None, True)
+    small = RgbdFrame(f[3].t_s, f[3].depth_m[:-2], index=3)
+    with pytest.raises(EstimationError, match=r"frame 3 is 64×46 px but the camera's"):
+        pipe.add_frame(small, True)
     pipe.foot_strike(f[3].t_s + 1.0)  # announced before it happened
     with pytest.raises(EstimationError, match="lies after the next frame"):
         pipe.add_frame(f[3], True)

@@ -126,7 +126,7 @@ class ThesisBaseline:
 
     # ------------------------------------------------------------------ frames
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
-        self.strike_clock.frame(frame.t_s)
+        self.strike_clock.frame(frame, self.intrinsics)
         t0 = time.perf_counter()
         index = self.results.n_frames
         cloud = frame_cloud(

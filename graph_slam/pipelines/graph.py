@@ -273,7 +273,7 @@ class GraphPipeline:
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
         map cloud; strides the back end closed get their terrain maps."""
-        self.strike_clock.frame(frame.t_s)
+        self.strike_clock.frame(frame, self.intrinsics)
         t0 = time.perf_counter()
         index = self.results.n_frames
         stages: dict[str, float] = {}

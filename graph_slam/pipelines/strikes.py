@@ -9,7 +9,8 @@ A pipeline is fed in time order (:class:`graph_slam.pipelines.protocol.Pipeline`
   implausible as a stride: it is used (the stride is cut at the next frame, as asked) and
   counted, ``PipelineResults.counts["foot_strikes_too_close"]``, which ``run`` and
   ``compare`` report as a caveat;
-- ``add_frame(frame, ...)``: frame times are finite and increasing.
+- ``add_frame(frame, ...)``: an ``RgbdFrame`` of the camera's size; frame times are finite
+  and increasing.
 
 Anything else is an :class:`~graph_slam.errors.EstimationError` naming the call, the value
 and the rule, before the pipeline's state changes.
@@ -21,6 +22,7 @@ import math
 
 from graph_slam.errors import EstimationError
 from graph_slam.session.plausibility import MIN_STRIDE_S
+from graph_slam.session.records import RgbdFrame
 
 MIN_STRIKE_INTERVAL_S = MIN_STRIDE_S
 """Strikes closer than this (s) are implausible as strides (the plausibility rule)."""
@@ -57,10 +59,20 @@ class StrikeClock:
         self.last_strike_s = self.pending_s = t
         return t
 
-    def frame(self, t_s: float) -> None:
-        """Check an ``add_frame`` call's frame time against the last frame and the strike
-        announced before it."""
-        t = float(t_s)
+    def frame(self, frame, intrinsics=None) -> None:
+        """Check an ``add_frame`` call: an :class:`RgbdFrame` of the camera's size, its time
+        against the last frame's and the strike announced before it."""
+        if not isinstance(frame, RgbdFrame):
+            raise EstimationError(
+                f"add_frame: frame is a {type(frame).__name__}, not a graph_slam.session.RgbdFrame"
+            )
+        size = (intrinsics.height_px, intrinsics.width_px) if intrinsics is not None else None
+        if size is not None and frame.depth_m.shape != size:
+            raise EstimationError(
+                f"add_frame: frame {frame.index} is {frame.depth_m.shape[1]}×"
+                f"{frame.depth_m.shape[0]} px but the camera's intrinsics are {size[1]}×{size[0]}"
+            )
+        t = float(frame.t_s)
         if not math.isfinite(t):
             raise EstimationError(f"add_frame: frame.t_s = {t} is not a finite time")
         if self.last_frame_s is not None and t <= self.last_frame_s:
