@@ -321,3 +321,17 @@ def test_a_folder_an_older_version_marked_is_known_by_its_files(tmp_path) -> Non
         other = "run" if command != "run" else "compare"
         with pytest.raises(OutputError, match=f"was written by `graph-slam {command}`"):
             check_output(folder, overwrite=True, command=other)
+
+
+def test_the_worker_plugin_makes_a_worker_ignore_ctrl_c() -> None:
+    pytest.importorskip("dask.distributed")
+    import signal
+
+    from graph_slam.batch.worker_signals import IgnoreSigint
+
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        IgnoreSigint().setup(worker=None)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -118,6 +118,7 @@ def open_client(
     import dask
     from distributed import Client, LocalCluster
 
+    from graph_slam.batch.worker_signals import IgnoreSigint
     from graph_slam.report.parallel import sigint_ignored
 
     settings = {
@@ -149,6 +150,7 @@ def open_client(
                 env=WORKER_ENV,
             )
         client = Client(cluster)
+        client.register_plugin(IgnoreSigint())  # also in workers the nanny starts again
         info = ClusterInfo(
             f"local cluster: {n_workers} worker(s) × {threads_per_worker} thread(s), "
             f"memory limit {memory_limit} each",
