@@ -327,11 +327,11 @@ def test_the_worker_plugin_makes_a_worker_ignore_ctrl_c() -> None:
     pytest.importorskip("dask.distributed")
     import signal
 
-    from graph_slam.batch.worker_signals import IgnoreSigint
+    from graph_slam.batch.cluster import ignore_sigint_plugin
 
     before = signal.getsignal(signal.SIGINT)
     try:
-        IgnoreSigint().setup(worker=None)
+        ignore_sigint_plugin().setup(worker=None)
         assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, before)

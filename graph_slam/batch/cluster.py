@@ -67,6 +67,31 @@ def check_cluster_options(scheduler: str | None, memory_limit: str, source: str)
             ) from None
 
 
+def ignore_sigint_plugin():
+    """A Dask worker plugin: every local worker, also one the nanny starts again later (after a
+    memory kill), ignores SIGINT. A Ctrl-C in the terminal reaches the whole process group; the
+    batch (the parent) stops the workers itself, so none prints a ``KeyboardInterrupt``
+    traceback. (Defined here, on demand: Dask is imported only once a batch starts.)"""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class IgnoreSigint(WorkerPlugin):
+        name = "graph-slam-ignore-sigint"
+
+        def setup(self, worker) -> None:
+            ignore_sigint_here()
+
+    return IgnoreSigint()
+
+
+def ignore_sigint_here() -> None:
+    """SIGINT ignored in this process (from its main thread; elsewhere nothing)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def quiet_dask_logs(client=None) -> None:
     """After a Ctrl-C: Dask's warnings about the tasks and workers it is told to stop (a
     cancelled task, a worker killed on close) are expected, not news: silenced here and, via
@@ -118,7 +143,6 @@ def open_client(
     import dask
     from distributed import Client, LocalCluster
 
-    from graph_slam.batch.worker_signals import IgnoreSigint
     from graph_slam.report.parallel import sigint_ignored
 
     settings = {
@@ -150,7 +174,7 @@ def open_client(
                 env=WORKER_ENV,
             )
         client = Client(cluster)
-        client.register_plugin(IgnoreSigint())  # also in workers the nanny starts again
+        client.register_plugin(ignore_sigint_plugin())  # also in workers started again
         info = ClusterInfo(
             f"local cluster: {n_workers} worker(s) × {threads_per_worker} thread(s), "
             f"memory limit {memory_limit} each",
