@@ -8,19 +8,70 @@ with :func:`load_config`; write the fully resolved config next to a run's result
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from graph_slam.errors import ConfigError
 
 C = TypeVar("C", bound="ConfigModel")
 
 
-class ConfigModel(BaseModel):
-    """Base of every config: immutable, and a misspelt key is an error, not a silent default."""
+MAX_CONFIG_MAGNITUDE = 1e12
+"""The largest magnitude a float setting may have: beyond it (1e400 reads as inf) a value is a
+typo or a unit mistake, never a setting (metres, seconds, Hz, N all stay far below)."""
+
+
+def non_finite_in(value: Any, where: str = "") -> tuple[str, float] | None:
+    """The first float in ``value`` (a number, list, tuple, dict or dataclass of them) that is
+    NaN, infinite or beyond :data:`MAX_CONFIG_MAGNITUDE`: ``(where inside, value)``; else None.
+    Nested pydantic models are skipped (they check their own fields)."""
+    if isinstance(value, bool | BaseModel):
+        return None
+    if isinstance(value, float | np.floating):
+        bad = not math.isfinite(value) or abs(value) > MAX_CONFIG_MAGNITUDE
+        return (where, float(value)) if bad else None
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        items = [(f.name, getattr(value, f.name)) for f in dataclasses.fields(value)]
+    elif isinstance(value, dict):
+        items = [(str(k), v) for k, v in value.items()]
+    elif isinstance(value, list | tuple | set | frozenset):
+        items = [(str(i), v) for i, v in enumerate(value)]
+    else:
+        return None
+    for key, item in items:
+        found = non_finite_in(item, f"{where}.{key}" if where else key)
+        if found is not None:
+            return found
+    return None
+
+
+class FiniteFloats(BaseModel):
+    """Mixin: every float of every field (also inside lists, dicts and dataclasses) is finite
+    and within ±:data:`MAX_CONFIG_MAGNITUDE`, else a validation error naming the field."""
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _floats_are_finite(cls, value: Any) -> Any:
+        found = non_finite_in(value)
+        if found is not None:
+            where, number = found
+            at = f" (at {where})" if where else ""
+            raise ValueError(
+                f"{number!r}{at} is not a finite number within ±{MAX_CONFIG_MAGNITUDE:g} "
+                "(1e400 reads as inf; write the value in the field's unit)"
+            )
+        return value
+
+
+class ConfigModel(FiniteFloats):
+    """Base of every config: immutable, a misspelt key is an error, not a silent default, and
+    every float is finite (:class:`FiniteFloats`)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
 

@@ -51,4 +51,7 @@ def parse_variants(text: str, field: str = "--variants") -> list[Variant]:
         raise ConfigError(
             f"{field}: {', '.join(bad) or '(empty)'} not known; choose from {', '.join(VARIANTS)}"
         )
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ConfigError(f"{field}: {', '.join(twice)} listed more than once; list each once")
     return [Variant(n) for n in names]

@@ -64,3 +64,8 @@ def validate_refuses(session: Path, capsys, *needles: str) -> None:
     code, out, err = cli(["validate", session], capsys)
     assert code == 2, out + err
     assert any(all(n in line for n in needles) for line in err.splitlines()), err
+
+
+def snapshot(root: Path) -> dict[str, bytes]:
+    """Every file under ``root`` (relative path -> bytes), to show that nothing changed."""
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in root.rglob("*") if p.is_file()}

@@ -105,6 +105,39 @@ def test_strides_dropped_are_counted_with_their_reason(synthetic_session) -> Non
     assert "strides_dropped" not in {f.code for f in run_warnings(session, run, "load_cell")}
 
 
+def test_a_one_frame_tail_after_the_last_strike_is_no_stride(synthetic_session) -> None:
+    """A strike at the last frame leaves a one-frame tail: no stride, no "1 strides not scored
+    (1 fewer than 2 frames)" on every clean compare."""
+    from types import SimpleNamespace as stride
+
+    from graph_slam.report.checks import run_warnings
+    from graph_slam.session import open_session
+
+    t = open_session(synthetic_session).frame_times_s
+    n = t.size
+    (synthetic_session / "events.csv").write_text(
+        "t_s,kind,source\n"
+        + "".join(f"{float(x)!r},foot_strike,load_cell\n" for x in (t[3], t[n - 1]))
+    )
+    session = open_session(synthetic_session)
+    strides = [
+        stride(start="foot_strike", frame_indices=list(range(3, n - 1))),  # scored
+        stride(start="foot_strike", frame_indices=[n - 1]),  # the tail: one frame
+    ]
+    first = stride(t_s=t, strides=strides, counts={})
+    run = stride(results={"icp": first}, references=[stride(frame_indices=np.arange(3, n - 1))])
+    assert run_warnings(session, run, "load_cell") == []
+    strides[1] = stride(start="foot_strike", frame_indices=[n - 2])  # one frame, not the tail
+    strides[0].frame_indices = list(range(3, n - 2))
+    (synthetic_session / "events.csv").write_text(
+        "t_s,kind,source\n"
+        + "".join(f"{float(x)!r},foot_strike,load_cell\n" for x in (t[3], t[n - 2], t[n - 1]))
+    )
+    session = open_session(synthetic_session)
+    found = run_warnings(session, run, "load_cell")
+    assert [f.message for f in found] == ["1 strides not scored (1 fewer than 2 frames); 1 scored"]
+
+
 def test_foot_strikes_every_50_ms_are_a_caveat(synthetic_session) -> None:
     from graph_slam.session import open_session
     from graph_slam.session.plausibility import session_findings
@@ -334,3 +367,76 @@ def test_imu_online_strides_need_the_imu_not_events(synthetic_session) -> None:
     write_manifest(synthetic_session, data)
     (found,) = variant_findings(open_session(synthetic_session), ["icp"], events_cut_strides=False)
     assert found.fatal and "IMU gait events" in found.message and "files.imu" in found.message
+
+
+@pytest.mark.parametrize("x_m", [float("nan"), float("inf"), -float("inf"), 1e300])
+def test_height_at_an_impossible_coordinate_is_nan(x_m) -> None:
+    """``FrameOutput.terrain.height_at`` (and the stride map's) answers NaN for a coordinate
+    off the grid, as its docstring promises, NaN and inf included (no ValueError)."""
+    from graph_slam.terrain.elevation import ElevationConfig, elevation_grid
+    from graph_slam.terrain.online import CellSums, OnlineElevationMap, OnlineTerrainConfig
+
+    cfg = OnlineTerrainConfig()
+    view = OnlineElevationMap(cfg, prior=CellSums.empty(int(np.prod(cfg.shape)))).view()
+    grid = elevation_grid(np.tile([0.5, 0.0, 0.1], (4, 1)), ElevationConfig())
+    for terrain in (view, grid):
+        assert np.isnan(terrain.height_at(x_m, 0.0)) and np.isnan(terrain.height_at(0.0, x_m))
+    assert np.isnan(view.sigma_at(x_m, 0.0))
+    assert grid.height_at(0.5, 0.0) == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("fault", ["all-zero", "the-same-image"])
+def test_depth_that_cannot_be_registered_is_refused(synthetic_session, tmp_path, capsys, fault):
+    """No valid depth pixel in any frame, or one depth image repeated in every frame (a frozen
+    stream): validate and compare stop (before: "valid", then 0 registered / 10 frames
+    "registered" with zero motion)."""
+    from graph_slam.session.io import write_png
+
+    pngs = sorted((synthetic_session / "depth").glob("*.png"))
+    first = pngs[0].read_bytes()
+    for png in pngs:
+        if fault == "all-zero":
+            write_png(png, np.zeros((48, 64), dtype=np.uint16))  # the small session's size
+        else:
+            png.write_bytes(first)
+    rule = "no valid depth pixel" if fault == "all-zero" else "hold the same depth image"
+    validate_refuses(synthetic_session, capsys, "frames.csv", rule)
+    compare_refuses(synthetic_session, tmp_path, capsys, "frames.csv", rule)
+
+
+@pytest.mark.parametrize("variant", ["icp", "imu+kin"])
+def test_the_streaming_strike_and_frame_contract(synthetic_session, variant) -> None:
+    """``foot_strike(t)`` with t NaN / inf / not after the previous strike / after the next
+    frame, and frames out of order, are typed errors; a strike too close to the previous one
+    is used and counted (docs/pipelines.md)."""
+    from graph_slam.errors import EstimationError
+    from graph_slam.pipelines import PipelineConfig
+    from graph_slam.pipelines.runner import open_pipeline
+    from graph_slam.session import RgbdFrame
+
+    cfg = PipelineConfig(variant=variant, mount_pitch_deg=35.0, event_source=None)
+    s, st, pipe = open_pipeline(synthetic_session, cfg)
+    pipe.add_imu(st.imu_t_s, st.gyro_rad_s, st.accel_m_s2)
+    pipe.add_joints(st.joints_t_s, st.knee_rad, st.ankle_rad)
+    f = list(s.iter_frames(0, 4))
+    for bad in (float("nan"), float("inf"), "soon"):
+        with pytest.raises(EstimationError, match=r"foot_strike: t_s = .* not a"):
+            pipe.foot_strike(bad)
+    pipe.add_frame(f[0], True)
+    pipe.foot_strike(f[0].t_s + 0.002)
+    with pytest.raises(EstimationError, match="not after the previous strike"):
+        pipe.foot_strike(f[0].t_s)  # in the past
+    pipe.add_frame(f[1], True)
+    pipe.foot_strike(f[0].t_s + 0.003)  # 1 ms after the last strike: used and counted
+    pipe.add_frame(f[2], True)
+    with pytest.raises(EstimationError, match="not after the previous frame"):
+        pipe.add_frame(f[1], True)
+    with pytest.raises(EstimationError, match="frame is a NoneType, not a"):
+        pipe.add_frame(None, True)
+    small = RgbdFrame(f[3].t_s, f[3].depth_m[:-2], index=3)
+    with pytest.raises(EstimationError, match=r"frame 3 is 64×46 px but the camera's"):
+        pipe.add_frame(small, True)
+    pipe.foot_strike(f[3].t_s + 1.0)  # announced before it happened
+    with pytest.raises(EstimationError, match="lies after the next frame"):
+        pipe.add_frame(f[3], True)
+    assert pipe.finish().counts["foot_strikes_too_close"] == 1

@@ -118,6 +118,40 @@ def _convert_bag(path: Path) -> None:
     convert(path, path.parent / "out", ConvertConfig(format="rosbag"))
 
 
+LOG_MAPPING = {
+    "time": {"column": "time_ms", "unit": "ms"},
+    "knee": {"column": "knee", "unit": "deg"},
+    "ankle": {"column": "ankle", "unit": "deg"},
+}
+LOG_HEADER = "time_ms,knee,ankle,load,event"
+VALID_LOG = (
+    LOG_HEADER
+    + "\n"
+    + "".join(
+        f"{10 * i},{30 + (i % 7) * 5},{(i % 5) - 2},{(i % 10) * 90},{'HS' if i % 10 == 0 else ''}\n"
+        for i in range(24)
+    )
+).encode()
+
+
+def _read_prosthesis_log(path: Path) -> None:
+    from graph_slam.config import config_from_dict
+    from graph_slam.session.adapters.config import ProsthesisLogConfig
+    from graph_slam.session.adapters.prosthesis_log import read_prosthesis_log
+
+    events = {"column": "event", "values": {"HS": "foot_strike"}, "ignore": ["MS"]}
+    load = {"column": "load", "foot_strike_above_n": 50, "toe_off_below_n": 20}
+    for extra in ({"events": events}, {"load": load}):
+        spec = config_from_dict(ProsthesisLogConfig, {**LOG_MAPPING, **extra})
+        read_prosthesis_log(path, spec)
+
+
+def _read_batch_spec(path: Path) -> None:
+    from graph_slam.batch.spec import load_spec
+
+    load_spec(path)
+
+
 READERS = {
     "manifest": (_read_manifest, "session.yaml"),
     "imu_csv": (_read_imu_csv, "imu.csv"),
@@ -127,6 +161,8 @@ READERS = {
     "config": (_read_config, "compare.yaml"),
     "gait_imu_csv": (_read_gait_imu, "imu.csv"),
     "bag": (_convert_bag, "walk.bag"),
+    "prosthesis_log": (_read_prosthesis_log, "controller.csv"),
+    "batch_spec": (_read_batch_spec, "batch.yaml"),
 }
 
 
@@ -230,3 +266,37 @@ def small_bag(tmp_path_factory) -> bytes:
 @given(data=st.data())
 def test_bag_bytes(small_bag: bytes, data) -> None:
     _parses_or_library_error(_convert_bag, data.draw(_mutations(small_bag)), "walk.bag")
+
+
+@FUZZ
+@given(body=csv_text)
+def test_prosthesis_log_text(body: str) -> None:
+    data = (LOG_HEADER + "\n" + body).encode()
+    _parses_or_library_error(_read_prosthesis_log, data, "controller.csv")
+
+
+@FUZZ
+@given(data=_mutations(VALID_LOG))
+def test_prosthesis_log_bytes(data: bytes) -> None:
+    _parses_or_library_error(_read_prosthesis_log, data, "controller.csv")
+
+
+def _valid_spec(session: Path) -> bytes:
+    return (
+        f"sessions: [{session}]\nvariants: [icp, icp+imu]\nconfig: {{match_margin_m: 0.05}}\n"
+        "configurations: {a: {}, b: {pipeline: {cloud: {max_depth_m: 2.5}}}}\n"
+        "produce: {map_plots: 1}\ncluster: {workers: 1, memory_limit: 2GiB}\nretries: 1\n"
+    ).encode()
+
+
+@FUZZ
+@given(text=yaml_text)
+def test_batch_spec_yaml(text: str) -> None:
+    _parses_or_library_error(_read_batch_spec, text.encode(), "batch.yaml")
+
+
+@settings(FUZZ, suppress_health_check=list(HealthCheck))
+@given(data=st.data())
+def test_batch_spec_bytes(_synthetic_master: Path, data) -> None:
+    valid = _valid_spec(_synthetic_master)
+    _parses_or_library_error(_read_batch_spec, data.draw(_mutations(valid)), "batch.yaml")

@@ -7,6 +7,7 @@ the estimator never does. Workers run with one BLAS/OpenMP thread per Dask threa
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import os
 from collections.abc import Iterator
@@ -35,6 +36,77 @@ def require_dask() -> None:
 def has_bokeh() -> bool:
     """The dashboard needs bokeh (optional: without it there is no dashboard)."""
     return importlib.util.find_spec("bokeh") is not None
+
+
+def check_cluster_options(scheduler: str | None, memory_limit: str, source: str) -> None:
+    """Before any work: ``scheduler`` is a Dask address (``tcp://host:port``, ``host:port``,
+    ``tls://``, ``inproc://``) and ``memory_limit`` a size (``4GiB``, ``500MB``) or ``auto``."""
+    require_dask()
+    from dask.utils import parse_bytes
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    if scheduler is not None:
+        try:
+            protocol, location = parse_address(scheduler)
+            if protocol != "inproc":
+                port = parse_host_port(location)[1]
+                if not 0 < port < 65536:
+                    raise ValueError(f"port {port} outside 1-65535")
+        except (ValueError, TypeError) as err:
+            raise BatchError(
+                f"--scheduler {scheduler!r}: not a Dask scheduler address ({err}); give "
+                "tcp://host:port, e.g. tcp://10.0.0.5:8786"
+            ) from None
+    if memory_limit != "auto":
+        try:
+            if parse_bytes(memory_limit) <= 0:
+                raise ValueError("not > 0")
+        except (ValueError, TypeError) as err:
+            raise BatchError(
+                f"{source}: memory limit {memory_limit!r} is not a size ({err}); give e.g. 4GiB"
+            ) from None
+
+
+def ignore_sigint_plugin():
+    """A Dask worker plugin: every local worker, also one the nanny starts again later (after a
+    memory kill), ignores SIGINT. A Ctrl-C in the terminal reaches the whole process group; the
+    batch (the parent) stops the workers itself, so none prints a ``KeyboardInterrupt``
+    traceback. (Defined here, on demand: Dask is imported only once a batch starts.)"""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class IgnoreSigint(WorkerPlugin):
+        name = "graph-slam-ignore-sigint"
+
+        def setup(self, worker) -> None:
+            ignore_sigint_here()
+
+    return IgnoreSigint()
+
+
+def ignore_sigint_here() -> None:
+    """SIGINT ignored in this process (from its main thread; elsewhere nothing)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def quiet_dask_logs(client=None) -> None:
+    """After a Ctrl-C: Dask's warnings about the tasks and workers it is told to stop (a
+    cancelled task, a worker killed on close) are expected, not news: silenced here and, via
+    ``client``, in the workers."""
+    _silence_dask_loggers()
+    if client is not None:
+        with contextlib.suppress(Exception):  # a worker already gone has nothing left to say
+            client.run(_silence_dask_loggers)
+
+
+def _silence_dask_loggers() -> None:
+    import logging
+
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
 @dataclass(frozen=True)
@@ -71,6 +143,8 @@ def open_client(
     import dask
     from distributed import Client, LocalCluster
 
+    from graph_slam.report.parallel import sigint_ignored
+
     settings = {
         "distributed.scheduler.allowed-failures": retries,
         "distributed.scheduler.worker-saturation": 1.0,
@@ -80,7 +154,7 @@ def open_client(
         if scheduler is not None:
             try:
                 client = Client(scheduler, timeout="20s")
-            except (OSError, TimeoutError) as err:
+            except (OSError, TimeoutError, ValueError) as err:
                 raise BatchError(f"--scheduler {scheduler}: cannot connect ({err})") from None
             n = len(client.scheduler_info().get("workers", {}))
             info = ClusterInfo(f"scheduler {scheduler} ({n} workers now)", _dashboard(client))
@@ -90,15 +164,17 @@ def open_client(
                 client.close()
             return
         n_workers = workers or default_workers(threads_per_worker)
-        cluster = LocalCluster(
-            n_workers=n_workers,
-            threads_per_worker=threads_per_worker,
-            processes=True,
-            memory_limit=memory_limit,
-            dashboard_address=":0" if has_bokeh() else None,
-            env=WORKER_ENV,
-        )
+        with sigint_ignored():  # the workers inherit it: a Ctrl-C stops the batch, not them
+            cluster = LocalCluster(
+                n_workers=n_workers,
+                threads_per_worker=threads_per_worker,
+                processes=True,
+                memory_limit=memory_limit,
+                dashboard_address=":0" if has_bokeh() else None,
+                env=WORKER_ENV,
+            )
         client = Client(cluster)
+        client.register_plugin(ignore_sigint_plugin())  # also in workers started again
         info = ClusterInfo(
             f"local cluster: {n_workers} worker(s) × {threads_per_worker} thread(s), "
             f"memory limit {memory_limit} each",
@@ -106,6 +182,9 @@ def open_client(
         )
         try:
             yield client, info
+        except KeyboardInterrupt:
+            quiet_dask_logs(client)  # the running tasks are cancelled on purpose
+            raise
         finally:
             client.close()
             cluster.close()

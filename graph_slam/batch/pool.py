@@ -140,11 +140,17 @@ def pool_study(
     pooled: dict[str, Any] = {}
     for name in resolved.configurations:
         mine = [t for t in tasks if t.configuration == name]
-        per_session, sources, speeds = [], {}, {}
+        per_session, sources, speeds, not_scored = [], {}, {}, []
         for session in resolved.sessions:
             metrics: dict[str, Any] = {}
             truth_seen = False
-            for t in (t for t in mine if t.session_key == session.key and t.id in docs):
+            done = [t for t in mine if t.session_key == session.key and t.id in docs]
+            if done and not any(
+                s.get("trajectory") for t in done for v in docs[t.id]["variants"].values()
+                for s in v.get("strides", [])
+            ):  # fmt: skip
+                not_scored.append(session.key)
+            for t in done:
                 doc = docs[t.id]
                 metrics.update(doc["variants"])
                 for source, entry in doc.get("maps", {}).items():
@@ -167,6 +173,7 @@ def pool_study(
             }
         boxes = {src: pooled_boxes(entries) for src, entries in sources.items()}
         pooled[name] = {
+            "sessions_not_scored": not_scored,
             "variants": by_key,
             "rmse_by_speed_m": speeds,
             "table_4_2_online": table_4_2(table_4_2_rows(per_session, online), online),

@@ -151,7 +151,14 @@ def _markdown(resolved, tasks, states, pooled, plot: Path | None, out: Path) -> 
             "",
         ]
     for name, p in pooled.items():
-        lines += [f"## Configuration `{name}`", "", "### Table 4.2 — online poses", ""]
+        lines += [f"## Configuration `{name}`", ""]
+        if p.get("sessions_not_scored"):
+            lines += [
+                f"Not in the tables below (no stride scored: no ground truth, or every stride "
+                f"dropped; see the task reports): {', '.join(p['sessions_not_scored'])}.",
+                "",
+            ]
+        lines += ["### Table 4.2 — online poses", ""]
         lines += [p["table_4_2_online"]]
         if p["table_4_2_smoothed"]:
             lines += ["### Table 4.2 — smoothed poses", "", p["table_4_2_smoothed"]]

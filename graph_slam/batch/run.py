@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -82,7 +82,7 @@ def run_batch(
     on_cluster: ClusterCallback | None = None,
 ) -> BatchResult:
     """Run the study ``spec_path`` into ``out`` (created, or resumed when batch wrote it)."""
-    from graph_slam.batch.cluster import require_dask
+    from graph_slam.batch.cluster import check_cluster_options, require_dask
     from graph_slam.batch.pool_report import write_pooled_report
     from graph_slam.session.atomic import mark_folder
 
@@ -90,8 +90,13 @@ def run_batch(
     options = options or ClusterOptions()
     require_dask()
     resolved = load_spec(spec_path)
-    out = check_study_folder(out)
-    mark_folder(out)
+    memory_limit = options.memory_limit or resolved.spec.cluster.memory_limit
+    where = (
+        "--memory-limit" if options.memory_limit else f"{spec_path}: field 'cluster.memory_limit'"
+    )
+    check_cluster_options(options.scheduler, memory_limit, where)
+    out = check_study_folder(out, [s.path for s in resolved.sessions])
+    mark_folder(out, command="batch")
     (out / STUDY_MARKER).write_text("a graph-slam batch study; a re-run resumes it\n")
     tasks = plan_tasks(resolved, out)
     states: dict[str, dict[str, Any]] = {}
@@ -122,12 +127,14 @@ def is_study_folder(path: Path) -> bool:
     return isinstance(study, dict) and study.get("schema") == STUDY_SCHEMA
 
 
-def check_study_folder(out: str | Path) -> Path:
+def check_study_folder(out: str | Path, inputs: Sequence[str | Path] = ()) -> Path:
     """The study folder ``out``, before any work: missing, empty, or a study a batch wrote
-    (resumed); any other folder is refused with :class:`BatchError` and left untouched."""
-    from graph_slam.session.atomic import check_output, written_by_us
+    (resumed), and neither inside nor around a session of the study (``inputs``); any other
+    folder is refused with :class:`BatchError` or :class:`OutputError` and left untouched."""
+    from graph_slam.session.atomic import check_inputs, check_output, written_by_us
 
     out = Path(out)
+    check_inputs(out, inputs)
     if out.is_dir() and not out.is_symlink() and any(out.iterdir()) and not is_study_folder(out):
         why = (
             "it holds another graph-slam command's output (compare, run, demo, ...)"
@@ -139,7 +146,7 @@ def check_study_folder(out: str | Path) -> Path:
             "a batch writes into a new or empty folder or resumes its own study, choose another "
             "--out"
         )
-    return check_output(out, overwrite=True)
+    return check_output(out, overwrite=True, command="batch", inputs=inputs)
 
 
 def _run_pending(

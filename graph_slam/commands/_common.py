@@ -23,6 +23,25 @@ def run_app(app: typer.Typer, argv: list[str] | None = None) -> int:
     return 0
 
 
+EXIT_INTERRUPTED = 130
+
+
+def exit_on_interrupt(out) -> object:
+    """A context: a Ctrl-C ends with one line and exit code 130 (the output folder ``out`` is
+    written whole or not at all, so nothing half-written is left; workers stop quietly)."""
+    from contextlib import contextmanager
+
+    @contextmanager
+    def _guard():
+        try:
+            yield
+        except KeyboardInterrupt:
+            print(f"interrupted: nothing written to {out}", file=sys.stderr)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+
+    return _guard()
+
+
 PLAIN_PROGRESS_EVERY_S = 5.0
 """How often the plain progress line is printed when stderr is not a terminal (a log file, CI)."""
 
@@ -93,6 +112,9 @@ def workers_option_help(default: str) -> str:
 
 def with_workers(cfg, workers: int | None):
     """``cfg`` (a RunSettings) with ``workers`` over it (None: as it is)."""
+    from graph_slam.config import config_from_dict
+
     if workers is None:
         return cfg
-    return type(cfg).model_validate({**cfg.model_dump(), "workers": workers})
+    data = {**cfg.model_dump(), "workers": workers}
+    return config_from_dict(type(cfg), data, source="--workers")

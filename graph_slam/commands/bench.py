@@ -13,6 +13,19 @@ bench_app = typer.Typer(
 )
 
 
+def _check_options(**values: float) -> None:
+    """Each option value (named by its keyword) is finite and > 0: a ConfigError naming it."""
+    import math
+
+    from graph_slam.errors import ConfigError
+
+    for name, value in values.items():
+        if not (math.isfinite(value) and value > 0):
+            raise ConfigError(
+                f"--{name.replace('_', '-')}: must be a finite number > 0, got {value}"
+            )
+
+
 @bench_app.command("session-io")
 def session_io(
     minutes: Annotated[float, typer.Option(help="Session length.")] = 10.0,
@@ -25,6 +38,7 @@ def session_io(
     from graph_slam.bench.session_io import run_session_io
     from graph_slam.commands._common import progress_bar
 
+    _check_options(minutes=minutes, rate_hz=rate_hz, unique_frames=unique_frames)
     with tempfile.TemporaryDirectory() as tmp, progress_bar("reading frames") as update:
         result = run_session_io(
             Path(tmp) / "session",
@@ -47,9 +61,11 @@ def simulate_bench(
     """Wall time of the simulator (target: 25 strides of D455 at 90 Hz in < 3 min, 2 cores)."""
     from graph_slam.bench.simulator import run_simulate_bench
     from graph_slam.commands._common import progress_bar
+    from graph_slam.config import config_from_dict
     from graph_slam.sim import SimConfig
 
-    cfg = SimConfig(strides=strides, drops=drops, camera=camera, fast=fast, quicklook=False)
+    options = dict(strides=strides, drops=drops, camera=camera, fast=fast, quicklook=False)
+    cfg = config_from_dict(SimConfig, options, source="graph-slam bench simulate options")
     with tempfile.TemporaryDirectory() as tmp, progress_bar("simulating") as update:
         result = run_simulate_bench(Path(tmp) / "session", cfg, progress=update)
     for line in result.lines():
@@ -89,6 +105,9 @@ def registration(
     from graph_slam.bench.registration import GUESSES, METHODS, run_registration_bench
     from graph_slam.commands._common import progress_bar
 
+    _check_options(pairs=pairs, rate_hz=rate_hz)
+    if not all(s.strip().isdigit() and int(s) >= 1 for s in steps.split(",")):
+        raise typer.BadParameter(f"--steps {steps!r}: whole numbers >= 1, e.g. 2,1")
     configs = None
     if methods:
         names = [m.strip() for m in methods.split(",") if m.strip()]
@@ -264,6 +283,8 @@ def scenarios_bench(
     from graph_slam.pipelines import PipelineConfig
 
     base = load_config(PipelineConfig, config)  # a bad file fails before any simulation
+    if seed < 0 or strides < 1:
+        raise typer.BadParameter(f"--seed {seed} must be >= 0 and --strides {strides} >= 1")
     names = None if only is None else tuple(n.strip() for n in only.split(",") if n.strip())
     known = {s.name for s in sc.SCENARIOS}
     if names and (unknown := [n for n in names if n not in known]):

@@ -35,14 +35,13 @@ def _parse_variants(text: str) -> list[str]:
 
 
 def _load_compare_config(path: Path | None, variants: str | None):
-    from graph_slam.config import load_config
+    from graph_slam.config import config_from_dict, load_config
     from graph_slam.report import CompareConfig
 
     cfg = load_config(CompareConfig, path)
     if variants is not None:
-        cfg = CompareConfig.model_validate(
-            {**cfg.model_dump(), "variants": _parse_variants(variants)}
-        )
+        data = {**cfg.model_dump(), "variants": _parse_variants(variants)}
+        cfg = config_from_dict(CompareConfig, data, f"{path or 'graph-slam'} (with --variants)")
     return cfg
 
 
@@ -118,8 +117,8 @@ def _demo_strides(text: str | None, scale: float) -> list[int]:
     from graph_slam.errors import ConfigError
 
     if text is None:
-        if not scale > 0:
-            raise ConfigError(f"--strides-scale: must be > 0, got {scale}")
+        if not 0 < scale < 1e3:  # NaN and inf too
+            raise ConfigError(f"--strides-scale: must be > 0 and < 1000, got {scale}")
         return [max(1, round(n * scale)) for _, _, n in DEMO_SPEEDS]
     parts = [p.strip() for p in text.split(",")]
     if len(parts) != len(DEMO_SPEEDS) or not all(p.isdigit() and int(p) >= 1 for p in parts):
@@ -133,12 +132,12 @@ def _check_demo_out(out: Path, overwrite: bool) -> None:
     """The demo folder (marked as graph-slam's) and its parts, checked before any work."""
     from graph_slam.session.atomic import check_output, mark_folder
 
-    check_output(out, overwrite=overwrite)
+    check_output(out, overwrite=overwrite, command="demo")
     for speed, _, _ in DEMO_SPEEDS:
-        check_output(out / "sessions" / speed, overwrite=overwrite, session=True)
-    check_output(out / "report", overwrite=overwrite)
-    mark_folder(out)
-    mark_folder(out / "sessions")
+        check_output(out / "sessions" / speed, overwrite=overwrite, command="simulate")
+    check_output(out / "report", overwrite=overwrite, command="compare")
+    mark_folder(out, command="demo")
+    mark_folder(out / "sessions", command="demo")
 
 
 def has_display(env: dict[str, str] | None = None) -> bool:
@@ -167,8 +166,12 @@ def register(app: typer.Typer) -> None:
         ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
+        from graph_slam.commands._common import exit_on_interrupt
+
         cfg = with_workers(_load_compare_config(config, variants), workers)
-        _print_report(_run_compare([session], out, cfg, overwrite))
+        with exit_on_interrupt(out):
+            report = _run_compare([session], out, cfg, overwrite)
+        _print_report(report)
 
     @app.command()
     def demo(
@@ -233,6 +236,7 @@ def register(app: typer.Typer) -> None:
         default (docs/benchmarks.md, "Demo").
         """
         from graph_slam.commands._common import progress_bar
+        from graph_slam.config import config_from_dict
         from graph_slam.report import SessionSpec
         from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
@@ -242,18 +246,27 @@ def register(app: typer.Typer) -> None:
         cfg = _with_preset(_load_compare_config(config, variants), preset)
         cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
         cfg = with_workers(cfg, workers)
+        sim_cfgs = [
+            config_from_dict(
+                SimConfig,
+                dict(
+                    scene="thesis-boxes",
+                    speed_m_s=SPEEDS_M_S[speed],
+                    strides=n_strides,
+                    seed=seed,
+                    drops="bursty",
+                    resolution=size,
+                    quicklook=False,
+                ),
+                source="graph-slam demo options",
+            )  # every option checked before the folder is made
+            for (speed, _, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True)
+        ]
         _check_demo_out(out, overwrite)
         specs = []
-        for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):
-            sim_cfg = SimConfig(
-                scene="thesis-boxes",
-                speed_m_s=SPEEDS_M_S[speed],
-                strides=n_strides,
-                seed=seed,
-                drops="bursty",
-                resolution=size,
-                quicklook=False,
-            )
+        for (speed, label, _), n_strides, sim_cfg in zip(
+            DEMO_SPEEDS, counts, sim_cfgs, strict=True
+        ):
             with progress_bar(f"simulating {label.lower()} ({n_strides} strides)") as update:
                 path = simulate(
                     sim_cfg, out / "sessions" / speed, overwrite=overwrite, progress=update

@@ -37,6 +37,7 @@ def register(app: typer.Typer) -> None:
         --online: kinematics.gait_phase)."""
         import logging
 
+        from graph_slam.session.atomic import check_output_file
         from kinematics.gait_events import (
             detect_from_thigh_imu,
             read_imu_csv,
@@ -45,6 +46,8 @@ def register(app: typer.Typer) -> None:
 
         if not logging.getLogger().handlers:
             logging.basicConfig(level=logging.WARNING, format="warning: %(message)s")
+        if out is not None:
+            check_output_file(out, inputs=[imu_csv])  # before any work
         imu = read_imu_csv(imu_csv)
         if online:
             _online(imu_csv, imu, out)

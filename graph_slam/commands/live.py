@@ -66,8 +66,10 @@ def register(app: typer.Typer) -> None:
         rs_module()  # a missing extra is said before anything else
         if log is not None and udp is not None:
             raise ConfigError("--log and --udp: give one prosthesis source")
-        if out.exists() and not overwrite:
-            raise ConfigError(f"{out}: already exists (pass --overwrite to replace it)")
+        from graph_slam.session.atomic import check_output, mark_folder
+
+        inputs = [p for p in (playback, log, config) if p is not None]
+        out = check_output(out, overwrite=overwrite, command="live", inputs=inputs)
         conv = load_config(ConvertConfig, config)
         pcfg = config_from_dict(
             PipelineConfig, with_preset({"variant": variant}, preset), source="--preset"
@@ -87,6 +89,12 @@ def register(app: typer.Typer) -> None:
                        f"{prosthesis.address[1]}")  # fmt: skip
         else:
             prosthesis = NoProsthesis()
+        check_output(out, overwrite=overwrite, command="live", inputs=[*inputs, *filter(None, [log_path])])
+        if out.is_dir() and any(out.iterdir()):  # a live run's folder, --overwrite (checked)
+            import shutil
+
+            shutil.rmtree(out)
+        mark_folder(out, command="live")
         viewer = None
         if rerun is not None:
             from graph_slam.live.viewer import LiveViewer
@@ -95,10 +103,6 @@ def register(app: typer.Typer) -> None:
             viewer = LiveViewer(out / "live.rrd", spawn=rerun == "spawn",
                                 connect=None if rerun == "spawn" else rerun)  # fmt: skip
         session_path = out / "session"
-        if overwrite and (session_path / "session.yaml").is_file():
-            import shutil
-
-            shutil.rmtree(session_path)  # a session graph-slam wrote
         runner = LiveRunner(source, prosthesis, pcfg, mount_pitch_deg=mount_pitch,
                             status=typer.echo, viewer=viewer, session_path=session_path)  # fmt: skip
         result = runner.run(max_s=max_seconds)

@@ -26,14 +26,14 @@ def register(app: typer.Typer) -> None:
         from rich.console import Console
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-        from graph_slam.config import load_config
+        from graph_slam.config import config_from_dict, load_config
         from graph_slam.planar.config import PlanarConfig
         from graph_slam.planar.evaluation import table_markdown
         from graph_slam.planar.study import n_steps, run_planar
 
         cfg = load_config(PlanarConfig, config)
         if seed is not None:
-            cfg = cfg.model_copy(update={"seed": seed})
+            cfg = config_from_dict(PlanarConfig, {**cfg.model_dump(), "seed": seed}, "--seed")
         console = Console()
         columns = (
             TextColumn("{task.description}"),

@@ -12,7 +12,7 @@ from graph_slam.commands._common import with_workers, workers_option_help
 
 def load_run_config(path: Path | None, variants: str | None, kitti: bool, map_dtype: str | None):
     """The YAML's RunConfig with the command line's choices over it."""
-    from graph_slam.config import load_config
+    from graph_slam.config import config_from_dict, load_config
     from graph_slam.report import RunConfig
     from graph_slam.variants import parse_variants
 
@@ -24,7 +24,9 @@ def load_run_config(path: Path | None, variants: str | None, kitti: bool, map_dt
         data["kitti"] = True
     if map_dtype is not None:
         data["map_dtype"] = map_dtype
-    return RunConfig.model_validate(data)
+    return config_from_dict(
+        RunConfig, data, source=f"{path or 'graph-slam run'} (with the options)"
+    )
 
 
 def _print_run(report) -> None:
@@ -81,10 +83,10 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Run the variants on recordings (ground truth optional); write trajectories, maps,
         elevation grids, per-frame flags, timing and a report of what agrees."""
-        from graph_slam.commands._common import progress_bar
+        from graph_slam.commands._common import exit_on_interrupt, progress_bar
         from graph_slam.report import run
 
         cfg = with_workers(load_run_config(config, variants, kitti, map_dtype), workers)
-        with progress_bar("running variants") as update:
+        with exit_on_interrupt(out), progress_bar("running variants") as update:
             report = run(sessions, out, cfg, progress=update, overwrite=overwrite)
         _print_run(report)

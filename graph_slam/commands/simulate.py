@@ -133,12 +133,15 @@ def _export(cfg, out: Path, export: str, clock_offset_s: float, overwrite: bool)
     """``--export realsense-sdk-bag``: the walk as an SDK recording + a prosthesis log
     (graph_slam.sim.export)."""
     from graph_slam.commands._common import progress_bar
+    from graph_slam.config import config_from_dict
     from graph_slam.errors import ConfigError
     from graph_slam.sim.export import RecordingExportConfig, export_realsense_recording
 
     if export not in EXPORTS:
         raise ConfigError(f"--export {export!r}: choose {' or '.join(EXPORTS)}")
-    options = RecordingExportConfig(clock_offset_s=clock_offset_s)
+    options = config_from_dict(
+        RecordingExportConfig, {"clock_offset_s": clock_offset_s}, source="--clock-offset"
+    )
     with progress_bar("rendering") as update:
         result = export_realsense_recording(cfg, out, options, overwrite=overwrite, progress=update)
     for line in result.lines():

@@ -66,7 +66,7 @@ class FloorConfig(ConfigModel):
         description="σ floor of the normal's direction (depth bias, unevenness); the "
         "statistical σ from the fit is usually far smaller",
     )
-    seed: int = Field(0, description="RANSAC random generator seed")
+    seed: int = Field(0, ge=0, description="RANSAC random generator seed")
 
 
 @dataclass(frozen=True)

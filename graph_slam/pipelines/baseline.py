@@ -32,6 +32,7 @@ from graph_slam.pipelines.results import (
     StrideOutput,
 )
 from graph_slam.pipelines.stages import StageTimer
+from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.strides.joints import JointBuffer
 from graph_slam.strides.kinematics import imu_up_in_model
@@ -78,6 +79,7 @@ class ThesisBaseline(PipelineBase):
         self._map: LocalMap | None = None
         self._stride: _OpenStride | None = None
         self._pending_strike = False
+        self.strike_clock = StrikeClock()
         self._world_T_stride = np.eye(4)
 
     # ------------------------------------------------------------------ streams
@@ -90,6 +92,7 @@ class ThesisBaseline(PipelineBase):
         self.joints.add(t_s, knee_rad, ankle_rad)
 
     def foot_strike(self, t_s: float) -> None:
+        t_s = self.strike_clock.strike(t_s)
         self._close_stride()
         self.gravity.foot_strike(t_s)
         self._pending_strike = True
@@ -118,6 +121,7 @@ class ThesisBaseline(PipelineBase):
 
     # ------------------------------------------------------------------ frames
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
+        self.strike_clock.frame(frame, self.intrinsics)
         index = self.results.n_frames
         timer = StageTimer()
         with timer("cloud"):
@@ -243,5 +247,6 @@ class ThesisBaseline(PipelineBase):
             "with_pose": reg,
             "without_pose": n - reg,
             **{f"joints_{k}": v for k, v in self.joints.counts.items()},
+            **self.strike_clock.counts(),
         }
         return self.results

@@ -22,6 +22,7 @@ from graph_slam.pipelines.keyframe import Keyframes
 from graph_slam.pipelines.protocol import PipelineBase, sensor_registration, with_camera_floor
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.pipelines.stages import StageTimer
+from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 log = logging.getLogger(__name__)
@@ -121,6 +122,7 @@ class GraphPipeline(PipelineBase):
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
+        self.strike_clock = StrikeClock()
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)
@@ -132,8 +134,8 @@ class GraphPipeline(PipelineBase):
     def foot_strike(self, t_s: float) -> None:
         """Note the strike; the stride is closed at the next frame (or at ``finish``), whose
         depth gives the floor for the new anchor's tilt (:meth:`_strike_with_up`)."""
-        self._pending_strike = float(t_s)
-        self.gravity.foot_strike(t_s)
+        self._pending_strike = self.strike_clock.strike(t_s)
+        self.gravity.foot_strike(self._pending_strike)
 
     def _strike_with_up(self, t_frame_s: float, cloud, stages: dict):
         """Close the stride at the pending strike. The new anchor's up vector (IMU frame at the
@@ -245,6 +247,7 @@ class GraphPipeline(PipelineBase):
     def add_frame(self, frame: RgbdFrame, foot_loaded: bool) -> FrameOutput:
         """Register → (at a new stride) up vector and floor → graph update → keep the frame's
         map cloud; strides the back end closed get their terrain maps."""
+        self.strike_clock.frame(frame, self.intrinsics)
         index = self.results.n_frames
         timer = StageTimer()
         prepared, icp, fitness = self._register(frame, index, foot_loaded, timer)
@@ -376,5 +379,6 @@ class GraphPipeline(PipelineBase):
             "icp_rejected": int(sum(s.n_icp_rejected for s in res.strides)),
             **{f"imu_{k}": v for k, v in res.imu_counts.items()},
             **{f"joints_{k}": v for k, v in self.slam.leg.joints.counts.items()},
+            **self.strike_clock.counts(),
         }
         return self.results

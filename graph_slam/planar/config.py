@@ -164,7 +164,7 @@ class GraphConfig(ConfigModel):
 class PlanarConfig(ConfigModel):
     """The whole 2D study: terrain, leg, sensor, thesis pipeline, graph, and the runs."""
 
-    seed: int = 7
+    seed: int = Field(7, ge=0, description="random seed (non-negative)")
     speeds_m_s: tuple[float, ...] = (0.83, 1.33)
     n_strides: int = Field(2, ge=1)
     terrain: TerrainConfig = TerrainConfig()

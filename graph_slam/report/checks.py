@@ -62,16 +62,17 @@ def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
             continue
         if s.start != "foot_strike" or events.last_strike_at_or_before(float(t[idx[0]])) is None:
             continue  # the part before the first foot strike is no stride
+        last = events.next_strike_after(float(t[idx[-1]])) is None
+        if last and int(idx[-1]) == session.n_frames - 1:
+            continue  # the recording's tail after its last strike, like its head: no stride
         if idx.size < 2:
             why["fewer than 2 frames"] += 1
         elif _cut_short(idx, t, session):
             why["the run stopped inside it"] += 1
         elif session.ground_truth is None:
             why["no ground truth"] += 1
-        elif events.next_strike_after(float(t[idx[-1]])) is None:
-            if int(idx[-1]) < session.n_frames - 1:
-                why["no foot strike after it"] += 1
-            # else: the recording's tail after its last strike, like its head: no stride
+        elif last:
+            why["no foot strike after it"] += 1
         else:
             why["other"] += 1
     if not why:
@@ -87,7 +88,10 @@ def _dropped_strides(session, run, event_source: str | None) -> list[Finding]:
 
 
 def rejected_samples(session, results: dict) -> list[Finding]:
-    """Per variant: the IMU and encoder samples its pipeline rejected, by reason."""
+    """Per variant: the IMU and encoder samples its pipeline rejected, by reason, and the
+    foot strikes too close to the previous one (:mod:`graph_slam.pipelines.strikes`)."""
+    from graph_slam.pipelines.strikes import MIN_STRIKE_INTERVAL_S, TOO_CLOSE_KEY
+
     out = []
     for variant, res in results.items():
         bad = {
@@ -95,6 +99,17 @@ def rejected_samples(session, results: dict) -> list[Finding]:
             for k, v in res.counts.items()
             if v and k.startswith(("imu_", "joints_")) and not k.endswith("_used")
         }
+        too_close = res.counts.get(TOO_CLOSE_KEY, 0)
+        if too_close:
+            out.append(
+                Finding(
+                    "strikes_too_close",
+                    str(session.path),
+                    f"variant {variant}: {too_close} foot strike(s) less than "
+                    f"{MIN_STRIKE_INTERVAL_S:g} s after the previous one (each cut a stride "
+                    "there)",
+                )
+            )
         if bad:
             detail = ", ".join(f"{k} {v}" for k, v in sorted(bad.items()))
             out.append(

@@ -231,9 +231,10 @@ def compare(
     t_start = time.perf_counter()
     cfg = config or CompareConfig()
     specs, opened = open_sessions(sessions, "compare")
-    out = check_output(out, overwrite=overwrite)
+    inputs = [s.path for s in specs]
+    out = check_output(out, overwrite=overwrite, command="compare", inputs=inputs)
     warnings = preflight(opened, [str(v) for v in cfg.variants], cfg.pipeline.event_source)
-    with atomic_folder(out, overwrite=overwrite) as tmp:
+    with atomic_folder(out, overwrite=overwrite, command="compare", inputs=inputs) as tmp:
         report = _write_report(tmp, specs, opened, cfg, progress, warnings)
         report.wall_s = time.perf_counter() - t_start
         report.files.append(views.write_report_md(tmp / "report.md", report, cfg))

@@ -17,8 +17,11 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import queue
+import signal
+import threading
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.variants import Variant
@@ -46,6 +49,27 @@ def _run_task(path: str, pipeline: dict, trace, ticks) -> tuple[object, object]:
     return results, trace
 
 
+@contextmanager
+def sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while processes are started: they inherit the ignored signal (it
+    survives ``exec``), so a Ctrl-C in the terminal interrupts the parent only, which stops
+    them itself, and no worker prints a ``KeyboardInterrupt`` traceback. Off the main thread
+    (where signals cannot be set) it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _ignore_sigint() -> None:
+    """A worker's initializer: Ctrl-C is the parent's to handle (:func:`sigint_ignored`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _cost(variant: Variant) -> int:
     """Submission order: the thesis baseline first (its frames cost ~50× a graph variant's)."""
     return 0 if variant is Variant.ICP else 1
@@ -67,8 +91,11 @@ def run_sessions(
     tasks = sorted(
         ((s, v) for s in range(len(sessions)) for v in order), key=lambda t: (_cost(t[1]), t[0])
     )
-    with mp.Manager() as manager, ProcessPoolExecutor(
-        max_workers=workers, mp_context=mp.get_context("spawn")
+    context = mp.get_context("spawn")
+    with sigint_ignored():  # the manager process inherits it
+        manager = context.Manager()
+    with manager, ProcessPoolExecutor(
+        max_workers=workers, mp_context=context, initializer=_ignore_sigint
     ) as pool:  # fmt: skip
         ticks = manager.Queue()
         futures: dict[tuple[int, Variant], Future] = {}
@@ -79,8 +106,12 @@ def run_sessions(
         try:
             for s in range(len(sessions)):
                 yield _collect(s, order, futures, traces, ticks, tick)
-        except BaseException:  # a failed task or an interrupt: start nothing more
+        except BaseException as err:  # a failed task or an interrupt: start nothing more
+            running = list((getattr(pool, "_processes", None) or {}).values())
             pool.shutdown(wait=False, cancel_futures=True)
+            if isinstance(err, KeyboardInterrupt):  # and stop the running ones, quietly
+                for process in running:
+                    process.terminate()
             raise
 
 

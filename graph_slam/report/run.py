@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, ValidationInfo, field_validator
 
 from graph_slam.config import ConfigModel
 from graph_slam.errors import EvaluationError
@@ -69,6 +69,29 @@ class RunSettings(ConfigModel):
         "thesis baseline's first (1: one after another in this process; docs/run.md)",
     )
 
+    @field_validator("variants")
+    @classmethod
+    def _each_variant_once(cls, variants: list[Variant]) -> list[Variant]:
+        twice = sorted({str(v) for v in variants if variants.count(v) > 1})
+        if twice:
+            raise ValueError(f"{', '.join(twice)} listed more than once; list each once")
+        return variants
+
+    @field_validator("pipeline")
+    @classmethod
+    def _pipeline_variant_is_run(cls, pipeline: PipelineConfig, info: ValidationInfo):
+        """``pipeline.variant`` is set per run from ``variants``: one set (not the default)
+        that is not run is a mistake (it would be silently replaced), never a setting."""
+        variants = info.data.get("variants")
+        default = PipelineConfig.model_fields["variant"].default
+        if variants and pipeline.variant != default and pipeline.variant not in variants:
+            raise ValueError(
+                f"variant {pipeline.variant} is not among the variants that run "
+                f"({', '.join(map(str, variants))}): the variants run are those of 'variants' "
+                "(or --variants); list it there and leave pipeline.variant out"
+            )
+        return pipeline
+
 
 class RunConfig(RunSettings):
     """What ``run`` runs and writes (docs/run.md)."""
@@ -84,6 +107,17 @@ class RunConfig(RunSettings):
         description="the variant the others are compared with (agreement); None: icp+imu+kin "
         "when it runs, else the last variant",
     )
+
+    @field_validator("reference")
+    @classmethod
+    def _reference_is_run(cls, reference: Variant | None, info: ValidationInfo):
+        variants = info.data.get("variants")
+        if reference is not None and variants is not None and reference not in variants:
+            raise ValueError(
+                f"{reference} is not among the variants ({', '.join(map(str, variants))}); "
+                "add it to 'variants' (or --variants) or choose one of them"
+            )
+        return reference
 
 
 @dataclass(frozen=True)
@@ -202,12 +236,13 @@ def run(
     t_start = time.perf_counter()
     cfg = config or RunConfig()
     reference = reference_variant(cfg)
-    _, opened = open_sessions(sessions)
+    specs, opened = open_sessions(sessions)
     _check_names(opened)
-    out = check_output(out, overwrite=overwrite)
+    inputs = [s.path for s in specs]
+    out = check_output(out, overwrite=overwrite, command="run", inputs=inputs)
     variants = [str(v) for v in cfg.variants]
     warnings = preflight(opened, variants, cfg.pipeline.event_source, scoring=False)
-    with atomic_folder(out, overwrite=overwrite) as tmp:
+    with atomic_folder(out, overwrite=overwrite, command="run", inputs=inputs) as tmp:
         report = _write_run(tmp, opened, cfg, reference, progress, warnings, precomputed)
         report.wall_s = time.perf_counter() - t_start
         report.summary["wall_s"] = report.wall_s

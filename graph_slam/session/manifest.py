@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import ConfigDict, Field, ValidationError, field_validator
 
-from graph_slam.config import yaml_error_text
+from graph_slam.config import FiniteFloats, yaml_error_text
 from graph_slam.errors import ManifestError, PathEscapeError, SchemaVersionError
 
 MANIFEST_NAME = "session.yaml"
@@ -21,7 +21,7 @@ SCHEMA_VERSION = 1
 SUPPORTED_SCHEMA_VERSIONS = (1,)
 
 
-class _Strict(BaseModel):
+class _Strict(FiniteFloats):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 

@@ -226,10 +226,12 @@ def camera_findings(session, depth_samples: int = 3) -> list[Finding]:
         return out
     out += _gap("frames", file, session.frame_times_s)
     depths = []
-    for i in np.unique(np.linspace(0, session.n_frames - 1, depth_samples).round().astype(int)):
-        d = session.frame(int(i)).depth_m
+    sampled = np.unique(np.linspace(0, session.n_frames - 1, depth_samples).round().astype(int))
+    images = [session.frame(int(i)).depth_m for i in sampled]
+    for d in images:
         if (d > 0).any():
             depths.append(float(np.median(d[d > 0])))
+    out += _depth_content(file, sampled, images)
     if depths:
         median = float(np.median(depths))
         lo, hi = DEPTH_WARN_M
@@ -243,6 +245,33 @@ def camera_findings(session, depth_samples: int = 3) -> list[Finding]:
                 )
             )
     return out
+
+
+def _depth_content(file: str, sampled: np.ndarray, images: list[np.ndarray]) -> list[Finding]:
+    """The sampled depth images all empty (no valid pixel), or all the same image: no
+    registration can be trusted (a frozen stream would read as zero motion)."""
+    frames = ", ".join(str(int(i)) for i in sampled)
+    if images and not any((d > 0).any() for d in images):
+        return [
+            Finding(
+                "depth_empty",
+                file,
+                f"no valid depth pixel (every value 0) in frames {frames}: the camera recorded "
+                "no depth, nothing can be registered",
+                fatal=True,
+            )
+        ]
+    if len(images) >= 2 and all(np.array_equal(images[0], d) for d in images[1:]):
+        return [
+            Finding(
+                "depth_frozen",
+                file,
+                f"frames {frames} hold the same depth image, pixel for pixel: a frozen or "
+                "repeated depth stream (every registration would read zero motion)",
+                fatal=True,
+            )
+        ]
+    return []
 
 
 def timing_findings(session, *, events_cut_strides: bool = True) -> list[Finding]:

@@ -55,6 +55,9 @@ LOG_NAME = "prosthesis_log.csv"
 TRUTH_NAME = "ground_truth.tum"
 EXPORT_NAME = "export.yaml"
 CONVERT_NAME = "convert.yaml"
+EXPORT_COMMAND = "simulate --export realsense-sdk-bag"
+"""The command its folder's marker names (a bag + log, not a session: never replaced by a
+plain `simulate --overwrite`)."""
 #: The load-cell thresholds written into convert.yaml (newtons, hysteresis).
 STRIKE_ABOVE_N, TOE_OFF_BELOW_N = 50.0, 20.0
 _ACCEL_STREAM = 6  # the accel's own random stream (the gyro uses the simulator's IMU stream)
@@ -190,7 +193,7 @@ def export_realsense_recording(
     """Simulate ``cfg``'s walk and write it as a RealSense SDK bag + a prosthesis log into the
     folder ``out`` (module docstring). Deterministic: the same configs give the same files."""
     export = export or RecordingExportConfig()
-    check_output(out, overwrite=overwrite)  # before any work
+    check_output(out, overwrite=overwrite, command=EXPORT_COMMAND)  # before any work
     sim = prepare(cfg)
     depth_k = intrinsics_for(sim.camera, cfg.fast, cfg.resolution)
     color_k = color_intrinsics(depth_k, export)
@@ -206,7 +209,7 @@ def export_realsense_recording(
         depth_k,
         color_k,
     )
-    with atomic_folder(out, overwrite=overwrite) as tmp:
+    with atomic_folder(out, overwrite=overwrite, command=EXPORT_COMMAND) as tmp:
         result.counts = _write_bag(tmp / BAG_NAME, sim, export, depth_k, color_k, progress)
         _write_log(tmp / LOG_NAME, sim, export)
         world_T_camera = sim.motion.world_T(sim.frame_times_s, sim.thigh_T_camera)

@@ -167,7 +167,7 @@ def simulate(
     :func:`graph_slam.sim.quicklook.write_quicklook` (``graph-slam simulate`` draws it when
     ``cfg.quicklook``).
     """
-    check_output(out, overwrite=overwrite, session=True)  # before any work
+    check_output(out, overwrite=overwrite, command="simulate")  # before any work
     clock = time.perf_counter()
     timings: dict[str, float] = {}
     sim = prepare(cfg)
@@ -187,7 +187,7 @@ def simulate(
         f"events.csv holds the load-cell events; the true events are in {EVENTS_TRUTH_NAME}; "
         f"the resolved config is {CONFIG_NAME}."
     )
-    with atomic_folder(out, overwrite=overwrite, session=True, create=False) as tmp:
+    with atomic_folder(out, overwrite=overwrite, command="simulate", create=False) as tmp:
         writer = SessionWriter(
             tmp,
             name=f"sim-{sim.scene.name}-{cfg.speed_m_s:g}mps-seed{cfg.seed}",

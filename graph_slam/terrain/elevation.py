@@ -10,6 +10,7 @@ A swing planner reads ``height_m`` for clearance and ``variance_m2`` for trust.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,7 +63,10 @@ class ElevationGrid:
         return x, y
 
     def height_at(self, x_m: float, y_m: float) -> float:
-        """Height of the cell containing (x, y); NaN when empty or outside."""
+        """Height of the cell containing (x, y); NaN when empty or outside (or for a NaN or
+        infinite coordinate)."""
+        if not (math.isfinite(x_m) and math.isfinite(y_m)):
+            return float("nan")
         i = int(np.floor((x_m - self.origin_xy_m[0]) / self.cell_m))
         j = int(np.floor((y_m - self.origin_xy_m[1]) / self.cell_m))
         if 0 <= i < self.shape[0] and 0 <= j < self.shape[1]:

@@ -68,7 +68,7 @@ class ObstacleConfig(ConfigModel):
     statistical error from 50k points is ~10 µm)."""
     max_floor_tilt_rad: float = Field(0.35, gt=0, le=1.5)
     dominant_fraction: float = Field(0.5, gt=0, le=1)
-    seed: int = 0
+    seed: int = Field(0, ge=0, description="RANSAC random generator seed")
     min_height_m: float = Field(0.02, gt=0)
     """Points at least this high above the floor may belong to an obstacle."""
     cell_m: float = Field(0.01, gt=0)

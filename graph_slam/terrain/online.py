@@ -36,6 +36,7 @@ points whose variance is grown by that pose's covariance (docs/terrain.md).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -316,6 +317,9 @@ class TerrainView:
         return x, y
 
     def _cell(self, x_m: float, y_m: float) -> tuple[int, int] | None:
+        """The cell holding (x, y); None off the grid, or for a NaN / infinite coordinate."""
+        if not (math.isfinite(x_m) and math.isfinite(y_m)):
+            return None
         i = int(np.floor((x_m - self.origin_xy_m[0]) / self.cell_m))
         j = int(np.floor((y_m - self.origin_xy_m[1]) / self.cell_m))
         return (i, j) if 0 <= i < self.shape[0] and 0 <= j < self.shape[1] else None

@@ -26,6 +26,7 @@ from graph_slam.session.adapters.clock_offset import (
     estimate_clock_offset,
 )
 from graph_slam.session.adapters.config import ConvertConfig
+from graph_slam.session.adapters.log_checks import check_span
 from graph_slam.session.adapters.prosthesis_log import read_prosthesis_log
 from graph_slam.session.adapters.registry import select_adapter
 from graph_slam.session.atomic import atomic_folder, check_output
@@ -99,6 +100,9 @@ def merge_prosthesis_log(recording: Recording, config: ConvertConfig) -> Recordi
     joints, events, reports = read_prosthesis_log(Path(log.path), log)
     for r in reports:
         recording.report.add(r)
+    caveat = check_span(Path(log.path), joints.t_s, recording.frame_times_s, log.time.unit)
+    if caveat is not None:
+        recording.report.notes.append(f"warning: {caveat}")
     if log.time_offset_s is None:
         offset = _estimate_log_offset(recording, config, events)
         joints = JointSeries(joints.t_s + offset.offset_s, joints.knee_rad, joints.ankle_rad)
@@ -285,12 +289,15 @@ def convert(
     src, dst = Path(src), Path(dst)
     config = config or ConvertConfig()
     check_paths(src, dst, overwrite)
-    check_output(dst, overwrite=overwrite, session=True)
+    inputs = [src] + ([config.prosthesis_log.path] if config.prosthesis_log.path else [])
+    check_output(dst, overwrite=overwrite, command="convert", inputs=inputs)
     adapter = select_adapter(src, config.format)
     recording = adapter.open(src, config)
     recording = merge_prosthesis_log(recording, config)
     recording = apply_calibration(recording, config)
-    with atomic_folder(dst, overwrite=overwrite, session=True, create=False) as tmp:
+    with atomic_folder(
+        dst, overwrite=overwrite, command="convert", inputs=inputs, create=False
+    ) as tmp:
         write_recording(
             recording,
             tmp,

@@ -32,10 +32,14 @@ from graph_slam.session.adapters.config import (
     LoadColumn,
     ProsthesisLogConfig,
 )
+from graph_slam.session.adapters.log_checks import (
+    TIME_UNITS_S,
+    check_clock,
+    check_joint_units,
+    check_load,
+)
 from graph_slam.session.adapters.timing import order_stamps
 from graph_slam.session.records import GaitEvents, JointSeries
-
-TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
 
 def _read_table(path: Path, delimiter: str) -> tuple[list[str], list[list[str]]]:
@@ -74,8 +78,9 @@ def _numbers(path: Path, body: list[list[str]], col: int, name: str) -> np.ndarr
     return out
 
 
-def _angle_rad(values: np.ndarray, spec: AngleColumn) -> np.ndarray:
+def _angle_rad(path: Path, values: np.ndarray, spec: AngleColumn, joint: str) -> np.ndarray:
     scaled = values * spec.scale + spec.offset
+    check_joint_units(path, scaled, spec.unit, joint)
     return np.deg2rad(scaled) if spec.unit == "deg" else scaled
 
 
@@ -113,9 +118,10 @@ def read_prosthesis_log(
     k_col = _column(path, header, spec.knee.column, "knee.column")
     a_col = _column(path, header, spec.ankle.column, "ankle.column")
     t_s = _numbers(path, body, t_col, spec.time.column) * TIME_UNITS_S[spec.time.unit]
+    check_clock(path, t_s, spec.time.column)
     t_s = t_s + (spec.time_offset_s or 0.0)  # None (estimate it later) reads on the log's clock
-    knee = _angle_rad(_numbers(path, body, k_col, spec.knee.column), spec.knee)
-    ankle = _angle_rad(_numbers(path, body, a_col, spec.ankle.column), spec.ankle)
+    knee = _angle_rad(path, _numbers(path, body, k_col, spec.knee.column), spec.knee, "knee")
+    ankle = _angle_rad(path, _numbers(path, body, a_col, spec.ankle.column), spec.ankle, "ankle")
     finite = np.isfinite(t_s) & np.isfinite(knee) & np.isfinite(ankle)
     order = order_stamps(t_s[finite])
     kept = np.flatnonzero(finite)[order.keep]
@@ -171,6 +177,7 @@ def read_prosthesis_log(
     elif spec.load is not None:
         l_col = _column(path, header, spec.load.column, "load.column")
         load_n = _numbers(path, body, l_col, spec.load.column) * spec.load.scale
+        check_load(path, load_n, spec.load.column, spec.load.scale)
         ok = finite & np.isfinite(load_n)
         ok_idx = np.flatnonzero(ok)[order_stamps(t_s[ok]).keep]
         ev_times, kinds = load_cell_events(t_s[ok_idx], load_n[ok_idx], spec.load)
