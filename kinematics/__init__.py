@@ -11,9 +11,12 @@ are only imported by the modules that use them):
 - :mod:`kinematics.encoders` - joint-encoder validation (limits, NaN, jumps)
 - :mod:`kinematics.imu` - the IMU series and the IMU CSV schema (shared with the session format)
 - :mod:`kinematics.gait_events` - foot strike / toe-off from a load cell or a thigh IMU
-  (:class:`~kinematics.gait_events.DetectedEvents`), gait phase
+  (:class:`~kinematics.gait_events.DetectedEvents`), gait phase (:mod:`kinematics.gait_templates`,
+  :mod:`kinematics.gait_load_cell`, :mod:`kinematics.gait_event_times`, :mod:`kinematics.gait_io`)
 - :mod:`kinematics.gait_phase` - the online (causal) gait estimator: phase EKF, cadence, events
-  as they happen (:mod:`kinematics.thigh_attitude` thigh angle, :mod:`kinematics.phase_model`
+  as they happen (:mod:`kinematics.gait_phase_filter`, :mod:`kinematics.gait_phase_events`,
+  :mod:`kinematics.gait_phase_mounting` its stages,
+  :mod:`kinematics.thigh_attitude` thigh angle, :mod:`kinematics.phase_model`
   measurement model, :mod:`kinematics.gait_phase_config` parameters and records,
   :mod:`kinematics.gait_online` batch helper and CSV,
   :mod:`kinematics.gait_phase_metrics` scores, :mod:`kinematics.gait_scenarios` synthetic walks)

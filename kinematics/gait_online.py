@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from kinematics.errors import GaitInputError
-from kinematics.gait_phase import GaitPhaseConfig, OnlineEvent, OnlineGaitEstimator
+from kinematics.gait_phase import OnlineGaitEstimator
+from kinematics.gait_phase_config import GaitPhaseConfig, OnlineEvent
 from kinematics.imu import ImuSeries
 from kinematics.thigh_attitude import SagittalAxis
 

@@ -2,7 +2,7 @@
 
 :class:`ImuSeries` is plain data (numpy in, numpy out). ``graph_slam.session.records.ImuSeries``
 is the same class with validation on construction (shapes, finite, strictly increasing time);
-:func:`kinematics.gait_events.validate_imu` adds the rules of a gait recording (rate, gaps,
+:func:`kinematics.gait_io.validate_imu` adds the rules of a gait recording (rate, gaps,
 ranges). :data:`IMU_COLUMNS` is the header of every IMU CSV: the session format's ``imu.csv``
 and the input of ``graph-slam gait-events``. :data:`LEGACY_IMU_COLUMNS` (the gait-event
 reader's former header, without units) is still read.

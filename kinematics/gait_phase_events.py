@@ -1,0 +1,142 @@
+"""What the online gait estimator (:mod:`kinematics.gait_phase`, step 5) reports: foot strikes
+and toe-offs as the phase crosses them (the strike placed on its impact when there is one),
+the load cell's events when it is alive, and the per-sample state with the phase reported."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from kinematics.gait_phase_config import GaitState, OnlineEvent
+from kinematics.thigh_attitude import ThighState
+
+
+class EventEmission:
+    """Event emission and the reported state: part of
+    :class:`~kinematics.gait_phase.OnlineGaitEstimator`.
+
+    State: the attributes :class:`~kinematics.gait_phase.OnlineGaitEstimator` sets in its
+    ``__init__``; this class only groups its methods.
+    """
+
+    def _events(self, t_s: float, detected_t_s: float) -> list[OnlineEvent]:
+        ekf = self._ekf
+        if ekf is None:
+            return []
+        rate = max(float(ekf.x[1]), 1e-3)
+        phase = float(ekf.x[0]) - self.timing.bias_s * rate  # calibrated (see gait_phase_impact)
+        sigma = math.sqrt(float(ekf.P[0, 0]))
+        sf = self.ref.at_rate("stance_fraction", rate)
+        out = []
+        if self.load_cell.alive(t_s):  # the load cell gives the events (_load_cell_event)
+            return []
+        strike = self._strike_time(t_s, phase, rate)
+        if strike is not None:
+            out += self._emit("foot_strike", strike, detected_t_s, sigma)
+        target = self._next_toe_off + sf
+        if phase >= target:
+            self._next_toe_off = math.floor(phase - sf) + 1
+            t_to = t_s - (phase - target) / rate
+            emitted = self._emit("toe_off", t_to, detected_t_s, sigma)
+            if emitted:
+                self.timing.toe_off(t_to)
+            out += emitted
+        self.events += out
+        return out
+
+    def _strike_time(self, t_s: float, phase: float, rate: float) -> float | None:
+        """The foot strike emitted at this sample, if any: the impact onset in the strike's
+        window (impact mode), else the calibrated phase crossing the integer, else (impact
+        mode, no onset by the window's end) the calibrated prediction."""
+        timing = self.timing
+        w0, w1 = timing.cfg.window_s
+        target = self._next_strike
+        pred = t_s + (target - phase) / rate
+        win = timing.window
+        if win is None and target != self._armed_for and t_s >= pred + w0:
+            win = timing.arm(target, pred + w1, pred - timing.bias_s, pred)
+            self._armed_for = target
+        if win is not None:
+            onset = timing.poll()
+            if onset is not None or t_s >= win.close_at_s:
+                strike = timing.close(onset)
+                self.counts["impact_strikes"] += int(onset is not None)
+                if win.emitted:
+                    return None
+                self._next_strike = max(self._next_strike, win.target + 1)
+                return strike if strike is not None else win.calibrated_s
+            if timing.impact_mode and not win.emitted:
+                return None  # wait for the impact, or the window's end
+        if phase < target:
+            return None
+        if win is not None and win.target == target:
+            win.emitted = True
+        self._next_strike = math.floor(phase) + 1
+        return t_s - (phase - target) / rate
+
+    def _emit(self, kind: str, t_event: float, detected_t_s: float, sigma: float):
+        if t_event - self._last_event_t[kind] < self.cfg.min_event_spacing_s:
+            return []
+        if kind == "foot_strike" and 0.6 < t_event - self._last_event_t[kind] < 2.5:
+            self._stride_s = t_event - self._last_event_t[kind]
+            self._strides.append(self._stride_s)
+        self._last_event_t[kind] = t_event
+        return [OnlineEvent(kind, t_event, detected_t_s, sigma)]
+
+    def _load_cell_event(self, kind: str, t_event: float, t_s: float) -> list[OnlineEvent]:
+        """An event from the load cell: emitted as is; a strike also gives the thigh IMU's
+        strike bias (the EKF's own strike time against it) and moves the next strike on."""
+        ekf = self._ekf
+        sigma = 0.0
+        if ekf is not None and self._walking:
+            rate = max(float(ekf.x[1]), 1e-3)
+            raw = float(ekf.x[0]) - (t_s - t_event) * rate  # the EKF's phase at the event
+            if kind == "foot_strike":
+                k = math.floor(raw + 0.5)
+                self.timing.reference(t_event, t_event - (raw - k) / rate, source="load cell")
+                cal = raw - self.timing.bias_s * rate
+                self._next_strike = math.floor(cal + 0.5) + 1
+                self._armed_for = None
+                self.timing.window = None
+            else:
+                sf = self.ref.at_rate("stance_fraction", rate)
+                cal = raw - self.timing.bias_s * rate
+                self._next_toe_off = math.floor(cal - sf + 0.5) + 1
+        out = self._emit(kind, t_event, t_s, sigma)
+        if kind == "foot_strike" and out:
+            self.counts["load_cell_strikes"] += 1
+        self.events += out
+        return out
+
+    def _phase_out(self, t_s: float) -> float:
+        """The phase reported: with impacts, linear in time from the last strike over the
+        median of the last three strides (the latest before three are known, the EKF's cadence
+        before one is) (the phase's definition; the reference curve's shape
+        does not bend it); else the EKF's, shifted by the learned strike bias."""
+        ekf = self._ekf
+        last = self._last_event_t["foot_strike"]
+        if self.timing.impact_mode and t_s - last < 2.5:
+            if len(self._strides) >= 3:
+                stride = float(np.median(self._strides))
+            elif self._strides:  # the first strides after a start shorten: the latest
+                stride = self._strides[-1]
+            elif self._buffer_stride_s is not None:  # the cycle seen while learning the axis
+                stride = self._buffer_stride_s
+            else:
+                stride = 1.0 / max(float(ekf.x[1]), 0.3)
+            return float(min((t_s - last) / stride, 0.999))
+        return float((ekf.x[0] - self.timing.bias_s * max(float(ekf.x[1]), 1e-3)) % 1.0)
+
+    def _set_state(self, t_s: float, thigh: ThighState | None, flags: int) -> None:
+        ekf = self._ekf if self._walking else None
+        self.state = GaitState(
+            t_s=t_s,
+            walking=ekf is not None,
+            phase_cyc=self._phase_out(t_s) if ekf is not None else math.nan,
+            phase_sigma_cyc=math.sqrt(float(ekf.P[0, 0])) if ekf is not None else math.nan,
+            rate_cyc_s=float(ekf.x[1]) if ekf is not None else math.nan,
+            angle_rad=thigh.angle_rad if thigh is not None else math.nan,
+            rate_rad_s=thigh.rate_rad_s if thigh is not None else math.nan,
+            flags=flags,
+        )

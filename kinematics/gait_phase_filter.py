@@ -1,0 +1,169 @@
+"""The phase lock of the online gait estimator (:mod:`kinematics.gait_phase`, steps 3-4): the
+thigh-angle update (predict-only when saturated), walking or standing, the running offset and
+scale of the angle, and the phase EKF (acquisition, step, stall test, loss of lock)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from kinematics.phase_model import measurement, measurement_jacobian
+from kinematics.thigh_attitude import ThighState
+
+
+class PhaseFilter:
+    """The phase EKF and what feeds it: part of
+    :class:`~kinematics.gait_phase.OnlineGaitEstimator`.
+
+    State: the attributes :class:`~kinematics.gait_phase.OnlineGaitEstimator` sets in its
+    ``__init__``; this class only groups its methods.
+    """
+
+    def _thigh_update(self, t_s, gyro, accel, saturated) -> ThighState:
+        assert self.thigh is not None
+        if not saturated:
+            return self.thigh.update(t_s, gyro, accel)
+        # saturated: predict only (the rate keeps its last estimate)
+        kf = self.thigh.kf
+        dt = t_s - self.thigh.t_s
+        self.thigh.t_s = t_s
+        kf.x[0] += dt * kf.x[1]
+        kf.P[0, 0] += (dt * 2.0) ** 2
+        return ThighState(t_s, float(kf.x[0]), float(kf.x[1]), float(kf.x[2]), 0.0, 0.0)
+
+    def _walking_now(self, thigh: ThighState, dt: float) -> bool:
+        cfg = self.cfg
+        a = min(1.0, dt / cfg.rms_window_s)
+        self._ms += a * (thigh.rate_rad_s**2 - self._ms)
+        rms = math.sqrt(self._ms)
+        self._still_s = self._still_s + dt if abs(thigh.rate_rad_s) < cfg.still_rate_rad_s else 0.0
+        if self._walking:
+            return rms > cfg.walk_off_rms_rad_s and self._still_s < cfg.still_window_s
+        return rms > cfg.walk_on_rms_rad_s
+
+    def _track_norm(self, angle_rad: float, dt: float) -> None:
+        """Running offset and scale of the angle: its mean and standard deviation over the last
+        cycle of walking samples, or the reference's values (relative to the standing posture)
+        until 3/4 of a cycle has been seen."""
+        self._walk_angles.append(angle_rad)
+        self._walk_dt.append(dt)
+        if len(self._walk_angles) % 10 and self._ekf is not None:
+            return
+        rate = float(self._ekf.x[1]) if self._ekf is not None else self._rate_prior()
+        # the window is the last stride (strike to strike) when there is one: a window that
+        # follows the instantaneous rate would feed its errors back into the offset
+        cycle_s = self._stride_s if self._stride_s is not None else 1.0 / max(rate, 0.3)
+        span = np.cumsum(np.asarray(self._walk_dt)[::-1])
+        if span[-1] < 0.75 * cycle_s:
+            ref_std = self.ref.at_rate("std_rad", rate)
+            if self._standing_seen:  # the reference's mean walking angle above standing
+                mean = self._standing_angle + self.ref.at_rate("mean_rad", rate)
+            else:  # no standing posture seen (the zero is arbitrary): the partial mean
+                mean = float(np.mean(self._walk_angles))
+            self._norm = (mean, ref_std)
+            return
+        n = int(np.searchsorted(span, cycle_s)) + 1
+        recent = np.asarray(self._walk_angles)[-n:]
+        self._norm = (float(recent.mean()), max(float(recent.std()), 0.02))
+
+    def _z(self, thigh: ThighState) -> np.ndarray:
+        m, s = self._norm
+        return np.array([(thigh.angle_rad - m) / s, thigh.rate_rad_s / s])
+
+    def _acquire(self, thigh: ThighState) -> None:
+        """Start the EKF at the phase on the reference loop nearest the measurement."""
+        from filterpy.kalman import ExtendedKalmanFilter
+
+        cfg = self.cfg
+        rate = self._rate_prior()
+        a, b = self.ref.coefficients(rate)
+        grid = np.arange(200) / 200.0
+        z = self._z(thigh)
+        cost = [
+            ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
+            @ ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
+            for p in grid
+        ]
+        phase = float(grid[int(np.argmin(cost))])
+        ekf = ExtendedKalmanFilter(dim_x=2, dim_z=2)
+        ekf.x = np.array([phase, rate])
+        ekf.P = np.diag([0.1**2, 0.2**2])
+        ekf.R = np.diag([cfg.angle_sigma**2, cfg.rate_sigma**2])
+        self._ekf = ekf
+        self._nis = 2.0
+        # an event the lock has just passed (a re-acquisition near it) is still emitted, once:
+        # the spacing rule drops it if it was emitted before the lock was lost
+        grace = self.cfg.acquire_grace_cyc
+        self._next_strike = math.floor(phase) + (0 if phase % 1.0 < grace else 1)
+        sf = self.ref.at_rate("stance_fraction", rate)
+        self._next_toe_off = math.floor(phase) + (1 if phase % 1.0 >= sf + grace else 0)
+        self.counts["reacquired"] += 1
+
+    def _rate_prior(self) -> float:
+        """The last cadence estimate, else that of 1.2 m/s."""
+        return self._last_rate if self._last_rate is not None else float(self.ref.rates_cyc_s[12])
+
+    def _ekf_step(self, thigh: ThighState, dt: float, saturated: bool) -> int:
+        cfg, ekf = self.cfg, self._ekf
+        flags = 0
+        ekf.F = np.array([[1.0, dt], [0.0, 1.0]])
+        qp = cfg.phase_walk_cyc_per_sqrt_s**2 * dt
+        qr = cfg.rate_walk_cyc_s_per_sqrt_s**2 * dt
+        ekf.Q = np.array([[qp + qr * dt**2 / 3, qr * dt / 2], [qr * dt / 2, qr]])
+        self._phase_floor = float(ekf.x[0])
+        ekf.predict()
+        if saturated:
+            return flags
+        rate = float(np.clip(ekf.x[1], self.ref.rates_cyc_s[0], self.ref.rates_cyc_s[-1]))
+        a, b = self.ref.coefficients(rate)
+        before = float(ekf.x[0])
+        if self._stalled(thigh, a, b, rate, dt):
+            self.counts["stops"] += 1
+            self._lose_lock(forget=True)
+            return flags | 32
+        ekf.update(self._z(thigh), measurement_jacobian, measurement, args=(a, b), hx_args=(a, b))
+        ekf.x[1] = float(np.clip(ekf.x[1], 0.3, 2.0))
+        # the gait phase does not run backwards: an update that would move it behind the
+        # previous estimate holds it there (the innovation then grows and, if the model keeps
+        # failing, the NIS test re-acquires)
+        ekf.x[0] = max(float(ekf.x[0]), self._phase_floor)
+        self._phase_floor = float(ekf.x[0])
+        self._last_rate = float(ekf.x[1])
+        if abs(float(ekf.x[0]) - before) > cfg.max_phase_step_cyc:
+            self.counts["phase_jumps"] += 1
+            flags |= 8
+        nis = float(ekf.y @ ekf.SI @ ekf.y)
+        self._nis_sum += nis
+        self._nis_n += 1
+        self._nis += min(1.0, dt / cfg.rms_window_s) * (nis - self._nis)
+        if self._nis > cfg.max_nis:
+            self._lose_lock(forget=False)
+        return flags
+
+    def _stalled(self, thigh: ThighState, a: np.ndarray, b: np.ndarray, rate: float, dt: float):
+        """A stop in stance: the thigh rate stays below ``stall_ratio`` of the model's (the
+        stance extension) for ``stall_s``; the rate filter alone would take a cycle to notice."""
+        cfg, x = self.cfg, self._ekf.x
+        frac = float(x[0]) % 1.0
+        expected = abs(float(measurement(x, a, b)[1]) * self._norm[1])
+        in_stance = cfg.stall_from_phase < frac < self.ref.at_rate("stance_fraction", rate)
+        if in_stance and abs(thigh.rate_rad_s) < cfg.stall_ratio * expected:
+            self._stall_s += dt
+        else:
+            self._stall_s = 0.0
+        return self._stall_s >= cfg.stall_s
+
+    def _lose_lock(self, forget: bool = True) -> None:
+        """Drop the phase (re-acquired at the next walking sample); ``forget`` also drops the
+        walking history (offset, scale, cadence): after standing or a gap."""
+        self._ekf = None
+        self.timing.window = None
+        self._armed_for = None
+        if forget:
+            self._walking = False
+            self._ms = 0.0
+            self._walk_angles.clear()
+            self._walk_dt.clear()
+            self._stride_s = None
+            self._strides.clear()
