@@ -222,6 +222,13 @@ class PipelineConfig(ConfigModel):
         "gravity_min_window_s when fusing it with the floor (widens the floor's angle gate)",
     )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
+    deterministic: bool = Field(
+        True,
+        description="the same input gives the same poses, bit for bit: Open3D runs its "
+        "sums on one thread (graph_slam.determinism) and the causal replay's virtual clock "
+        "advances by a fixed cost, not the measured time. False: Open3D on every core "
+        "(docs/pipelines.md, 'Determinism', for the gain) and the replay's clock measured",
+    )
     keep_frames: int | None = Field(
         None,
         ge=1,
