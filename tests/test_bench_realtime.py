@@ -20,8 +20,10 @@ def test_rows_are_variants_or_variant_colon_preset() -> None:
     assert cfg.variant == "icp+imu" and cfg.backend.variant == "icp+imu" and cfg.max_frames == 7
     with pytest.raises(ConfigError, match="unknown variant 'slam'"):
         rt.row_config("slam")
-    with pytest.raises(ConfigError, match="icp has no graph"):
-        rt.row_config("icp:realtime")
+    # a preset sets the baseline's cloud too: every pixel (accurate), the 212x120 one (realtime)
+    assert rt.row_config("icp:accurate").baseline.pixel_step == 1
+    assert rt.row_config("icp:realtime").baseline.pixel_step is None
+    assert rt.row_config("icp").preset == "realtime"  # the default
     with pytest.raises(ConfigError, match="row 'icp\\+imu\\+kin:nope': unknown pipeline preset"):
         rt.row_config("icp+imu+kin:nope")
     real = rt.row_config("icp+imu+kin:realtime", base)  # every real-time setting, over base

@@ -26,11 +26,18 @@ import numpy as np
 
 from graph_slam.config import config_from_dict
 from graph_slam.errors import ConfigError
-from graph_slam.pipelines import VARIANTS, PipelineConfig
-from graph_slam.pipelines.config import with_preset
+from graph_slam.pipelines import PipelineConfig
+from graph_slam.pipelines.config import parse_row, with_preset
 
 BASELINE_ROW = "icp"
-DEFAULT_ROWS: tuple[str, ...] = ("icp", "icp+imu+kin", "icp+imu+kin:realtime")
+"""The variant of the rows the speed-ups are taken against (the first such row)."""
+DEFAULT_ROWS: tuple[str, ...] = ("icp:accurate", "icp+imu+kin:accurate", "icp+imu+kin:realtime")
+"""The thesis baseline on every pixel, the accurate graph and the default (real-time) one."""
+
+
+def _is_baseline(row: str) -> bool:
+    return row.partition(":")[0] == BASELINE_ROW
+
 
 STAGES: tuple[tuple[str, str], ...] = (
     ("cloud", "depth->cloud"),
@@ -46,20 +53,14 @@ STAGES: tuple[tuple[str, str], ...] = (
 
 def row_config(row: str, base: PipelineConfig | None = None) -> PipelineConfig:
     """The pipeline configuration of a row ``VARIANT`` or ``VARIANT:PRESET`` (a
-    :data:`~graph_slam.pipelines.config.PIPELINE_PRESETS` name) over ``base`` (``--config``).
-    Raises :class:`ConfigError` naming the row when the variant or the preset is unknown."""
-    name, _, preset = row.partition(":")
-    if name not in VARIANTS:
-        raise ConfigError(f"row {row!r}: unknown variant {name!r} (known: {', '.join(VARIANTS)})")
+    :data:`~graph_slam.pipelines.config.PIPELINE_PRESETS` name, applied over ``base``,
+    ``--config``; without one: ``base``'s preset, the default one when None). Raises
+    :class:`ConfigError` naming the row when the variant or the preset is unknown."""
+    variant, preset = parse_row(row)
     data = (base or PipelineConfig()).model_dump(mode="json")
-    data["variant"] = name
+    data["variant"] = str(variant)
     if preset:
-        if name == BASELINE_ROW:
-            raise ConfigError(f"row {row!r}: a preset sets the graph's settings; icp has no graph")
-        try:
-            data = with_preset(data, preset)
-        except ConfigError as err:
-            raise ConfigError(f"row {row!r}: {err}") from None
+        data = with_preset(data, preset)
     return config_from_dict(PipelineConfig, data, source=f"row {row!r}")
 
 
@@ -280,8 +281,8 @@ def speedups(rows: Sequence[RealtimeRow]) -> list[dict]:
     """Per session and row: the thesis baseline's figures over the row's."""
     out = []
     for r in rows:
-        base = next((b for b in rows if b.session == r.session and b.row == BASELINE_ROW), None)
-        if base is None or r.row == BASELINE_ROW:
+        base = next((b for b in rows if b.session == r.session and _is_baseline(b.row)), None)
+        if base is None or r is base:
             continue
         out.append(
             {
@@ -300,7 +301,8 @@ def headline_lines(rows: Sequence[RealtimeRow]) -> list[str]:
     ups = speedups(rows)
     if not ups:
         return [f"(no {BASELINE_ROW!r} row: no speed-ups)"]
-    lines = [f"== speed-up vs the thesis baseline ({BASELINE_ROW})"]
+    first = next(r.row for r in rows if _is_baseline(r.row))
+    lines = [f"== speed-up vs the thesis baseline ({first})"]
     for u in ups:
         lines.append(
             f"  {u['session']} {u['row']}: full update {u['update_median']:.3g}x (median), "

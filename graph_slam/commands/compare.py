@@ -12,6 +12,7 @@ from typing import Annotated
 
 import typer
 
+from graph_slam.commands import options
 from graph_slam.commands._common import with_workers, workers_option_help
 
 DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
@@ -20,54 +21,26 @@ DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
     ("fast", "Fast", 7),
 )
 """The thesis's 25 strides (Table 4.2): 9 slow, 9 normal, 7 fast."""
-DEMO_VARIANTS = "icp,icp+imu,imu+kin,icp+imu+kin"
-"""Variants the demo runs by default: the thesis baseline and the three graph variants."""
 DEMO_RESOLUTION = "424x240"
 """The D455's real-time mode the demo simulates (848x480 and 212x120 are options)."""
-DEMO_PRESET = "realtime"
-"""The graph variants' pipeline preset in the demo: the real-time front end (issue 14)."""
 
 
-def _parse_variants(text: str) -> list[str]:
-    from graph_slam.variants import parse_variants
-
-    return [str(v) for v in parse_variants(text)]
-
-
-def _load_compare_config(path: Path | None, variants: str | None):
-    from graph_slam.config import load_config
+def _load_compare_config(
+    path: Path | None,
+    variants: str | None,
+    preset: str | None = None,
+    baseline_pixel_step: int | None = None,
+):
+    """The YAML's CompareConfig with the options over it (the stride maps stay on whatever
+    the preset: the report scores them)."""
     from graph_slam.report import CompareConfig
 
-    cfg = load_config(CompareConfig, path)
-    if variants is not None:
-        cfg = CompareConfig.model_validate(
-            {**cfg.model_dump(), "variants": _parse_variants(variants)}
-        )
-    return cfg
-
-
-def _with_preset(cfg, preset: str):
-    """``cfg`` with the pipeline preset applied to its graph variants' settings (``none``:
-    as it is); the stride maps stay on, since the report scores them."""
-    if preset == "none":
-        return cfg
-    from graph_slam.pipelines.config import with_preset
-    from graph_slam.report import CompareConfig
-
-    data = cfg.model_dump(mode="json")
-    pipeline = with_preset(data["pipeline"], preset)
-    pipeline["terrain"] = {**pipeline.get("terrain", {}), "enabled": True}
-    return CompareConfig.model_validate({**data, "pipeline": pipeline})
-
-
-def _with_baseline_step(cfg, size: str, step: int | None):
-    """The thesis baseline's cloud from every ``step``-th pixel; None: the demo's budget, a
-    212x120 cloud at any resolution."""
-    from graph_slam.report import CompareConfig
-
-    data = cfg.model_dump(mode="json")
-    data["pipeline"]["baseline"]["pixel_step"] = step or int(size.split("x", maxsplit=1)[0]) // 212
-    return CompareConfig.model_validate(data)
+    extra = {}
+    if baseline_pixel_step is not None:
+        extra = {"pipeline": {"baseline": {"pixel_step": baseline_pixel_step}}}
+    return options.load_settings(
+        CompareConfig, path, variants, preset, stride_maps=True, extra=extra
+    )
 
 
 def _demo_resolution(resolution: str | None, full_resolution: bool) -> str:
@@ -150,24 +123,17 @@ def register(app: typer.Typer) -> None:
     @app.command("compare")
     def compare_cmd(
         session: Annotated[Path, typer.Argument(help="Session folder (with ground truth).")],
-        out: Annotated[Path, typer.Option(help="Report folder.")],
-        variants: Annotated[
-            str | None,
-            typer.Option(help="Comma-separated: icp,icp+imu,imu+kin,icp+imu+kin (default all)."),
-        ] = None,
-        config: Annotated[
-            Path | None,
-            typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
-        ] = None,
-        overwrite: Annotated[
-            bool, typer.Option("--overwrite", help="Replace a report folder compare wrote.")
-        ] = False,
+        out: options.Out,
+        variants: options.Variants = None,
+        config: options.Config = None,
+        preset: options.Preset = None,
+        overwrite: options.Overwrite = False,
         workers: Annotated[
             int | None, typer.Option(min=1, max=64, help=workers_option_help("1"))
         ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
-        cfg = with_workers(_load_compare_config(config, variants), workers)
+        cfg = with_workers(_load_compare_config(config, variants, preset), workers)
         _print_report(_run_compare([session], out, cfg, overwrite))
 
     @app.command()
@@ -192,35 +158,21 @@ def register(app: typer.Typer) -> None:
         full_resolution: Annotated[
             bool, typer.Option(help="Same as --resolution 848x480.")
         ] = False,
-        variants: Annotated[
-            str,
-            typer.Option(help="Variants to compare (a subset of icp,icp+imu,imu+kin,icp+imu+kin)."),
-        ] = DEMO_VARIANTS,
-        preset: Annotated[
-            str,
-            typer.Option(
-                help="Pipeline preset of the graph variants, applied over --config: realtime "
-                "(the real-time front end), accurate (colored ICP), thesis, realtime-gicp or none."
-            ),
-        ] = DEMO_PRESET,
+        variants: options.Variants = None,
+        preset: options.Preset = None,
         baseline_pixel_step: Annotated[
             int | None,
             typer.Option(
                 min=1,
                 max=8,
-                help="The thesis baseline's cloud from every n-th pixel, over --config "
-                "(default: the 212x120 cloud at any resolution, its cost in the demo's budget; "
-                "1 = every pixel).",
+                help="The thesis baseline's cloud from every n-th pixel, over --config and "
+                "--preset (default: the preset's; realtime: the 212x120 cloud at any "
+                "resolution; 1 = every pixel).",
             ),
         ] = None,
         seed: Annotated[int, typer.Option(help="Simulator seed.")] = 1,
-        config: Annotated[
-            Path | None,
-            typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
-        ] = None,
-        overwrite: Annotated[
-            bool, typer.Option("--overwrite", help="Replace a demo folder graph-slam wrote.")
-        ] = False,
+        config: options.Config = None,
+        overwrite: options.Overwrite = False,
         workers: Annotated[
             int | None,
             typer.Option(min=1, max=64, help=workers_option_help("1")),
@@ -229,8 +181,9 @@ def register(app: typer.Typer) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
 
-        424×240, the thesis baseline and the three graph variants on the real-time front end by
-        default (docs/benchmarks.md, "Demo").
+        424×240, the thesis baseline and the three graph variants on the default preset
+        (realtime: the real-time front end, the baseline on the 212×120 cloud;
+        docs/benchmarks.md, "Demo").
         """
         from graph_slam.commands._common import progress_bar
         from graph_slam.report import SessionSpec
@@ -239,8 +192,7 @@ def register(app: typer.Typer) -> None:
         t0 = time.perf_counter()
         counts = _demo_strides(strides, strides_scale)
         size = _demo_resolution(resolution, full_resolution)
-        cfg = _with_preset(_load_compare_config(config, variants), preset)
-        cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
+        cfg = _load_compare_config(config, variants, preset, baseline_pixel_step)
         cfg = with_workers(cfg, workers)
         _check_demo_out(out, overwrite)
         specs = []
@@ -262,7 +214,7 @@ def register(app: typer.Typer) -> None:
         t_sim = time.perf_counter() - t0
         typer.echo(
             f"simulated {len(specs)} sessions in {t_sim:.0f} s ({size}; variants "
-            f"{', '.join(cfg.variants)}; graph preset {preset})"
+            f"{', '.join(cfg.variants)}; preset {cfg.pipeline.preset})"
         )
         report = _run_compare(specs, out / "report", cfg, overwrite)
         _print_report(report)

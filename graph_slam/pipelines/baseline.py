@@ -68,6 +68,7 @@ class ThesisBaseline:
         reg = sensor_registration(bc.registration, has_color)
         self.registration = reg
         self.intrinsics = intrinsics
+        self._pixel_step = config.baseline.pixel_step_for(intrinsics.width_px)
         self.camera_T_imu = np.asarray(camera_T_imu, float)
         self.leg_model = leg_model
         self.has_color = has_color
@@ -126,7 +127,7 @@ class ThesisBaseline:
         t0 = time.perf_counter()
         index = self.results.n_frames
         cloud = frame_cloud(
-            frame, self.intrinsics, self.cfg.cloud, self.has_color, self.cfg.baseline.pixel_step
+            frame, self.intrinsics, self.cfg.cloud, self.has_color, self._pixel_step
         )
         t_cloud = time.perf_counter()
         pose: np.ndarray | None = None

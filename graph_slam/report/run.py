@@ -245,6 +245,7 @@ def _write_run(tmp: Path, opened, cfg: RunConfig, reference, progress, warnings)
     logger.close()
     files += [tmp / "recording.rrd"] if cfg.rrd else []
     summary = {
+        "preset": cfg.pipeline.preset,
         "variants": [str(v) for v in cfg.variants],
         "reference": str(reference),
         "sessions": sessions,
