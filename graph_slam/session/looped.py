@@ -1,7 +1,7 @@
 """A recorded session played in a loop: a long stream from a short recording.
 
 ``LoopedSession(session, minutes=10)`` repeats a session's strides back to back so that an
-online replay can run for minutes (memory over a long run, issue 14) without simulating or
+online replay can run for minutes (memory over a long run) without simulating or
 storing minutes of frames. A *lap* is the recording from its first foot strike up to (not
 including) its last one, ``L = t_last − t_first`` long; the loop plays the recording from its
 start up to the last strike, then laps, each shifted by ``L`` further. Every seam is therefore
