@@ -1,4 +1,4 @@
-"""Real-time benchmark (issue 14): each pipeline row replayed causally on a session
+"""Real-time benchmark: each pipeline row replayed causally on a session
 (:func:`graph_slam.pipelines.replay.replay_session`), side by side.
 
 A row is a variant (``icp`` = the thesis baseline, ``icp+imu+kin`` = today's graph) or

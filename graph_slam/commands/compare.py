@@ -21,6 +21,9 @@ DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
     ("fast", "Fast", 7),
 )
 """The thesis's 25 strides (Table 4.2): 9 slow, 9 normal, 7 fast."""
+DEMO_WORKERS = 4
+"""The demo's processes at most (default: one per core): a deterministic run keeps Open3D on
+one thread, so the baseline's tasks beside the graph's use the cores."""
 DEMO_RESOLUTION = "424x240"
 """The D455's real-time mode the demo simulates (848x480 and 212x120 are options)."""
 
@@ -30,17 +33,27 @@ def _load_compare_config(
     variants: str | None,
     preset: str | None = None,
     baseline_pixel_step: int | None = None,
+    map_files: str | None = None,
 ):
     """The YAML's CompareConfig with the options over it (the stride maps stay on whatever
     the preset: the report scores them)."""
     from graph_slam.report import CompareConfig
 
-    extra = {}
+    extra: dict = {}
     if baseline_pixel_step is not None:
         extra = {"pipeline": {"baseline": {"pixel_step": baseline_pixel_step}}}
+    if map_files is not None:
+        extra["map_files"] = map_files
     return options.load_settings(
         CompareConfig, path, variants, preset, stride_maps=True, extra=extra
     )
+
+
+def _sets_workers(config: Path | None) -> bool:
+    """Whether the ``--config`` YAML names ``workers`` (read and checked already)."""
+    from graph_slam.config import read_yaml
+
+    return config is not None and "workers" in (read_yaml(config) or {})
 
 
 def _demo_resolution(resolution: str | None, full_resolution: bool) -> str:
@@ -127,13 +140,15 @@ def register(app: typer.Typer) -> None:
         variants: options.Variants = None,
         config: options.Config = None,
         preset: options.Preset = None,
+        map_files: options.MapFiles = None,
         overwrite: options.Overwrite = False,
         workers: Annotated[
             int | None, typer.Option(min=1, max=64, help=workers_option_help("1"))
         ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
-        cfg = with_workers(_load_compare_config(config, variants, preset), workers)
+        cfg = _load_compare_config(config, variants, preset, map_files=map_files)
+        cfg = with_workers(cfg, workers)
         _print_report(_run_compare([session], out, cfg, overwrite))
 
     @app.command()
@@ -160,6 +175,7 @@ def register(app: typer.Typer) -> None:
         ] = False,
         variants: options.Variants = None,
         preset: options.Preset = None,
+        map_files: options.MapFiles = None,
         baseline_pixel_step: Annotated[
             int | None,
             typer.Option(
@@ -175,7 +191,11 @@ def register(app: typer.Typer) -> None:
         overwrite: options.Overwrite = False,
         workers: Annotated[
             int | None,
-            typer.Option(min=1, max=64, help=workers_option_help("1")),
+            typer.Option(
+                min=1,
+                max=64,
+                help=workers_option_help(f"the cores this process may use, at most {DEMO_WORKERS}"),
+            ),
         ] = None,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
@@ -192,7 +212,9 @@ def register(app: typer.Typer) -> None:
         t0 = time.perf_counter()
         counts = _demo_strides(strides, strides_scale)
         size = _demo_resolution(resolution, full_resolution)
-        cfg = _load_compare_config(config, variants, preset, baseline_pixel_step)
+        cfg = _load_compare_config(config, variants, preset, baseline_pixel_step, map_files)
+        if workers is None and not _sets_workers(config):  # one Open3D thread each
+            workers = max(1, min(DEMO_WORKERS, len(os.sched_getaffinity(0))))
         cfg = with_workers(cfg, workers)
         _check_demo_out(out, overwrite)
         specs = []

@@ -32,6 +32,14 @@ Variants = Annotated[
         "--variants", help="Comma-separated: icp,icp+imu,imu+kin,icp+imu+kin (default all)."
     ),
 ]
+MapFiles = Annotated[
+    str | None,
+    typer.Option(
+        "--map-files",
+        help="Stride maps written as PLY: main (the main variant's and the ground truth's; "
+        "the default), all, none. Every map is scored either way.",
+    ),
+]
 Overwrite = Annotated[
     bool, typer.Option("--overwrite", help="Replace an output folder graph-slam wrote.")
 ]

@@ -30,7 +30,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
@@ -104,6 +104,12 @@ class CompareConfig(RunSettings):
         ge=0,
         description="search the grid's whole boxes for the deadline at most this often (0: "
         "every frame); the time known is then up to this late (0.03: every 3rd frame at 90 Hz)",
+    )
+    map_files: Literal["main", "all", "none"] = Field(
+        "main",
+        description="which stride maps are written as PLY (float32 coordinates): main (the "
+        "main variant's, the last asked for (icp+imu+kin by default), and the ground truth's), "
+        "all (every variant's), none; every map is scored either way",
     )
     plot_maps_per_session: int = Field(
         1,

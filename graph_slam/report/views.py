@@ -53,8 +53,14 @@ def write_trajectories(folder: Path, run) -> list[Path]:
     return files
 
 
+def _map_file(cfg, source: MapSource, main: MapSource) -> bool:
+    """Whether the stride map of ``source`` is written (``CompareConfig.map_files``)."""
+    which = cfg.map_files
+    return which == "all" or (which == "main" and (source == main or source.is_truth))
+
+
 def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]:
-    """Per complete stride: the PLY of every map, the first strides' map plots, the stride's
+    """Per complete stride: the PLY of the maps ``cfg.map_files`` names, the first strides' map plots, the stride's
     trajectory plot and the rerun recording (camera images at the main variant's poses)."""
     from graph_slam.session.adapters.ply import write_ply
     from graph_slam.viz import plots
@@ -75,10 +81,10 @@ def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]
         truth_boxes = truth_boxes_in_stride(scene, ref.world_T_stride) if scene is not None else []
         for source, smap in run.maps[k].items():
             fused = smap.fused
-            if len(fused):
+            if len(fused) and _map_file(cfg, source, main):
                 ply = out / "maps" / source.tag / f"{tag_stride}.ply"
                 ply.parent.mkdir(parents=True, exist_ok=True)
-                write_ply(fused.to_point_cloud(), ply)
+                write_ply(fused.to_point_cloud(), ply, dtype="float32")
                 files.append(ply)
             if k < cfg.plot_maps_per_session and len(fused) and (source == main or source.is_truth):
                 files += _map_plots(out, source, smap, tag_stride, title, truth_boxes)
