@@ -15,6 +15,7 @@ import yaml
 FAST = {
     "variants": ["icp", "imu+kin"],
     "pipeline": {
+        "preset": "accurate",  # stride maps and elevation grids from kept clouds (checked below)
         "baseline": {
             "registration": {
                 "levels": [{"voxel_m": 0.04, "max_correspondence_m": 0.04, "max_iterations": 15}]
