@@ -96,3 +96,22 @@ def test_rows_run_in_their_own_process(online_session) -> None:
         on_start=lambda s, v: seen.append(v),
     )
     assert seen == ["icp"] and r.row == "icp" and r.delivered == 5
+
+
+def test_markdown_table_carries_its_caption() -> None:
+    import datetime
+    import os
+
+    rows = [_row("icp:accurate", 400.0, 2.0), _row("icp+imu+kin", 40.0, 20.0)]
+    text = rt.markdown_table(rows, "graph-slam bench realtime s --markdown")
+    caption, _, header, rule, *body = text.splitlines()
+    today = datetime.datetime.now(datetime.UTC).date().isoformat()
+    assert caption.startswith(f"({today}, commit ")
+    assert (
+        f"{len(os.sched_getaffinity(0))} cores: `graph-slam bench realtime s --markdown`" in caption
+    )
+    assert header.count("|") == rule.count("|") == 10
+    assert body == [
+        "| s | icp:accurate | 400.0 / 800.0 | 90 | 2 | 88 | 400.0 | 200 | 4.0 |",
+        "| s | icp+imu+kin | 40.0 / 80.0 | 90 | 20 | 70 | 40.0 | 200 | 4.0 |",
+    ]

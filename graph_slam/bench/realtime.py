@@ -277,6 +277,28 @@ def row_lines(r: RealtimeRow) -> list[str]:
     return lines
 
 
+def markdown_table(rows: Sequence[RealtimeRow], command: str) -> str:
+    """The rows as the markdown table docs/benchmarks.md holds ("Real time"), with its
+    caption (:func:`graph_slam.bench.caption.caption`); times are load-dependent: the
+    caption's machine and the run's conditions belong with them."""
+    from graph_slam.bench.caption import caption
+
+    lines = [
+        f"({caption(command)})",
+        "",
+        "| session | row | full update ms median / p95 | delivered | processed | skipped "
+        "| CPU ms / frame | peak MB | smoothed mm (median) |",
+        "| :-- | :-- | --: | --: | --: | --: | --: | --: | --: |",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r.session} | {r.row} | {r.update.median_ms:.1f} / {r.update.p95_ms:.1f} "
+            f"| {r.delivered} | {r.processed} | {r.skipped} | {r.cpu_ms_per_frame:.1f} "
+            f"| {r.peak_rss_mb:.0f} | {r.smoothed_rmse_mm:.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def speedups(rows: Sequence[RealtimeRow]) -> list[dict]:
     """Per session and row: the thesis baseline's figures over the row's."""
     out = []

@@ -188,7 +188,7 @@ def realtime_bench(
             "VARIANT:PRESET (a pipeline preset, e.g. icp+imu+kin:realtime: the real-time "
             "registration, IMU guess, deferred smoothing; docs/pipelines.md)."
         ),
-    ] = "icp,icp+imu+kin,icp+imu+kin:realtime",
+    ] = "icp:accurate,icp+imu+kin:accurate,icp+imu+kin:realtime",
     pace: Annotated[
         str, typer.Option(help="virtual (as fast as it runs, deterministic skips) or wall.")
     ] = "virtual",
@@ -196,6 +196,13 @@ def realtime_bench(
         Path | None, typer.Option("--config", help="YAML of PipelineConfig overrides (base).")
     ] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Write the figures as JSON.")] = None,
+    markdown: Annotated[
+        bool,
+        typer.Option(
+            "--markdown",
+            help="Also print the markdown table (its caption: date, commit, cores, command).",
+        ),
+    ] = False,
     minutes: Annotated[
         float | None,
         typer.Option(
@@ -233,6 +240,12 @@ def realtime_bench(
     )
     for line in rt.headline_lines(results):
         typer.echo(line)
+    if markdown:
+        import shlex
+        import sys
+
+        command = shlex.join(["graph-slam", *sys.argv[1:]])
+        typer.echo("\n" + rt.markdown_table(results, command))
     if out is not None:
         typer.echo(f"wrote {rt.write_json(results, out)}")
 
