@@ -67,7 +67,7 @@ def main() -> None:
     args = parser.parse_args()
     for path in args.sessions:
         session = open_session(path)
-        results = run_session(session, PipelineConfig(variant="icp"))
+        results = run_session(session, PipelineConfig(preset="thesis", variant="icp"))  # every pixel
         rows = stride_counts(session, results)
         n = sum(r["frames"] for r in rows)
         reg = sum(r["registered"] for r in rows)
