@@ -111,6 +111,13 @@ class CompareConfig(RunSettings):
         "main variant's, the last asked for (icp+imu+kin by default), and the ground truth's), "
         "all (every variant's), none; every map is scored either way",
     )
+    map_file_voxel_m: float = Field(
+        0.01,
+        ge=0,
+        description="the PLY maps' voxel: the fused map's voxels averaged (by their point "
+        "counts) on this coarser grid of the same origin, a whole multiple of "
+        "pipeline.terrain's voxel (0: as fused, 5 mm); the scores use the fused map",
+    )
     plot_maps_per_session: int = Field(
         1,
         ge=0,
