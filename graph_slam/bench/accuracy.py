@@ -1,4 +1,4 @@
-"""Pipelines benchmark (issues 5 and 6): every variant on simulated thesis-box sessions.
+"""Pipelines benchmark: every variant on simulated thesis-box sessions.
 
 For each session (one speed) and variant: poses per frame (online, smoothed), per-stride
 camera-position RMSE in the stride frame (no alignment) against the simulator's truth, swing
