@@ -22,8 +22,8 @@ DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
 )
 """The thesis's 25 strides (Table 4.2): 9 slow, 9 normal, 7 fast."""
 DEMO_WORKERS = 4
-"""The demo's processes at most (default: one per core): a deterministic run keeps Open3D on
-one thread, so the baseline's tasks beside the graph's use the cores."""
+"""``compare``'s and the demo's processes at most (default: one per core): a deterministic run
+keeps Open3D on one thread, so the baseline's tasks beside the graph's use the cores."""
 DEMO_RESOLUTION = "424x240"
 """The D455's real-time mode the demo simulates (848x480 and 212x120 are options)."""
 
@@ -49,11 +49,15 @@ def _load_compare_config(
     )
 
 
-def _sets_workers(config: Path | None) -> bool:
-    """Whether the ``--config`` YAML names ``workers`` (read and checked already)."""
+def _default_workers(workers: int | None, config: Path | None) -> int | None:
+    """``--workers``, else the YAML's ``workers``, else one process per core (at most
+    :data:`DEMO_WORKERS`): a deterministic run keeps Open3D on one thread, so processes
+    are what uses the cores."""
     from graph_slam.config import read_yaml
 
-    return config is not None and "workers" in (read_yaml(config) or {})
+    if workers is not None or (config is not None and "workers" in (read_yaml(config) or {})):
+        return workers
+    return max(1, min(DEMO_WORKERS, len(os.sched_getaffinity(0))))
 
 
 def _demo_resolution(resolution: str | None, full_resolution: bool) -> str:
@@ -143,12 +147,17 @@ def register(app: typer.Typer) -> None:
         map_files: options.MapFiles = None,
         overwrite: options.Overwrite = False,
         workers: Annotated[
-            int | None, typer.Option(min=1, max=64, help=workers_option_help("1"))
+            int | None,
+            typer.Option(
+                min=1,
+                max=64,
+                help=workers_option_help(f"the cores this process may use, at most {DEMO_WORKERS}"),
+            ),
         ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
         cfg = _load_compare_config(config, variants, preset, map_files=map_files)
-        cfg = with_workers(cfg, workers)
+        cfg = with_workers(cfg, _default_workers(workers, config))
         _print_report(_run_compare([session], out, cfg, overwrite))
 
     @app.command()
@@ -213,9 +222,7 @@ def register(app: typer.Typer) -> None:
         counts = _demo_strides(strides, strides_scale)
         size = _demo_resolution(resolution, full_resolution)
         cfg = _load_compare_config(config, variants, preset, baseline_pixel_step, map_files)
-        if workers is None and not _sets_workers(config):  # one Open3D thread each
-            workers = max(1, min(DEMO_WORKERS, len(os.sched_getaffinity(0))))
-        cfg = with_workers(cfg, workers)
+        cfg = with_workers(cfg, _default_workers(workers, config))
         _check_demo_out(out, overwrite)
         specs = []
         for (speed, label, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True):
