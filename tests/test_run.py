@@ -98,6 +98,7 @@ def test_report_names_the_counts(ran) -> None:
     sess = doc["sessions"][report.sessions[0]]
     assert sess["ground_truth"] is False and doc["reference"] == "imu+kin"
     md = (report.out / "report.md").read_text()
+    assert doc["preset"] == "accurate" and "Preset: accurate." in md  # the preset it ran
     for variant, res in results.items():
         v = sess["variants"][str(variant)]
         assert v["frames"] == len(res.frames)
