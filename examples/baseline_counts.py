@@ -67,7 +67,8 @@ def main() -> None:
     args = parser.parse_args()
     for path in args.sessions:
         session = open_session(path)
-        results = run_session(session, PipelineConfig(variant="icp"))
+        config = PipelineConfig(preset="thesis", variant="icp")  # the cloud from every pixel
+        results = run_session(session, config)
         rows = stride_counts(session, results)
         n = sum(r["frames"] for r in rows)
         reg = sum(r["registered"] for r in rows)

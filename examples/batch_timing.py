@@ -34,8 +34,8 @@ SPEC = {
 
 
 def demo_spec(work: Path, strides: int) -> dict:
-    """The demo's sessions (three speeds, 424×240, bursty drops, seed 1) and configuration."""
-    from graph_slam.pipelines.config import with_preset
+    """The demo's sessions (three speeds, 424×240, bursty drops, seed 1) and configuration
+    (the defaults: the realtime preset, the baseline on the 212×120 cloud, the stride maps)."""
     from graph_slam.sim import SPEEDS_M_S
 
     for speed in ("slow", "normal", "fast"):
@@ -44,13 +44,10 @@ def demo_spec(work: Path, strides: int) -> dict:
             drops="bursty", resolution="424x240", quicklook=False,
         )  # fmt: skip
         simulate(cfg, work / "s" / speed, overwrite=True)
-    pipeline = with_preset(CompareConfig().pipeline.model_dump(mode="json"), "realtime")
-    pipeline["terrain"] = {**pipeline["terrain"], "enabled": True}
-    pipeline["baseline"]["pixel_step"] = 2
     return {
         "sessions": ["s/*"],
         "variants": ["icp", "icp+imu", "imu+kin", "icp+imu+kin"],
-        "config": {"pipeline": pipeline},
+        "config": {},
     }
 
 

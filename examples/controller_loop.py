@@ -5,10 +5,13 @@ coming swing's predicted toe clearance with its low-clearance warning, and the t
 toe-off (predicted from the stances seen so far).
 
 graph-slam simulate --scene thesis-boxes --strides 3 --resolution 424x240 --drops none --out runs/sim
-python examples/controller_loop.py runs/sim [VARIANT[:PRESET]]
+python examples/controller_loop.py runs/sim [VARIANT[:PRESET]] [--measured]
 
 The session is replayed by :func:`graph_slam.pipelines.replay.replay_session` (every stream in
-time-stamp order, nothing read ahead; the newest frame taken when the estimator is free) into
+time-stamp order, nothing read ahead; the newest frame taken when the estimator is free) on
+its deterministic virtual clock (every frame processed, one line each; ``--measured``: the
+clock advances by the measured compute time, so frames arriving while the estimator is busy
+are skipped, and which depends on the machine's load) into
 the pipeline wrapped by :class:`graph_slam.pipelines.controller.ControllerTap`. Each frame's
 ``FrameOutput`` carries the pose (``stride_T_camera``), its covariance (``covariance``; graph
 variants with ``backend.covariances``) and the terrain (``terrain``: height_at(x, y), the grid
@@ -20,7 +23,7 @@ from __future__ import annotations
 import sys
 
 from graph_slam.pipelines.controller import ControllerTap
-from graph_slam.pipelines.replay import replay_session
+from graph_slam.pipelines.replay import MEASURED, replay_session
 from graph_slam.pipelines.runner import make_pipeline
 
 
@@ -50,8 +53,10 @@ def controller_readouts(session, config, compute_cost=None):
 
 
 def main() -> None:
-    row = sys.argv[2] if len(sys.argv) > 2 else "icp+imu+kin:realtime"
-    for readout in controller_readouts(sys.argv[1], row_config(row)):
+    args = [a for a in sys.argv[1:] if a != "--measured"]
+    row = args[1] if len(args) > 1 else "icp+imu+kin"  # the default preset: realtime
+    cost = MEASURED if "--measured" in sys.argv[1:] else None
+    for readout in controller_readouts(args[0], row_config(row), compute_cost=cost):
         print(readout.line())
 
 

@@ -107,6 +107,28 @@ def load_config(cls: type[C], path: str | Path | None) -> C:
     return config_from_dict(cls, read_yaml(path), source=str(path))
 
 
+def merge_dicts(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """``over`` merged into ``base``, mapping by mapping (``over`` wins; neither is changed)."""
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge_dicts(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def overlay_config(
+    cls: type[C], path: str | Path | None, patch: dict[str, Any] | None = None, source: str = ""
+) -> C:
+    """The YAML file's config (``path``; None: the defaults), dumped, with ``patch`` merged
+    over it, validated again: how a command puts its options over ``--config``. Errors name
+    ``source`` (the options) or the file."""
+    data = merge_dicts(load_config(cls, path).model_dump(mode="json"), patch or {})
+    where = source or (str(path) if path is not None else "the command line")
+    return config_from_dict(cls, data, source=where)
+
+
 def read_yaml(path: str | Path, what: str = "config file") -> Any:
     """The document in the YAML file ``path`` (``yaml.safe_load``); a :class:`ConfigError`
     naming the file when it cannot be read (``cannot read <what>``), is not UTF-8 or not YAML."""

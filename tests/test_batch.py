@@ -324,3 +324,24 @@ def test_pooled_timing_leaves_out_tasks_without_timed_frames() -> None:
     pooled = timing([zero, one, two])
     assert pooled["n"] == 4 and pooled["mean_s"] == pytest.approx(0.03, abs=1e-15)
     assert pooled["task_median_min_s"] == 0.01 and pooled["max_s"] == 0.06
+
+
+def test_the_preset_option_is_the_configurations_default(synthetic_session, tmp_path) -> None:
+    spec = _spec(
+        tmp_path, "presets.yaml", sessions=[str(synthetic_session)],
+        configurations={"plain": {}, "own": {"pipeline": {"preset": "thesis"}}},
+    )  # fmt: skip
+    default = load_spec(spec).configurations
+    assert {n: c.pipeline.preset for n, c in default.items()} == {
+        "plain": "realtime",
+        "own": "thesis",
+    }
+    picked = load_spec(spec, preset="accurate").configurations
+    assert {n: c.pipeline.preset for n, c in picked.items()} == {
+        "plain": "accurate",
+        "own": "thesis",
+    }
+    assert picked["plain"].pipeline.baseline.pixel_step == 1  # the preset's, every pixel
+    assert picked["plain"].pipeline.terrain.enabled  # compare scores the stride maps
+    with pytest.raises(ConfigError, match="--preset 'fast'"):
+        load_spec(spec, preset="fast")

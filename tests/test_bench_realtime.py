@@ -20,8 +20,10 @@ def test_rows_are_variants_or_variant_colon_preset() -> None:
     assert cfg.variant == "icp+imu" and cfg.backend.variant == "icp+imu" and cfg.max_frames == 7
     with pytest.raises(ConfigError, match="unknown variant 'slam'"):
         rt.row_config("slam")
-    with pytest.raises(ConfigError, match="icp has no graph"):
-        rt.row_config("icp:realtime")
+    # a preset sets the baseline's cloud too: every pixel (accurate), the 212x120 one (realtime)
+    assert rt.row_config("icp:accurate").baseline.pixel_step == 1
+    assert rt.row_config("icp:realtime").baseline.pixel_step is None
+    assert rt.row_config("icp").preset == "realtime"  # the default
     with pytest.raises(ConfigError, match="row 'icp\\+imu\\+kin:nope': unknown pipeline preset"):
         rt.row_config("icp+imu+kin:nope")
     real = rt.row_config("icp+imu+kin:realtime", base)  # every real-time setting, over base
@@ -94,3 +96,22 @@ def test_rows_run_in_their_own_process(online_session) -> None:
         on_start=lambda s, v: seen.append(v),
     )
     assert seen == ["icp"] and r.row == "icp" and r.delivered == 5
+
+
+def test_markdown_table_carries_its_caption() -> None:
+    import datetime
+    import os
+
+    rows = [_row("icp:accurate", 400.0, 2.0), _row("icp+imu+kin", 40.0, 20.0)]
+    text = rt.markdown_table(rows, "graph-slam bench realtime s --markdown")
+    caption, _, header, rule, *body = text.splitlines()
+    today = datetime.datetime.now(datetime.UTC).date().isoformat()
+    assert caption.startswith(f"({today}, commit ")
+    assert (
+        f"{len(os.sched_getaffinity(0))} cores: `graph-slam bench realtime s --markdown`" in caption
+    )
+    assert header.count("|") == rule.count("|") == 10
+    assert body == [
+        "| s | icp:accurate | 400.0 / 800.0 | 90 | 2 | 88 | 400.0 | 200 | 4.0 |",
+        "| s | icp+imu+kin | 40.0 / 80.0 | 90 | 20 | 70 | 40.0 | 200 | 4.0 |",
+    ]

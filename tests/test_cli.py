@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 
 from graph_slam.cli import main
@@ -70,3 +71,14 @@ def test_missing_folder_is_exit_2(tmp_path: Path) -> None:
         bad.stderr.strip()
         == f"error: {tmp_path / 'nope'}: not a session folder (no such directory)"
     )
+
+
+@pytest.mark.parametrize("command", ["run", "compare", "demo"])
+def test_every_pipeline_command_takes_the_shared_options(command, tmp_path: Path, capsys) -> None:
+    args = [command] + ([] if command == "demo" else [str(tmp_path)])
+    with pytest.raises(SystemExit) as exc:
+        main([*args, "--out", str(tmp_path / "o"), "--preset", "fast"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--preset 'fast'" in err and "realtime" in err and "accurate" in err
+    assert not (tmp_path / "o").exists()  # refused before any work

@@ -82,8 +82,12 @@ def test_compare_writes_every_promised_file(report_dir) -> None:
         "imu_kin_smoothed.tum",
         "ground_truth.tum",
     }
-    for variant in ("icp", "imu_kin", "ground_truth"):
+    # the main variant's (the last asked for) and the truth's maps by default; the rest on
+    # request (map_files: all), every one scored either way (doc["maps"] above)
+    for variant in ("imu_kin", "ground_truth"):
         assert list((out / "maps" / variant).glob("*_s00.ply")), variant
+    assert not (out / "maps" / "icp").exists()
+    assert doc["preset"] == "realtime"
     plots = {p.name.split("_")[0] for p in (out / "plots").glob("*.png")}
     assert {"trajectory", "error", "map", "elevation", "obstacles"} <= plots
 

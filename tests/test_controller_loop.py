@@ -83,3 +83,13 @@ def test_realtime_final_grid_is_the_online_one_and_old_grids_are_released(sessio
     np.testing.assert_array_equal(
         kept.strides[-1].online_grid.height_m, res.strides[-1].online_grid.height_m
     )
+
+
+def test_the_example_on_its_defaults_prints_every_frame(session_path):
+    """The default preset on the deterministic virtual clock: one readout per frame, whatever
+    the machine's load (the measured clock would skip frames that arrive while it works)."""
+    example = _example()
+    config = example.row_config("icp+imu+kin").model_copy(update={"max_frames": 30})
+    assert config.preset == "realtime"
+    readouts = example.controller_readouts(session_path, config)
+    assert len(readouts) == 30

@@ -92,17 +92,22 @@ def test_demo_writes_the_whole_report(demo_run) -> None:
         for name in ("ground_truth", "icp_online", "icp_imu_kin_online", "icp_imu_kin_smoothed"):
             t_s, poses = read_tum(folder / f"{name}.tum")
             assert t_s.size > 5 and poses.shape == (t_s.size, 4, 4), (speed_tag, name)
-    for source in ("icp", "icp_imu", "imu_kin", "icp_imu_kin", "ground_truth"):
+    for source in ("icp_imu_kin", "ground_truth"):  # the main variant's and the truth's
         plys = sorted((report / "maps" / source).glob("*.ply"))
         assert len(plys) == 3, source
         assert len(read_ply(plys[0]).points_m) > 1000, source
+        assert b"property float x" in plys[0].read_bytes()[:300]  # compact: float32
+    for source in ("icp", "icp_imu", "imu_kin"):  # scored (metrics.json), written on request
+        assert not (report / "maps" / source).exists(), source
     plots = {p.name.split("_")[0] for p in (report / "plots").glob("*.png")}
     assert {"trajectory", "error", "map", "elevation", "obstacles"} <= plots
     import yaml
 
     resolved = yaml.safe_load((report / "config.yaml").read_text())
     assert resolved["pipeline"]["graph"]["registration"]["method"] == "projective"  # realtime
-    assert resolved["pipeline"]["baseline"]["pixel_step"] == 1  # 212x120: every pixel
+    assert resolved["pipeline"]["preset"] == doc["preset"] == "realtime"  # the default
+    assert resolved["pipeline"]["baseline"]["pixel_step"] is None  # the 212x120 cloud
+    assert "Preset: realtime." in text
     rrd = report / "recording.rrd"
     assert rrd.is_file() and rrd.stat().st_size > 10_000
 

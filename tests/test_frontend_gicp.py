@@ -295,7 +295,8 @@ def test_registration_presets_by_name() -> None:
     assert cfg.graph.registration == realtime_registration()
     assert PipelineConfig.model_validate(cfg.model_dump(mode="json")) == cfg  # YAML round trip
     accurate = config_from_dict(PipelineConfig, {"graph": {"registration": "accurate"}})
-    assert accurate.graph.registration == PipelineConfig().graph.registration
+    assert accurate.graph.registration == PipelineConfig(preset="accurate").graph.registration
+    assert PipelineConfig().graph.registration == realtime_registration()  # the default
     thesis = config_from_dict(PipelineConfig, {"graph": {"registration": "thesis"}})
     assert len(thesis.graph.registration.levels) == 3
     custom = {"graph": {"registration": {"method": "gicp", "voxel_m": 0.03}}}

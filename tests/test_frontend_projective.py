@@ -338,11 +338,16 @@ def test_the_realtime_preset_is_projective_and_turns_the_imu_guess_on() -> None:
     from graph_slam.frontend import make_registration
     from graph_slam.pipelines.graph import imu_guess_on
 
-    cfg = config_from_dict(PipelineConfig, {"graph": {"registration": "realtime"}})
+    # over the accurate preset, which leaves imu_guess None (the registration decides)
+    cfg = config_from_dict(
+        PipelineConfig, {"preset": "accurate", "graph": {"registration": "realtime"}}
+    )
     assert isinstance(cfg.graph.registration, ProjectiveConfig)
     assert PipelineConfig.model_validate(cfg.model_dump(mode="json")) == cfg  # YAML round trip
     assert cfg.graph.imu_guess is None
-    gicp = config_from_dict(PipelineConfig, {"graph": {"registration": "realtime-gicp"}})
+    gicp = config_from_dict(
+        PipelineConfig, {"preset": "accurate", "graph": {"registration": "realtime-gicp"}}
+    )
     assert gicp.graph.registration.method == "gicp"
     custom = {"graph": {"registration": {"method": "projective", "voxel_m": 0.03}}}
     assert config_from_dict(PipelineConfig, custom).graph.registration.voxel_m == 0.03
@@ -352,6 +357,7 @@ def test_the_realtime_preset_is_projective_and_turns_the_imu_guess_on() -> None:
 
     assert on(cfg) is True
     assert on(gicp) is False
-    assert on(PipelineConfig()) is False
+    assert on(PipelineConfig()) is True  # the default preset is realtime
     off_cfg = config_from_dict(PipelineConfig, {"graph": {"registration": "realtime", "imu_guess": False}})  # fmt: skip
     assert on(off_cfg) is False
+    assert PipelineConfig().graph.imu_guess is True  # the default (realtime) preset sets it

@@ -60,7 +60,7 @@ def test_depth_only_information_is_calibrated(pico_course) -> None:
     the RGB-D settings on the same pairs were 80 times over-confident."""
     from graph_slam.pipelines.protocol import sensor_registration
 
-    graph = PipelineConfig().graph
+    graph = PipelineConfig(preset="accurate").graph  # Open3D's point-to-plane, depth only
     data = session_dataset(pico_course, stop=31)
     assert all(f.color_rgb is None for f in data.frames)
     tuned = chi2_of_pairs(data, sensor_registration(graph.registration, False, graph.depth_only))

@@ -23,7 +23,8 @@ def sim_session(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def results(sim_session):
-    cfg = {v: PipelineConfig(variant=v, max_frames=60) for v in VARIANTS}
+    # the accurate preset: the stride maps and the batch smoothing these tests check
+    cfg = {v: PipelineConfig(preset="accurate", variant=v, max_frames=60) for v in VARIANTS}
     return {v: run_session(sim_session, c) for v, c in cfg.items()}
 
 
@@ -199,7 +200,7 @@ def test_deferred_smoothing_keeps_the_accuracy_without_the_strike_spike(scored_f
     """Real time (issue 14): with ``backend.defer_smoothing`` the stride's end state carried
     into the next stride is iSAM2's and the batch smoothing runs at ``finish``; the smoothed
     poses still meet the ≤ 5 mm target and every stride ends up smoothed (no flag left)."""
-    r, scores = scored_full(backend={"defer_smoothing": True})
+    r, scores = scored_full(preset="accurate", backend={"defer_smoothing": True})
     assert len(scores) == 2
     for sc in scores:
         assert sc.smoothed_rmse_m < 0.005, sc
@@ -207,7 +208,7 @@ def test_deferred_smoothing_keeps_the_accuracy_without_the_strike_spike(scored_f
     assert all("smoothing_deferred" not in s.flags for s in r.strides)
     # the batch solution replaced the iSAM2 estimate the stride was closed with (a run without
     # smoothing closes strides the same way and keeps that estimate)
-    r_isam, _ = scored_full(backend={"smoothing": False})
+    r_isam, _ = scored_full(preset="accurate", backend={"smoothing": False})
     moved = np.nanmax(np.abs(r.smoothed_stride_T_camera - r_isam.smoothed_stride_T_camera))
     assert moved > 1e-4, moved
     assert all(s.terrain.smoothed is not None for s in r.strides if s.frame_indices)

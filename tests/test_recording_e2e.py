@@ -50,7 +50,8 @@ def ran(converted, tmp_path_factory) -> Path:
         yaml.safe_dump(
             {
                 "variants": ["icp+imu+kin"],
-                "pipeline": {"max_frames": RUN_FRAMES},  # no mount pitch: estimated
+                # colored ICP and the stride maps (checked below); no mount pitch: estimated
+                "pipeline": {"preset": "accurate", "max_frames": RUN_FRAMES},
                 "rrd": False,
             }
         )

@@ -15,6 +15,7 @@ import yaml
 FAST = {
     "variants": ["icp", "imu+kin"],
     "pipeline": {
+        "preset": "accurate",  # stride maps and elevation grids from kept clouds (checked below)
         "baseline": {
             "registration": {
                 "levels": [{"voxel_m": 0.04, "max_correspondence_m": 0.04, "max_iterations": 15}]
@@ -97,6 +98,7 @@ def test_report_names_the_counts(ran) -> None:
     sess = doc["sessions"][report.sessions[0]]
     assert sess["ground_truth"] is False and doc["reference"] == "imu+kin"
     md = (report.out / "report.md").read_text()
+    assert doc["preset"] == "accurate" and "Preset: accurate." in md  # the preset it ran
     for variant, res in results.items():
         v = sess["variants"][str(variant)]
         assert v["frames"] == len(res.frames)

@@ -212,7 +212,7 @@ class BackendConfig(ConfigModel):
         "factor is nearly linear (preintegration's bias Jacobians); at 0.01 for every "
         "variable, updates of 0.01 m/s or 0.01 m/s² spread along the stride (the bias random "
         "walk ties every frame's bias together) made iSAM2 re-eliminate the whole stride on "
-        "one frame in five, 5–15 ms each (docs/benchmarks.md, 'session 6')",
+        "one frame in five, 5–15 ms each (docs/benchmarks.md, '2026-12-02, commit 1ede288')",
     )
     gap_bridge_rot_sigma_rad: float = Field(0.3, gt=0)
     gap_bridge_trans_sigma_m: float = Field(0.2, gt=0)

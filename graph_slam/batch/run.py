@@ -80,8 +80,10 @@ def run_batch(
     options: ClusterOptions | None = None,
     on_task: TaskCallback | None = None,
     on_cluster: ClusterCallback | None = None,
+    preset: str | None = None,
 ) -> BatchResult:
-    """Run the study ``spec_path`` into ``out`` (created, or resumed when batch wrote it)."""
+    """Run the study ``spec_path`` into ``out`` (created, or resumed when batch wrote it);
+    ``preset``: the pipeline preset where the spec names none (:func:`load_spec`)."""
     from graph_slam.batch.cluster import check_cluster_options, require_dask
     from graph_slam.batch.pool_report import write_pooled_report
     from graph_slam.session.atomic import mark_folder
@@ -89,7 +91,7 @@ def run_batch(
     t0 = time.perf_counter()
     options = options or ClusterOptions()
     require_dask()
-    resolved = load_spec(spec_path)
+    resolved = load_spec(spec_path, preset)
     memory_limit = options.memory_limit or resolved.spec.cluster.memory_limit
     where = (
         "--memory-limit" if options.memory_limit else f"{spec_path}: field 'cluster.memory_limit'"

@@ -89,10 +89,19 @@ class ResolvedSpec:
     configurations: dict[str, CompareConfig]
 
 
-def load_spec(path: str | Path) -> ResolvedSpec:
-    """Read and check the spec (``yaml.safe_load``); every error names the file and field."""
+def load_spec(path: str | Path, preset: str | None = None) -> ResolvedSpec:
+    """Read and check the spec (``yaml.safe_load``); every error names the file and field.
+    ``preset``: the pipeline preset of every configuration whose ``config`` names none (the
+    command line's ``--preset``)."""
     path = Path(path)
     spec = config_from_dict(BatchSpec, read_yaml(path, "the batch spec"), source=str(path))
+    if preset is not None:
+        from graph_slam.pipelines.config import PIPELINE_PRESETS
+
+        if preset not in PIPELINE_PRESETS:
+            raise ConfigError(f"--preset {preset!r}: choose from {', '.join(PIPELINE_PRESETS)}")
+        shared = _merge({"pipeline": {"preset": preset}}, spec.config)
+        spec = spec.model_copy(update={"config": shared})
     if spec.test_kill_worker and os.environ.get(TEST_HOOKS_ENV) != "1":
         raise ConfigError(
             f"{path}: field 'test_kill_worker' is a test-only switch that kills workers; it is "

@@ -26,11 +26,18 @@ import numpy as np
 
 from graph_slam.config import config_from_dict
 from graph_slam.errors import ConfigError
-from graph_slam.pipelines import VARIANTS, PipelineConfig
-from graph_slam.pipelines.config import with_preset
+from graph_slam.pipelines import PipelineConfig
+from graph_slam.pipelines.config import parse_row, with_preset
 
 BASELINE_ROW = "icp"
-DEFAULT_ROWS: tuple[str, ...] = ("icp", "icp+imu+kin", "icp+imu+kin:realtime")
+"""The variant of the rows the speed-ups are taken against (the first such row)."""
+DEFAULT_ROWS: tuple[str, ...] = ("icp:accurate", "icp+imu+kin:accurate", "icp+imu+kin:realtime")
+"""The thesis baseline on every pixel, the accurate graph and the default (real-time) one."""
+
+
+def _is_baseline(row: str) -> bool:
+    return row.partition(":")[0] == BASELINE_ROW
+
 
 STAGES: tuple[tuple[str, str], ...] = (
     ("cloud", "depth->cloud"),
@@ -46,20 +53,14 @@ STAGES: tuple[tuple[str, str], ...] = (
 
 def row_config(row: str, base: PipelineConfig | None = None) -> PipelineConfig:
     """The pipeline configuration of a row ``VARIANT`` or ``VARIANT:PRESET`` (a
-    :data:`~graph_slam.pipelines.config.PIPELINE_PRESETS` name) over ``base`` (``--config``).
-    Raises :class:`ConfigError` naming the row when the variant or the preset is unknown."""
-    name, _, preset = row.partition(":")
-    if name not in VARIANTS:
-        raise ConfigError(f"row {row!r}: unknown variant {name!r} (known: {', '.join(VARIANTS)})")
+    :data:`~graph_slam.pipelines.config.PIPELINE_PRESETS` name, applied over ``base``,
+    ``--config``; without one: ``base``'s preset, the default one when None). Raises
+    :class:`ConfigError` naming the row when the variant or the preset is unknown."""
+    variant, preset = parse_row(row)
     data = (base or PipelineConfig()).model_dump(mode="json")
-    data["variant"] = name
+    data["variant"] = str(variant)
     if preset:
-        if name == BASELINE_ROW:
-            raise ConfigError(f"row {row!r}: a preset sets the graph's settings; icp has no graph")
-        try:
-            data = with_preset(data, preset)
-        except ConfigError as err:
-            raise ConfigError(f"row {row!r}: {err}") from None
+        data = with_preset(data, preset)
     return config_from_dict(PipelineConfig, data, source=f"row {row!r}")
 
 
@@ -136,7 +137,7 @@ def run_row(
     LoopedSession`: memory over a long run, with ``terrain.online.keep_stride_grids: 2`` and
     ``keep_frames``: :data:`LONG_RUN_KEEP_FRAMES`; not scored)."""
     from graph_slam.bench.accuracy import score
-    from graph_slam.pipelines.replay import replay_session
+    from graph_slam.pipelines.replay import MEASURED, replay_session
     from graph_slam.session import open_session
     from graph_slam.session.looped import LoopedSession
     from graph_slam.strides.kinematics import session_leg_model
@@ -152,7 +153,10 @@ def run_row(
         data["keep_frames"] = LONG_RUN_KEEP_FRAMES
         cfg = PipelineConfig.model_validate(data)
     t0 = time.perf_counter()
-    res = replay_session(session, cfg, pace=pace)  # type: ignore[arg-type]
+    # a timing study: the virtual clock advances by the measured time (the skipped frames
+    # then depend on the machine's load; the poses of the frames processed do not)
+    cost = MEASURED if pace == "virtual" else None
+    res = replay_session(session, cfg, pace=pace, compute_cost=cost)  # type: ignore[arg-type]
     wall = time.perf_counter() - t0
     leg, _ = session_leg_model(
         session, cfg.mount_pitch_deg, cfg.mount_estimate, event_source=cfg.event_source
@@ -273,12 +277,34 @@ def row_lines(r: RealtimeRow) -> list[str]:
     return lines
 
 
+def markdown_table(rows: Sequence[RealtimeRow], command: str) -> str:
+    """The rows as the markdown table docs/benchmarks.md holds ("Real time"), with its
+    caption (:func:`graph_slam.bench.caption.caption`); times are load-dependent: the
+    caption's machine and the run's conditions belong with them."""
+    from graph_slam.bench.caption import caption
+
+    lines = [
+        f"({caption(command)})",
+        "",
+        "| session | row | full update ms median / p95 | delivered | processed | skipped "
+        "| CPU ms / frame | peak MB | smoothed mm (median) |",
+        "| :-- | :-- | --: | --: | --: | --: | --: | --: | --: |",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r.session} | {r.row} | {r.update.median_ms:.1f} / {r.update.p95_ms:.1f} "
+            f"| {r.delivered} | {r.processed} | {r.skipped} | {r.cpu_ms_per_frame:.1f} "
+            f"| {r.peak_rss_mb:.0f} | {r.smoothed_rmse_mm:.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def speedups(rows: Sequence[RealtimeRow]) -> list[dict]:
     """Per session and row: the thesis baseline's figures over the row's."""
     out = []
     for r in rows:
-        base = next((b for b in rows if b.session == r.session and b.row == BASELINE_ROW), None)
-        if base is None or r.row == BASELINE_ROW:
+        base = next((b for b in rows if b.session == r.session and _is_baseline(b.row)), None)
+        if base is None or r is base:
             continue
         out.append(
             {
@@ -297,7 +323,8 @@ def headline_lines(rows: Sequence[RealtimeRow]) -> list[str]:
     ups = speedups(rows)
     if not ups:
         return [f"(no {BASELINE_ROW!r} row: no speed-ups)"]
-    lines = [f"== speed-up vs the thesis baseline ({BASELINE_ROW})"]
+    first = next(r.row for r in rows if _is_baseline(r.row))
+    lines = [f"== speed-up vs the thesis baseline ({first})"]
     for u in ups:
         lines.append(
             f"  {u['session']} {u['row']}: full update {u['update_median']:.3g}x (median), "

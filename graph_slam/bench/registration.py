@@ -397,7 +397,11 @@ def run_registration_bench(
 ) -> list[DatasetReport]:
     """Run every configuration on the synthetic frames and, when found, the TUM frames; with
     ``sessions``, on each session's first ``pairs + 1`` frames at every decimation ``step``
-    instead of the synthetic frames."""
+    instead of the synthetic frames. Open3D on one thread: the same figures every run
+    (:mod:`graph_slam.determinism`)."""
+    from graph_slam.determinism import apply_threads
+
+    apply_threads(True)
     configs = configs or BENCH_CONFIGS
     if sessions:
         datasets = [session_dataset(p, s, 0, pairs + 1) for p in sessions for s in steps]

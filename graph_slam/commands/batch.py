@@ -17,6 +17,14 @@ def register(app: typer.Typer) -> None:
     def batch(
         spec: Annotated[Path, typer.Argument(help="Study spec (YAML; docs/batch.md).")],
         out: Annotated[Path, typer.Option(help="Study folder (a re-run resumes it).")],
+        preset: Annotated[
+            str | None,
+            typer.Option(
+                "--preset",
+                help="Pipeline preset of every configuration whose spec names none "
+                "(pipeline: {preset: ...}); default: realtime.",
+            ),
+        ] = None,
         scheduler: Annotated[
             str | None,
             typer.Option(
@@ -45,7 +53,9 @@ def register(app: typer.Typer) -> None:
         options = ClusterOptions(scheduler, workers, threads_per_worker, memory_limit)
         with _progress() as (on_task, on_cluster):
             try:
-                result = run_batch(spec, out, options, on_task=on_task, on_cluster=on_cluster)
+                result = run_batch(
+                    spec, out, options, on_task=on_task, on_cluster=on_cluster, preset=preset
+                )
             except KeyboardInterrupt:
                 typer.echo("interrupted: finished tasks are kept; run again to resume", err=True)
                 raise typer.Exit(EXIT_INTERRUPTED) from None

@@ -159,7 +159,7 @@ def pipelines_bench(
         ),
     ] = "icp,icp+imu,imu+kin,icp+imu+kin,bridge",
 ) -> None:
-    """Issue 5/6 figures: every variant on simulated sessions (RMSE, swing, counts, timing),
+    """Accuracy figures: every variant on simulated sessions (RMSE, swing, counts, timing),
     and the bridging experiment (no ICP in swing). Prints each variant as it finishes."""
     from graph_slam.bench import accuracy as bp
 
@@ -207,7 +207,7 @@ def realtime_bench(
             "VARIANT:PRESET (a pipeline preset, e.g. icp+imu+kin:realtime: the real-time "
             "registration, IMU guess, deferred smoothing; docs/pipelines.md)."
         ),
-    ] = "icp,icp+imu+kin,icp+imu+kin:realtime",
+    ] = "icp:accurate,icp+imu+kin:accurate,icp+imu+kin:realtime",
     pace: Annotated[
         str, typer.Option(help="virtual (as fast as it runs, deterministic skips) or wall.")
     ] = "virtual",
@@ -215,6 +215,13 @@ def realtime_bench(
         Path | None, typer.Option("--config", help="YAML of PipelineConfig overrides (base).")
     ] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Write the figures as JSON.")] = None,
+    markdown: Annotated[
+        bool,
+        typer.Option(
+            "--markdown",
+            help="Also print the markdown table (its caption: date, commit, cores, command).",
+        ),
+    ] = False,
     minutes: Annotated[
         float | None,
         typer.Option(
@@ -223,7 +230,7 @@ def realtime_bench(
         ),
     ] = None,
 ) -> None:
-    """Issue 14: every row replayed causally (streams in timestamp order, newest frame taken
+    """Real time: every row replayed causally (streams in timestamp order, newest frame taken
     when the estimator is free): per-stage latency, frames processed / skipped, rate, CPU,
     memory, accuracy of what was processed, speed-ups vs the thesis baseline."""
     from graph_slam.bench import realtime as rt
@@ -252,6 +259,12 @@ def realtime_bench(
     )
     for line in rt.headline_lines(results):
         typer.echo(line)
+    if markdown:
+        import shlex
+        import sys
+
+        command = shlex.join(["graph-slam", *sys.argv[1:]])
+        typer.echo("\n" + rt.markdown_table(results, command))
     if out is not None:
         typer.echo(f"wrote {rt.write_json(results, out)}")
 
@@ -275,7 +288,7 @@ def scenarios_bench(
         typer.Option("--config", help="YAML of PipelineConfig overrides for both pipelines."),
     ] = None,
 ) -> None:
-    """Issue 20: a fixed list of scenes and conditions (flat floor and box course with and
+    """Scenarios: a fixed list of scenes and conditions (flat floor and box course with and
     without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered
     / partial / bridged, smoothed and online per-stride RMSE, the baseline beside them."""
     from graph_slam.bench import scenarios as sc
@@ -309,21 +322,24 @@ def calibration_bench(
         typer.Option(help="TUM sample folder (default: ../shared/data/tum_fr1_xyz_10 if present)."),
     ] = None,
 ) -> None:
-    """Issue 20: χ²/dof of the registrations' information against the truth (accurate and
+    """Calibration: χ²/dof of the registrations' information against the truth (accurate and
     realtime presets as the pipeline uses them for the data: on recorded frames, the TUM
     sample, the accurate preset carries the real-camera covariance floor, and its line
     without the floor is printed beside it; docs/frontend.md, "Calibrated information")."""
     from graph_slam.bench.calibration import chi2_of_pairs
     from graph_slam.bench.registration import default_tum_folder, read_tum_sample, session_dataset
+    from graph_slam.determinism import apply_threads
     from graph_slam.frontend.config import realtime_registration
     from graph_slam.pipelines.config import PipelineConfig
     from graph_slam.pipelines.protocol import sensor_registration, with_camera_floor
 
+    apply_threads(True)  # the same figures every run
     datasets = [session_dataset(p, stop=pairs + 1) for p in sessions or ()]
     folder = tum or default_tum_folder()
     if (folder / "ground_truth.json").is_file():
         datasets.append(read_tum_sample(folder))
-    presets = {"accurate": PipelineConfig().graph.registration, "realtime": realtime_registration()}
+    accurate = PipelineConfig(preset="accurate").graph.registration
+    presets = {"accurate": accurate, "realtime": realtime_registration()}
     for data in datasets:
         typer.echo(data.name)
         has_color = all(f.color_rgb is not None for f in data.frames)
@@ -355,7 +371,7 @@ def terrain_bench(
     ] = True,
     out: Annotated[Path | None, typer.Option("--out", help="Write the figures as JSON.")] = None,
 ) -> None:
-    """Issue 16: the per-frame elevation grid against the scene's truth (docs/terrain.md):
+    """Terrain: the per-frame elevation grid against the scene's truth (docs/terrain.md):
     box sightings at toe-off, the carried map, σ-consistency, update time, deadlines."""
     import json
 

@@ -12,6 +12,7 @@ from typing import Annotated
 
 import typer
 
+from graph_slam.commands import options
 from graph_slam.commands._common import with_workers, workers_option_help
 
 DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
@@ -20,53 +21,43 @@ DEMO_SPEEDS: tuple[tuple[str, str, int], ...] = (
     ("fast", "Fast", 7),
 )
 """The thesis's 25 strides (Table 4.2): 9 slow, 9 normal, 7 fast."""
-DEMO_VARIANTS = "icp,icp+imu,imu+kin,icp+imu+kin"
-"""Variants the demo runs by default: the thesis baseline and the three graph variants."""
+DEMO_WORKERS = 4
+"""``compare``'s and the demo's processes at most (default: one per core): a deterministic run
+keeps Open3D on one thread, so the baseline's tasks beside the graph's use the cores."""
 DEMO_RESOLUTION = "424x240"
 """The D455's real-time mode the demo simulates (848x480 and 212x120 are options)."""
-DEMO_PRESET = "realtime"
-"""The graph variants' pipeline preset in the demo: the real-time front end (issue 14)."""
 
 
-def _parse_variants(text: str) -> list[str]:
-    from graph_slam.variants import parse_variants
-
-    return [str(v) for v in parse_variants(text)]
-
-
-def _load_compare_config(path: Path | None, variants: str | None):
-    from graph_slam.config import config_from_dict, load_config
+def _load_compare_config(
+    path: Path | None,
+    variants: str | None,
+    preset: str | None = None,
+    baseline_pixel_step: int | None = None,
+    map_files: str | None = None,
+):
+    """The YAML's CompareConfig with the options over it (the stride maps stay on whatever
+    the preset: the report scores them)."""
     from graph_slam.report import CompareConfig
 
-    cfg = load_config(CompareConfig, path)
-    if variants is not None:
-        data = {**cfg.model_dump(), "variants": _parse_variants(variants)}
-        cfg = config_from_dict(CompareConfig, data, f"{path or 'graph-slam'} (with --variants)")
-    return cfg
+    extra: dict = {}
+    if baseline_pixel_step is not None:
+        extra = {"pipeline": {"baseline": {"pixel_step": baseline_pixel_step}}}
+    if map_files is not None:
+        extra["map_files"] = map_files
+    return options.load_settings(
+        CompareConfig, path, variants, preset, stride_maps=True, extra=extra
+    )
 
 
-def _with_preset(cfg, preset: str):
-    """``cfg`` with the pipeline preset applied to its graph variants' settings (``none``:
-    as it is); the stride maps stay on, since the report scores them."""
-    if preset == "none":
-        return cfg
-    from graph_slam.pipelines.config import with_preset
-    from graph_slam.report import CompareConfig
+def _default_workers(workers: int | None, config: Path | None) -> int | None:
+    """``--workers``, else the YAML's ``workers``, else one process per core (at most
+    :data:`DEMO_WORKERS`): a deterministic run keeps Open3D on one thread, so processes
+    are what uses the cores."""
+    from graph_slam.config import read_yaml
 
-    data = cfg.model_dump(mode="json")
-    pipeline = with_preset(data["pipeline"], preset)
-    pipeline["terrain"] = {**pipeline.get("terrain", {}), "enabled": True}
-    return CompareConfig.model_validate({**data, "pipeline": pipeline})
-
-
-def _with_baseline_step(cfg, size: str, step: int | None):
-    """The thesis baseline's cloud from every ``step``-th pixel; None: the demo's budget, a
-    212x120 cloud at any resolution."""
-    from graph_slam.report import CompareConfig
-
-    data = cfg.model_dump(mode="json")
-    data["pipeline"]["baseline"]["pixel_step"] = step or int(size.split("x", maxsplit=1)[0]) // 212
-    return CompareConfig.model_validate(data)
+    if workers is not None or (config is not None and "workers" in (read_yaml(config) or {})):
+        return workers
+    return max(1, min(DEMO_WORKERS, len(os.sched_getaffinity(0))))
 
 
 def _demo_resolution(resolution: str | None, full_resolution: bool) -> str:
@@ -149,26 +140,26 @@ def register(app: typer.Typer) -> None:
     @app.command("compare")
     def compare_cmd(
         session: Annotated[Path, typer.Argument(help="Session folder (with ground truth).")],
-        out: Annotated[Path, typer.Option(help="Report folder.")],
-        variants: Annotated[
-            str | None,
-            typer.Option(help="Comma-separated: icp,icp+imu,imu+kin,icp+imu+kin (default all)."),
-        ] = None,
-        config: Annotated[
-            Path | None,
-            typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
-        ] = None,
-        overwrite: Annotated[
-            bool, typer.Option("--overwrite", help="Replace a report folder compare wrote.")
-        ] = False,
+        out: options.Out,
+        variants: options.Variants = None,
+        config: options.Config = None,
+        preset: options.Preset = None,
+        map_files: options.MapFiles = None,
+        overwrite: options.Overwrite = False,
         workers: Annotated[
-            int | None, typer.Option(min=1, max=64, help=workers_option_help("1"))
+            int | None,
+            typer.Option(
+                min=1,
+                max=64,
+                help=workers_option_help(f"the cores this process may use, at most {DEMO_WORKERS}"),
+            ),
         ] = None,
     ) -> None:
         """Run the baseline and the graph variants on one session; write the report folder."""
         from graph_slam.commands._common import exit_on_interrupt
 
-        cfg = with_workers(_load_compare_config(config, variants), workers)
+        cfg = _load_compare_config(config, variants, preset, map_files=map_files)
+        cfg = with_workers(cfg, _default_workers(workers, config))
         with exit_on_interrupt(out):
             report = _run_compare([session], out, cfg, overwrite)
         _print_report(report)
@@ -195,45 +186,37 @@ def register(app: typer.Typer) -> None:
         full_resolution: Annotated[
             bool, typer.Option(help="Same as --resolution 848x480.")
         ] = False,
-        variants: Annotated[
-            str,
-            typer.Option(help="Variants to compare (a subset of icp,icp+imu,imu+kin,icp+imu+kin)."),
-        ] = DEMO_VARIANTS,
-        preset: Annotated[
-            str,
-            typer.Option(
-                help="Pipeline preset of the graph variants, applied over --config: realtime "
-                "(the real-time front end), accurate (colored ICP), thesis, realtime-gicp or none."
-            ),
-        ] = DEMO_PRESET,
+        variants: options.Variants = None,
+        preset: options.Preset = None,
+        map_files: options.MapFiles = None,
         baseline_pixel_step: Annotated[
             int | None,
             typer.Option(
                 min=1,
                 max=8,
-                help="The thesis baseline's cloud from every n-th pixel, over --config "
-                "(default: the 212x120 cloud at any resolution, its cost in the demo's budget; "
-                "1 = every pixel).",
+                help="The thesis baseline's cloud from every n-th pixel, over --config and "
+                "--preset (default: the preset's; realtime: the 212x120 cloud at any "
+                "resolution; 1 = every pixel).",
             ),
         ] = None,
         seed: Annotated[int, typer.Option(help="Simulator seed.")] = 1,
-        config: Annotated[
-            Path | None,
-            typer.Option(help="CompareConfig YAML (variants:, pipeline: {terrain:, ...}, ...)."),
-        ] = None,
-        overwrite: Annotated[
-            bool, typer.Option("--overwrite", help="Replace a demo folder graph-slam wrote.")
-        ] = False,
+        config: options.Config = None,
+        overwrite: options.Overwrite = False,
         workers: Annotated[
             int | None,
-            typer.Option(min=1, max=64, help=workers_option_help("1")),
+            typer.Option(
+                min=1,
+                max=64,
+                help=workers_option_help(f"the cores this process may use, at most {DEMO_WORKERS}"),
+            ),
         ] = None,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
 
-        424×240, the thesis baseline and the three graph variants on the real-time front end by
-        default (docs/benchmarks.md, "Demo").
+        424×240, the thesis baseline and the three graph variants on the default preset
+        (realtime: the real-time front end, the baseline on the 212×120 cloud;
+        docs/benchmarks.md, "Demo").
         """
         from graph_slam.commands._common import progress_bar
         from graph_slam.config import config_from_dict
@@ -243,9 +226,8 @@ def register(app: typer.Typer) -> None:
         t0 = time.perf_counter()
         counts = _demo_strides(strides, strides_scale)
         size = _demo_resolution(resolution, full_resolution)
-        cfg = _with_preset(_load_compare_config(config, variants), preset)
-        cfg = _with_baseline_step(cfg, size, baseline_pixel_step)
-        cfg = with_workers(cfg, workers)
+        cfg = _load_compare_config(config, variants, preset, baseline_pixel_step, map_files)
+        cfg = with_workers(cfg, _default_workers(workers, config))
         sim_cfgs = [
             config_from_dict(
                 SimConfig,
@@ -275,7 +257,7 @@ def register(app: typer.Typer) -> None:
         t_sim = time.perf_counter() - t0
         typer.echo(
             f"simulated {len(specs)} sessions in {t_sim:.0f} s ({size}; variants "
-            f"{', '.join(cfg.variants)}; graph preset {preset})"
+            f"{', '.join(cfg.variants)}; preset {cfg.pipeline.preset})"
         )
         report = _run_compare(specs, out / "report", cfg, overwrite)
         _print_report(report)

@@ -7,26 +7,24 @@ from typing import Annotated
 
 import typer
 
+from graph_slam.commands import options
 from graph_slam.commands._common import with_workers, workers_option_help
 
 
-def load_run_config(path: Path | None, variants: str | None, kitti: bool, map_dtype: str | None):
+def load_run_config(
+    path: Path | None,
+    variants: str | None,
+    kitti: bool,
+    map_dtype: str | None,
+    preset: str | None = None,
+):
     """The YAML's RunConfig with the command line's choices over it."""
-    from graph_slam.config import config_from_dict, load_config
     from graph_slam.report import RunConfig
-    from graph_slam.variants import parse_variants
 
-    cfg = load_config(RunConfig, path)
-    data = cfg.model_dump()
-    if variants is not None:
-        data["variants"] = [str(v) for v in parse_variants(variants)]
-    if kitti:
-        data["kitti"] = True
+    extra: dict = {"kitti": True} if kitti else {}
     if map_dtype is not None:
-        data["map_dtype"] = map_dtype
-    return config_from_dict(
-        RunConfig, data, source=f"{path or 'graph-slam run'} (with the options)"
-    )
+        extra["map_dtype"] = map_dtype
+    return options.load_settings(RunConfig, path, variants, preset, extra=extra)
 
 
 def _print_run(report) -> None:
@@ -58,15 +56,10 @@ def register(app: typer.Typer) -> None:
         sessions: Annotated[
             list[Path], typer.Argument(help="Session folders (ground truth not needed).")
         ],
-        out: Annotated[Path, typer.Option(help="Output folder (layout: docs/run.md).")],
-        variants: Annotated[
-            str | None,
-            typer.Option(help="Comma-separated: icp,icp+imu,imu+kin,icp+imu+kin (default all)."),
-        ] = None,
-        config: Annotated[
-            Path | None,
-            typer.Option(help="RunConfig YAML (variants:, pipeline: {...}, kitti:, ...)."),
-        ] = None,
+        out: options.Out,
+        variants: options.Variants = None,
+        config: options.Config = None,
+        preset: options.Preset = None,
         kitti: Annotated[
             bool, typer.Option("--kitti", help="Also write KITTI trajectories.")
         ] = False,
@@ -74,9 +67,7 @@ def register(app: typer.Typer) -> None:
             str | None,
             typer.Option(help="PLY coordinates of the maps: float32 (default) or float64."),
         ] = None,
-        overwrite: Annotated[
-            bool, typer.Option("--overwrite", help="Replace an output folder graph-slam wrote.")
-        ] = False,
+        overwrite: options.Overwrite = False,
         workers: Annotated[
             int | None, typer.Option(min=1, max=64, help=workers_option_help("1"))
         ] = None,
@@ -86,7 +77,7 @@ def register(app: typer.Typer) -> None:
         from graph_slam.commands._common import exit_on_interrupt, progress_bar
         from graph_slam.report import run
 
-        cfg = with_workers(load_run_config(config, variants, kitti, map_dtype), workers)
+        cfg = with_workers(load_run_config(config, variants, kitti, map_dtype, preset), workers)
         with exit_on_interrupt(out), progress_bar("running variants") as update:
             report = run(sessions, out, cfg, progress=update, overwrite=overwrite)
         _print_run(report)

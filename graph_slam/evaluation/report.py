@@ -6,6 +6,7 @@ Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN
     {
       "schema": "graph_slam.metrics", "schema_version": 4,
       "session": str,
+      "preset": str,   (the pipeline preset the run started from; compare writes it)
       "variants": {
         "<variant>": {
           "strides": [

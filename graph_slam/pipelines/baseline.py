@@ -73,6 +73,7 @@ class ThesisBaseline(PipelineBase):
             config, Variant.ICP, intrinsics, camera_T_imu, link_strides=False, refuse=False
         )
         self.registration = sensor_registration(config.baseline.registration, has_color)
+        self._pixel_step = config.baseline.pixel_step_for(intrinsics.width_px)
         self.leg_model = leg_model
         self.has_color = has_color
         self.joints = JointBuffer(leg_model)
@@ -126,7 +127,7 @@ class ThesisBaseline(PipelineBase):
         timer = StageTimer()
         with timer("cloud"):
             cloud = frame_cloud(
-                frame, self.intrinsics, self.cfg.cloud, self.has_color, self.cfg.baseline.pixel_step
+                frame, self.intrinsics, self.cfg.cloud, self.has_color, self._pixel_step
             )
         with timer("registration"):  # reset or map pyramid + ICP + fusion
             pose, status, fitness = self._pose(index, frame.t_s, cloud)

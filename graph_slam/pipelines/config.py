@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
 from graph_slam.backend.config import BackendConfig
-from graph_slam.config import ConfigModel
+from graph_slam.config import ConfigModel, merge_dicts
 from graph_slam.frontend.config import (
     THESIS_LEVELS,
     CloudConfig,
@@ -74,6 +74,10 @@ GraphRegistration = Annotated[
 ``method: projective``)."""
 
 
+BASELINE_CLOUD_WIDTH_PX = 212
+"""The thesis baseline's cloud width by default (``baseline.pixel_step`` None)."""
+
+
 class BaselineConfig(ConfigModel):
     """The thesis pipeline (Ch. 3.3-3.4): reset at foot strike, ICP to the global map."""
 
@@ -92,13 +96,22 @@ class BaselineConfig(ConfigModel):
     stop_fitness: float = Field(
         0.3, ge=0, le=1, description="fitness below this stops registration for the stride"
     )
-    pixel_step: int = Field(
-        1,
+    pixel_step: int | None = Field(
+        None,
         ge=1,
         le=8,
-        description="the cloud from every n-th row and column of the depth image (2 at "
-        "424x240 gives the 212x120 cloud and cost; the demo sets it so)",
+        description="the cloud from every n-th row and column of the depth image; None: the "
+        "212x120 cloud (image width // 212: 2 at 424x240, 4 at 848x480, 1 below), the "
+        "default presets' budget; 1: every pixel (the accurate and thesis presets)",
     )
+
+    def pixel_step_for(self, width_px: int) -> int:
+        """The pixel step for an image ``width_px`` wide (``pixel_step``, or the 212x120
+        cloud's)."""
+        if self.pixel_step is not None:
+            return self.pixel_step
+        return max(1, int(width_px) // BASELINE_CLOUD_WIDTH_PX)
+
     stop_on_any_failure: bool = Field(
         True,
         description="a registration that fails otherwise also stops the stride; with the "
@@ -172,10 +185,26 @@ class GraphFrontendConfig(ConfigModel):
         return value
 
 
+PresetName = Literal["realtime", "realtime-gicp", "accurate", "thesis"]
+"""The names of :data:`PIPELINE_PRESETS`."""
+DEFAULT_PRESET = "realtime"
+"""The configuration every entry point runs by default (library, ``run``, ``compare``,
+``batch``, ``demo``, the examples)."""
+
+
 class PipelineConfig(ConfigModel):
     """Everything ``run_session`` needs: the variant, front end, back end, baseline, events,
-    terrain. ``backend.variant`` follows ``variant`` (set from it when the config is built)."""
+    terrain. ``preset`` (:data:`PIPELINE_PRESETS`) sets the fields it governs before the
+    ones given explicitly (``preset: accurate`` in YAML, then any field over it).
+    ``backend.variant`` follows ``variant`` (set from it when the config is built)."""
 
+    preset: PresetName = Field(
+        DEFAULT_PRESET,
+        description="the named configuration under the explicit fields: realtime (the "
+        "default: the real-time front end, the baseline on the 212x120 cloud), "
+        "realtime-gicp, accurate (colored ICP 4/2 cm, batch smoothing, stride maps, the "
+        "baseline on every pixel) or thesis (the thesis's ICP levels)",
+    )
     variant: Variant = Variant.ICP_IMU_KIN
     cloud: CloudConfig = CloudConfig()
     graph: GraphFrontendConfig = GraphFrontendConfig()
@@ -222,6 +251,13 @@ class PipelineConfig(ConfigModel):
         "gravity_min_window_s when fusing it with the floor (widens the floor's angle gate)",
     )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
+    deterministic: bool = Field(
+        True,
+        description="the same input gives the same poses, bit for bit: Open3D runs its "
+        "sums on one thread (graph_slam.determinism) and the causal replay's virtual clock "
+        "advances by a fixed cost, not the measured time. False: Open3D on every core "
+        "(docs/pipelines.md, 'Determinism', for the gain) and the replay's clock measured",
+    )
     keep_frames: int | None = Field(
         None,
         ge=1,
@@ -232,11 +268,15 @@ class PipelineConfig(ConfigModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _backend_variant_follows(cls, data: Any) -> Any:
-        """The graph's factor set is the variant's: ``backend.variant`` is derived, never
-        set apart (the baseline leaves the back end's default, which it does not use)."""
+    def _preset_then_variant(cls, data: Any) -> Any:
+        """The preset's settings under the explicit ones; then the graph's factor set is the
+        variant's: ``backend.variant`` is derived, never set apart (the baseline leaves the
+        back end's default, which it does not use)."""
         if not isinstance(data, dict):
             return data
+        preset = data.get("preset", DEFAULT_PRESET)
+        if isinstance(preset, str) and preset in PIPELINE_PRESETS:
+            data = merge_dicts(PIPELINE_PRESETS[preset], data)
         name = data.get("variant", Variant.ICP_IMU_KIN)
         variant = Variant(name) if name in VARIANT_NAMES else None
         if variant is None or variant.is_baseline:
@@ -249,37 +289,49 @@ class PipelineConfig(ConfigModel):
         return {**data, "backend": backend}
 
 
-#: Named settings of a whole pipeline, applied over a config (``VARIANT:PRESET`` rows of the
-#: benchmarks). ``realtime``: the real-time registration preset with the IMU's initial guess,
-#: iSAM2 as the stride's smoother (``backend.smoothing: false``: a stride's smoothed poses are
-#: iSAM2's estimate at its close plus one Gauss-Newton step, no batch LM; measured on the
-#: 424×240 sessions, docs/benchmarks.md), that step and the end-state marginals on the frame
-#: after the foot strike (``backend.end_state: next_frame``: the strike's frame already
-#: carries the floor fit), the online grid without kept clouds (``terrain.online.
-#: keep_clouds: false``: no re-fusion at the close; the stride's grid is the online one) and
-#: no stride maps: fusing a stride's map at its close takes 0.3–1.2 s at 424×240, which the
-#: real-time path cannot afford; the terrain for the controller is the incremental grid
-#: updated at every frame (``terrain.online``, docs/terrain.md), on in every preset.
-#: ``terrain.enabled: true`` over the preset measures the stride maps' cost.
+#: Named settings of a whole pipeline: ``PipelineConfig.preset`` (under the explicit fields)
+#: or ``with_preset`` (over a config: the ``VARIANT:PRESET`` rows of the benchmarks,
+#: ``--preset``). Each preset sets every field any preset sets, so one applied over a config
+#: built from another leaves nothing of the other behind. ``realtime`` (the default): the
+#: real-time registration preset with the IMU's initial guess, iSAM2 as the stride's smoother
+#: (``backend.smoothing: false``: a stride's smoothed poses are iSAM2's estimate at its close
+#: plus one Gauss-Newton step, no batch LM; measured on the 424×240 sessions,
+#: docs/benchmarks.md), that step and the end-state marginals on the frame after the foot
+#: strike (``backend.end_state: next_frame``: the strike's frame already carries the floor
+#: fit), the online grid without kept clouds (``terrain.online.keep_clouds: false``: no
+#: re-fusion at the close; the stride's grid is the online one), no stride maps (fusing a
+#: stride's map at its close takes 0.3–1.2 s at 424×240, which the real-time path cannot
+#: afford; ``compare`` turns them on to score them) and the thesis baseline on the 212×120
+#: cloud (``baseline.pixel_step`` None). ``accurate`` and ``thesis``: colored ICP (4/2 cm with
+#: a Tukey kernel; the thesis's 4/2/1 cm without), batch smoothing at the close, stride maps
+#: from kept clouds, the baseline on every pixel. The terrain for the controller is the
+#: incremental grid updated at every frame (``terrain.online``, docs/terrain.md), on in every
+#: preset.
+_REALTIME_REST: dict[str, Any] = {
+    "backend": {"smoothing": False, "end_state": "next_frame"},
+    "terrain": {"enabled": False, "online": {"enabled": True, "keep_clouds": False}},
+    "baseline": {"pixel_step": None},
+}
+_ACCURATE_REST: dict[str, Any] = {
+    "backend": {"smoothing": True, "end_state": "at_close"},
+    "terrain": {"enabled": True, "online": {"enabled": True, "keep_clouds": True}},
+    "baseline": {"pixel_step": 1},
+}
 PIPELINE_PRESETS: dict[str, dict[str, Any]] = {
-    "accurate": {"graph": {"registration": "accurate"}},
-    "thesis": {"graph": {"registration": "thesis"}},
-    "realtime": {
-        "graph": {"registration": "realtime", "imu_guess": True},
-        "backend": {"smoothing": False, "end_state": "next_frame"},
-        "terrain": {"enabled": False, "online": {"enabled": True, "keep_clouds": False}},
-    },
+    "realtime": {"graph": {"registration": "realtime", "imu_guess": True}, **_REALTIME_REST},
     "realtime-gicp": {
         "graph": {"registration": "realtime-gicp", "imu_guess": True},
-        "backend": {"smoothing": False, "end_state": "next_frame"},
-        "terrain": {"enabled": False, "online": {"enabled": True, "keep_clouds": False}},
+        **_REALTIME_REST,
     },
+    "accurate": {"graph": {"registration": "accurate", "imu_guess": None}, **_ACCURATE_REST},
+    "thesis": {"graph": {"registration": "thesis", "imu_guess": None}, **_ACCURATE_REST},
 }
 
 
 def with_preset(data: dict[str, Any], preset: str) -> dict[str, Any]:
-    """``data`` (a ``PipelineConfig`` as a dict) with the named preset's settings merged in;
-    a :class:`ConfigError` naming the presets when ``preset`` is unknown."""
+    """``data`` (a ``PipelineConfig`` as a dict) with the named preset's settings merged over
+    it and ``preset`` set; a :class:`ConfigError` naming the presets when ``preset`` is
+    unknown."""
     from graph_slam.errors import ConfigError
 
     if preset not in PIPELINE_PRESETS:
@@ -287,13 +339,23 @@ def with_preset(data: dict[str, Any], preset: str) -> dict[str, Any]:
             f"unknown pipeline preset {preset!r}; choose from {', '.join(PIPELINE_PRESETS)}"
         )
 
-    def merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-        out = dict(base)
-        for key, value in over.items():
-            if isinstance(value, dict) and isinstance(out.get(key), dict):
-                out[key] = merge(out[key], value)
-            else:
-                out[key] = value
-        return out
+    return {**merge_dicts(data, PIPELINE_PRESETS[preset]), "preset": preset}
 
-    return merge(data, PIPELINE_PRESETS[preset])
+
+def parse_row(row: str) -> tuple[Variant, str | None]:
+    """``VARIANT[:PRESET]`` (a benchmark row, ``--variants``-style) → the variant and the
+    preset (None when the row names none); a :class:`ConfigError` naming the row when either
+    is unknown."""
+    from graph_slam.errors import ConfigError
+
+    name, _, preset = row.strip().partition(":")
+    if name not in VARIANT_NAMES:
+        raise ConfigError(
+            f"row {row!r}: unknown variant {name!r} (known: {', '.join(v.value for v in Variant)})"
+        )
+    if preset and preset not in PIPELINE_PRESETS:
+        raise ConfigError(
+            f"row {row!r}: unknown pipeline preset {preset!r}; choose from "
+            f"{', '.join(PIPELINE_PRESETS)}"
+        )
+    return Variant(name), preset or None

@@ -18,8 +18,12 @@ Each sample, event and frame exists from its time stamp on; nothing is read ahea
   (:func:`pick_frame`; counted, their indices kept); samples and events are never skipped.
 
 Pacing: ``virtual`` (default) runs as fast as the machine can on a virtual clock that each
-pipeline call advances by its measured compute time (``perf_counter``; ``compute_cost`` may
-rescale it, e.g. a slower on-board computer, or fix it for a deterministic test);
+pipeline call advances by ``compute_cost``: none in a deterministic run
+(``PipelineConfig.deterministic``, the default: every frame is taken at its arrival, and which
+frames are processed never depends on the machine's load), the measured compute time
+(``perf_counter``) with ``compute_cost="measured"`` or a non-deterministic config (a timing
+study: the skipped frames then vary from run to run), or any function of it (e.g. a slower
+on-board computer);
 ``wall`` sleeps until each frame's arrival on the real clock (a session replayed in real
 time). Reading the frame from disk is not the estimator's work: both clocks stop during it.
 """
@@ -66,6 +70,27 @@ PACES: tuple[str, ...] = ("virtual", "wall")
 
 ComputeCost = Callable[[int, float], float]
 """``(session frame index, measured seconds) -> seconds on the virtual clock``."""
+
+MEASURED = "measured"
+"""``compute_cost`` that advances the virtual clock by the measured time (a timing study)."""
+
+
+def no_cost(_frame_index: int, _measured_s: float) -> float:
+    """The deterministic virtual clock's cost: none (every frame is taken when it arrives)."""
+    return 0.0
+
+
+def clock_cost(compute_cost: ComputeCost | str | None, deterministic: bool) -> ComputeCost | None:
+    """The virtual clock's cost function (None: as measured) for ``replay_session``'s
+    ``compute_cost`` and the config's ``deterministic``."""
+    if compute_cost == MEASURED:
+        return None
+    if isinstance(compute_cost, str):
+        raise ConfigError(f"compute_cost {compute_cost!r}: a function or {MEASURED!r}")
+    if compute_cost is None:
+        return no_cost if deterministic else None
+    return compute_cost
+
 
 RSS_MARKS_S: tuple[float, ...] = (60.0, 300.0, 600.0)
 """Session times (s after the first frame) at which the resident memory is sampled."""
@@ -383,7 +408,7 @@ def replay_session(
     config: PipelineConfig | None = None,
     pace: Pace = "virtual",
     *,
-    compute_cost: ComputeCost | None = None,
+    compute_cost: ComputeCost | str | None = None,
     rss_marks_s: Sequence[float] = RSS_MARKS_S,
     warmup_frames: int = 3,
     freeze_gc: bool = True,
@@ -394,7 +419,8 @@ def replay_session(
     the config's pipeline (see the module docstring for the rules).
 
     ``compute_cost``: ``virtual`` pace only, maps each measured duration to virtual seconds
-    (None: as measured). ``rss_marks_s``: session times (s after the first frame) at which
+    (``"measured"``: as measured; None: none when ``config.deterministic``, else as
+    measured). ``rss_marks_s``: session times (s after the first frame) at which
     the resident memory is sampled (also at the start and the end). ``warmup_frames``: before
     the clock starts, a throw-away pipeline processes the session's first frames (a device is
     started before the walk: lazy imports, thread pools and caches are not the estimator's
@@ -422,7 +448,10 @@ def replay_session(
     t0 = float(stamp[0])
     feed = _Feed(pipe, streams)
     with frozen_heap(freeze_gc):  # before the clock starts: the collection takes ~0.1 s
-        clock = _VirtualClock(t0, compute_cost) if pace == "virtual" else _WallClock(t0)
+        if pace == "virtual":
+            clock = _VirtualClock(t0, clock_cost(compute_cost, config.deterministic))
+        else:
+            clock = _WallClock(t0)
         frames, skipped, rss = _play(session, stamp, arrival, clock, feed, rss_marks_s, progress)
     feed.until(float(stamp[-1]))
     w0 = time.perf_counter()

@@ -28,7 +28,11 @@ def make_pipeline(
     leg_model,
     has_color: bool = True,
 ) -> Pipeline:
-    """The variant's pipeline: ``icp`` = the thesis baseline, else the factor graph."""
+    """The variant's pipeline: ``icp`` = the thesis baseline, else the factor graph; Open3D's
+    threads set for the run (``config.deterministic``: :mod:`graph_slam.determinism`)."""
+    from graph_slam.determinism import apply_threads
+
+    apply_threads(config.deterministic)
     if config.variant == "icp":
         from graph_slam.pipelines.baseline import ThesisBaseline
 

@@ -30,9 +30,10 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from graph_slam.evaluation.boxes import collect_measurements, obstacle_accuracy
 from graph_slam.evaluation.report import (
@@ -46,6 +47,7 @@ from graph_slam.evaluation.report import (
 )
 from graph_slam.evaluation.tables import table_4_1, table_4_2, table_box_counts
 from graph_slam.evaluation.timing import timing_stats
+from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.report.checks import preflight, run_warnings, write_compare_config
 from graph_slam.report.keys import Kind, MapSource, RunKey, run_keys
 from graph_slam.report.run import (
@@ -78,6 +80,10 @@ class CompareConfig(RunSettings):
     and how it scores and plots. The terrain maps (voxel size, depth range, pixel step) are the
     pipeline's: ``pipeline.terrain``."""
 
+    pipeline: PipelineConfig = Field(
+        default_factory=lambda: PipelineConfig(terrain={"enabled": True}),
+        description="the default preset with the stride maps on (Table 4.1 scores them)",
+    )
     match_margin_m: float = Field(
         0.05,
         gt=0,
@@ -99,12 +105,39 @@ class CompareConfig(RunSettings):
         description="search the grid's whole boxes for the deadline at most this often (0: "
         "every frame); the time known is then up to this late (0.03: every 3rd frame at 90 Hz)",
     )
+    map_files: Literal["main", "all", "none"] = Field(
+        "main",
+        description="which stride maps are written as PLY (float32 coordinates): main (the "
+        "main variant's, the last asked for (icp+imu+kin by default), and the ground truth's), "
+        "all (every variant's), none; every map is scored either way",
+    )
+    map_file_voxel_m: float = Field(
+        0.01,
+        ge=0,
+        description="the PLY maps' voxel: the fused map's voxels averaged (by their point "
+        "counts) on this coarser grid of the same origin, a whole multiple of "
+        "pipeline.terrain's voxel (0: as fused, 5 mm); the scores use the fused map",
+    )
     plot_maps_per_session: int = Field(
         1,
         ge=0,
         description="map/elevation plots (last variant and true poses) for the first n strides "
         "of each session",
     )
+
+    @field_validator("pipeline", mode="before")
+    @classmethod
+    def _stride_maps_on(cls, value: Any) -> Any:
+        """Table 4.1 scores the stride maps: ``pipeline.terrain.enabled`` is true unless the
+        config says otherwise (the default preset builds none; the check below refuses a
+        config that turns them off)."""
+        if value is None:
+            value = {}
+        if isinstance(value, dict):
+            terrain = value.get("terrain") or {}
+            if isinstance(terrain, dict) and "enabled" not in terrain:
+                value = {**value, "terrain": {**terrain, "enabled": True}}
+        return value
 
     @model_validator(mode="after")
     def _maps_to_score(self) -> CompareConfig:
@@ -278,6 +311,7 @@ def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnin
         ", ".join(report.sessions), report.variants, report.maps, deadlines, report.features
     )
     report.deadlines = {str(v): d for v, d in deadlines.items()}
+    document["preset"] = cfg.pipeline.preset
     document["warnings"] = [w.to_dict() for w in warnings]
     files.append(write_metrics_json(document, tmp / "metrics.json"))
     files += views.write_plots(tmp, study)

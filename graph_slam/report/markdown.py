@@ -171,6 +171,7 @@ def report_markdown(report, cfg) -> str:
         "# graph_slam comparison report",
         "",
         f"Sessions: {', '.join(report.sessions)}. Variants: {', '.join(cfg.variants)}. "
+        f"Preset: {cfg.pipeline.preset}. "
         f"Strides cut by: {_strides_cut_by(cfg)}. "
         f"Wall time {report.wall_s:.0f} s. Resolved config: `config.yaml`; every number: "
         "`metrics.json`; layout: docs/evaluation.md.",

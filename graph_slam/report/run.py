@@ -51,7 +51,12 @@ class RunSettings(ConfigModel):
     )
     pipeline: PipelineConfig = PipelineConfig()
     rrd: bool = Field(True, description="write recording.rrd (rerun)")
-    rrd_frame_step: int = Field(3, ge=1, description="log every n-th frame's images to the .rrd")
+    rrd_frame_step: int = Field(
+        6,
+        ge=1,
+        description="log every n-th frame's images to the .rrd (6: about 6 Hz of the demo's "
+        "38 Hz; the images are most of the recording)",
+    )
     rrd_image_step: int = Field(
         2, ge=1, le=8, description="subsample the .rrd's depth/colour images by this factor"
     )
@@ -289,6 +294,7 @@ def _write_run(
     logger.close()
     files += [tmp / "recording.rrd"] if cfg.rrd else []
     summary = {
+        "preset": cfg.pipeline.preset,
         "variants": [str(v) for v in cfg.variants],
         "reference": str(reference),
         "sessions": sessions,

@@ -287,7 +287,7 @@ def run_markdown(summary: dict, cfg) -> str:
     lines = [
         "# graph_slam run",
         "",
-        f"Variants: {', '.join(summary['variants'])}; agreement against "
+        f"Preset: {cfg.pipeline.preset}. Variants: {', '.join(summary['variants'])}; agreement against "
         f"{summary['reference']}. Wall time {summary.get('wall_s', 0.0):.0f} s. Resolved "
         "config: `config.yaml`; every number: `run.json`; layout: docs/run.md.",
         "",

@@ -53,8 +53,50 @@ def write_trajectories(folder: Path, run) -> list[Path]:
     return files
 
 
+def file_cloud(fused, voxel_m: float):
+    """The fused map for its PLY file: its voxels averaged (weighted by their point counts)
+    on the grid of ``voxel_m`` with the same origin (0 or the map's own voxel: as it is)."""
+    import numpy as np
+
+    from graph_slam.errors import ConfigError
+    from graph_slam.session.records import Cloud
+
+    ratio = voxel_m / fused.voxel_m if voxel_m > 0 else 1.0
+    if ratio <= 1.0 + 1e-9:
+        return fused.to_point_cloud()
+    step = round(ratio)
+    if abs(ratio - step) > 1e-6:
+        raise ConfigError(
+            f"field 'map_file_voxel_m': {voxel_m} m is not a whole multiple of the maps' "
+            f"voxel {fused.voxel_m} m"
+        )
+    keys = np.floor_divide(np.asarray(fused.voxel_keys), step)
+    _, cell, n_cells = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    cell = cell.reshape(-1)
+    weight = np.asarray(fused.counts, float)
+    total = np.bincount(cell, weight, minlength=n_cells.size)
+
+    def mean(values: np.ndarray) -> np.ndarray:
+        return np.stack(
+            [
+                np.bincount(cell, weight * values[:, i], minlength=total.size) / total
+                for i in range(3)
+            ],
+            axis=1,
+        )
+
+    colors = None if fused.colors_rgb is None else mean(np.asarray(fused.colors_rgb, float) / 255.0)
+    return Cloud(mean(np.asarray(fused.points_m, float)), colors)
+
+
+def _map_file(cfg, source: MapSource, main: MapSource) -> bool:
+    """Whether the stride map of ``source`` is written (``CompareConfig.map_files``)."""
+    which = cfg.map_files
+    return which == "all" or (which == "main" and (source == main or source.is_truth))
+
+
 def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]:
-    """Per complete stride: the PLY of every map, the first strides' map plots, the stride's
+    """Per complete stride: the PLY of the maps ``cfg.map_files`` names, the first strides' map plots, the stride's
     trajectory plot and the rerun recording (camera images at the main variant's poses)."""
     from graph_slam.session.adapters.ply import write_ply
     from graph_slam.viz import plots
@@ -75,10 +117,10 @@ def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]
         truth_boxes = truth_boxes_in_stride(scene, ref.world_T_stride) if scene is not None else []
         for source, smap in run.maps[k].items():
             fused = smap.fused
-            if len(fused):
+            if len(fused) and _map_file(cfg, source, main):
                 ply = out / "maps" / source.tag / f"{tag_stride}.ply"
                 ply.parent.mkdir(parents=True, exist_ok=True)
-                write_ply(fused.to_point_cloud(), ply)
+                write_ply(file_cloud(fused, cfg.map_file_voxel_m), ply, dtype="float32")
                 files.append(ply)
             if k < cfg.plot_maps_per_session and len(fused) and (source == main or source.is_truth):
                 files += _map_plots(out, source, smap, tag_stride, title, truth_boxes)
