@@ -13,7 +13,7 @@ from graph_slam.evaluation.features import (
 )
 from graph_slam.session.records import SceneObject, SceneTruth
 from graph_slam.sim.scene import load_scene
-from graph_slam.terrain.features_extract import extract_features
+from graph_slam.terrain.features.extract import extract_features
 from tests.test_terrain_features import CELL, X0, Y0, grid, stairs_surface
 
 

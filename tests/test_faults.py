@@ -373,8 +373,8 @@ def test_imu_online_strides_need_the_imu_not_events(synthetic_session) -> None:
 def test_height_at_an_impossible_coordinate_is_nan(x_m) -> None:
     """``FrameOutput.terrain.height_at`` (and the stride map's) answers NaN for a coordinate
     off the grid, as its docstring promises, NaN and inf included (no ValueError)."""
-    from graph_slam.terrain.elevation import ElevationConfig, elevation_grid
-    from graph_slam.terrain.online import CellSums, OnlineElevationMap, OnlineTerrainConfig
+    from graph_slam.terrain.grid.online import CellSums, OnlineElevationMap, OnlineTerrainConfig
+    from graph_slam.terrain.maps.elevation import ElevationConfig, elevation_grid
 
     cfg = OnlineTerrainConfig()
     view = OnlineElevationMap(cfg, prior=CellSums.empty(int(np.prod(cfg.shape)))).view()

@@ -8,7 +8,7 @@ import pytest
 
 from graph_slam.errors import ConfigError
 from graph_slam.report.views import file_cloud
-from graph_slam.terrain.fusion import FusedMap
+from graph_slam.terrain.maps.fusion import FusedMap
 
 
 def _fused() -> FusedMap:

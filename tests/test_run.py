@@ -250,8 +250,8 @@ def test_workers_give_the_same_trajectories_and_counts(ran, no_truth_session, tm
 
 
 def test_features_files_hold_the_grids_features_and_clearances(ran) -> None:
-    from graph_slam.terrain.features_extract import features_of_view
-    from graph_slam.terrain.features_io import read_features_json
+    from graph_slam.terrain.features.extract import features_of_view
+    from graph_slam.terrain.features.io import read_features_json
     from graph_slam.variants import Variant
 
     report, results = ran

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from graph_slam.evaluation.boxes import assess_stride, base_name, truth_boxes_in_stride
-from graph_slam.terrain.builder import map_cloud
-from graph_slam.terrain.stride_map import MappingConfig, build_stride_map
+from graph_slam.terrain.maps.builder import map_cloud
+from graph_slam.terrain.maps.stride_map import MappingConfig, build_stride_map
 
 DEPTH_TOL_M = 0.008  # the target on a box's depth
 HEIGHT_TOL_M = 0.003

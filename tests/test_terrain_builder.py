@@ -6,8 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
-from graph_slam.terrain.builder import TerrainBuilder, TerrainConfig, map_cloud, scaled_intrinsics
-from graph_slam.terrain.stride_map import build_stride_map
+from graph_slam.terrain.maps.builder import (
+    TerrainBuilder,
+    TerrainConfig,
+    map_cloud,
+    scaled_intrinsics,
+)
+from graph_slam.terrain.maps.stride_map import build_stride_map
 
 
 def _frame(index, depth_m):

@@ -15,8 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from graph_slam.terrain.features import TerrainFeatures
-from graph_slam.terrain.features_extract import extract_features
+from graph_slam.terrain.features.extract import extract_features
+from graph_slam.terrain.features.model import TerrainFeatures
 
 CELL = 0.02
 X0, Y0, NX, NY = -0.2, -0.6, 100, 60
@@ -155,8 +155,8 @@ def test_level_floor_has_no_feature_and_json_round_trip():
 
 
 def test_sloped_cells_along_one_line_give_no_plane():
-    from graph_slam.terrain.features import FeatureConfig, _Grid
-    from graph_slam.terrain.features_extract import _ramps
+    from graph_slam.terrain.features.extract import _ramps
+    from graph_slam.terrain.features.model import FeatureConfig, _Grid
 
     g = math.tan(math.radians(8.0))
     h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=9)

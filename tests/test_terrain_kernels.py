@@ -1,4 +1,4 @@
-"""The online terrain's compiled per-frame pass (graph_slam.terrain.kernels) against the numpy
+"""The online terrain's compiled per-frame pass (graph_slam.terrain.grid.kernels) against the numpy
 functions it replaced in the live grid: map_pixels + map_cloud + depth_range_image +
 point_terms. Same points, ranges and terms to rounding (bounds per field below; cells and
 ranges exactly), on the seeded synthetic box course seen from a stride pose, with and without a pose
@@ -13,10 +13,10 @@ from test_frontend_projective import A, frame_at
 from test_frontend_registration import K
 
 from graph_slam.errors import MappingError
-from graph_slam.terrain.builder import map_cloud, map_pixels
-from graph_slam.terrain.depth_edges import depth_range_image
-from graph_slam.terrain.kernels import frame_point_terms
-from graph_slam.terrain.online import DepthNoiseModel, OnlineTerrainConfig, point_terms
+from graph_slam.terrain.grid.depth_edges import depth_range_image
+from graph_slam.terrain.grid.kernels import frame_point_terms
+from graph_slam.terrain.grid.online import DepthNoiseModel, OnlineTerrainConfig, point_terms
+from graph_slam.terrain.maps.builder import map_cloud, map_pixels
 
 #: the box course's camera at 0.6 m, 41° down, as a stride pose (origin 0.3 m behind it)
 STRIDE_T_CAMERA = A.copy()

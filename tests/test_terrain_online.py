@@ -8,9 +8,9 @@ import pytest
 from scipy.linalg import expm
 
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
-from graph_slam.terrain.carry import carry_map
-from graph_slam.terrain.live import LiveTerrain
-from graph_slam.terrain.online import (
+from graph_slam.terrain.grid.carry import carry_map
+from graph_slam.terrain.grid.live import LiveTerrain
+from graph_slam.terrain.grid.online import (
     CellSums,
     OnlineElevationMap,
     OnlineTerrainConfig,
@@ -237,7 +237,7 @@ def test_cell_sums_empty_view_is_nan():
 def test_grid_obstacles_find_a_box_on_a_floor():
     """A 10 cm box from x = 0.8 to 1.1 m on a flat floor, seen from 1 m straight above: one
     grid box, leading edge within a cell, height within a millimetre, seen whole."""
-    from graph_slam.terrain.grid_obstacles import grid_obstacles
+    from graph_slam.terrain.grid.grid_obstacles import grid_obstacles
 
     x, y = np.meshgrid(np.arange(0.0, 1.6, 0.005), np.arange(-0.5, 0.5, 0.005), indexing="ij")
     box = (x >= 0.8) & (x < 1.1) & (np.abs(y) < 0.15)

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graph_slam.terrain.depth_edges import depth_range_at, depth_range_image
-from graph_slam.terrain.online import (
+from graph_slam.terrain.grid.depth_edges import depth_range_at, depth_range_image
+from graph_slam.terrain.grid.online import (
     DepthNoiseModel,
     OnlineElevationMap,
     OnlineTerrainConfig,

@@ -277,7 +277,7 @@ def update_cost_ms(session_path: Path, config: PipelineConfig | None = None, rep
     import time
 
     from graph_slam.session import open_session
-    from graph_slam.terrain.live import LiveTerrain
+    from graph_slam.terrain.grid.live import LiveTerrain
 
     cfg = config or PipelineConfig()
     session = open_session(session_path)

@@ -26,7 +26,7 @@ import numpy as np
 
 from graph_slam.errors import EvaluationError
 from graph_slam.session.records import SceneTruth
-from graph_slam.terrain.obstacles import Obstacle, ObstacleMap
+from graph_slam.terrain.maps.obstacles import Obstacle, ObstacleMap
 
 DIMENSIONS = ("depth", "width", "height")
 """Order of ``size_m`` (thesis Table 3.1): depth along x (walking direction), width y, height z."""

@@ -1,7 +1,7 @@
 """Terrain features against the scene's truth: stairs, ramps, curbs and boxes (stride frame).
 
 :func:`feature_truth_from_scene` turns a scene's objects into the features a perfect grid
-would give (a :class:`~graph_slam.terrain.features.TerrainFeatures` with σ 0) in a stride's
+would give (a :class:`~graph_slam.terrain.features.model.TerrainFeatures` with σ 0) in a stride's
 frame: ``box`` objects are boxes; the ``step`` objects of a flight (``NAME.stepK``: step K a
 box of height K·rise, its near face the K-th nosing) are stairs; a ``ramp`` (a wedge rising
 along its x) is a ramp whose start line is its low edge; ``curb`` objects (a block of the
@@ -22,7 +22,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from graph_slam.terrain.features import (
+from graph_slam.terrain.features.model import (
     BoxFeature,
     Curb,
     EdgeLine,
@@ -214,8 +214,8 @@ def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
     poses and final grid) and the true one (the true poses over the scene's surface), both
     from the encoders over the same mid-swing frames; None when either cannot be had."""
     from graph_slam.strides.joints import interp_q
-    from graph_slam.terrain.clearance import ClearanceConfig, clearance_along, toe_path
-    from graph_slam.terrain.features_extract import features_of_view
+    from graph_slam.terrain.features.clearance import ClearanceConfig, clearance_along, toe_path
+    from graph_slam.terrain.features.extract import features_of_view
 
     cfg = config or ClearanceConfig()
     session = run_session.session

@@ -7,7 +7,7 @@ one of its obstacles (matched by centre within ``match_radius_m``) has its heigh
 :func:`obstacle_deadlines` gives, per final obstacle, the first frame time at which it is
 known and that time relative to toe-off (``lead_s = toe_off_s - known_t_s``: positive =
 known before the swing must be planned). Obstacles are anything with ``leading_edge_x_m``,
-``height_m`` and ``center_xy_m`` (a :class:`graph_slam.terrain.grid_obstacles.GridObstacle`).
+``height_m`` and ``center_xy_m`` (a :class:`graph_slam.terrain.grid.grid_obstacles.GridObstacle`).
 """
 
 from __future__ import annotations

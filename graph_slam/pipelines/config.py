@@ -23,7 +23,7 @@ from graph_slam.frontend.config import (
 from graph_slam.frontend.floor import FloorConfig
 from graph_slam.pipelines.keyframe import KeyframeConfig
 from graph_slam.strides.mount import MountEstimateConfig
-from graph_slam.terrain.builder import TerrainConfig
+from graph_slam.terrain.maps.builder import TerrainConfig
 from graph_slam.variants import Variant
 
 VARIANT_NAMES = frozenset(v.value for v in Variant)

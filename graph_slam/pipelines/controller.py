@@ -6,7 +6,7 @@ itself) and, after each frame, reads the frame's output into a :class:`Controlle
 - **gait phase**: ``stance`` while the foot is loaded, ``swing`` after the toe-off, with the
   fraction of the predicted stance elapsed; ``none`` before the first foot strike;
 - **obstacle ahead**: the nearest box of ``FrameOutput.terrain`` whose leading edge lies ahead
-  of the toe (:meth:`graph_slam.terrain.online.TerrainView.obstacles_ahead`): its distance
+  of the toe (:meth:`graph_slam.terrain.grid.online.TerrainView.obstacles_ahead`): its distance
   from the toe and its height, with σ (stride frame, metres), and whether it is seen whole;
 - **time left to toe-off**: the stance duration predicted from the strides seen so far (the
   mean of the last ``history`` stances, each from its foot strike to the first frame seen
@@ -44,10 +44,10 @@ class ControllerReadout:
     """The box is seen whole (else its dimensions are those of the part seen)."""
     feature: str = ""
     """The nearest stair, curb or ramp ahead in words
-    (:meth:`graph_slam.terrain.features.TerrainFeatures.summary`)."""
+    (:meth:`graph_slam.terrain.features.model.TerrainFeatures.summary`)."""
     clearance_m: float = float("nan")
     """Stance: the coming swing's predicted toe clearance
-    (:func:`graph_slam.terrain.clearance.predict_clearance`)."""
+    (:func:`graph_slam.terrain.features.clearance.predict_clearance`)."""
     clearance_warning: bool = False
 
     def line(self) -> str:
@@ -129,7 +129,7 @@ class ControllerTap:
                 obstacle_whole=o.complete,
             )
         if out.terrain is not None:
-            from graph_slam.terrain.clearance import predict_clearance
+            from graph_slam.terrain.features.clearance import predict_clearance
 
             fields["feature"] = out.terrain.features_ahead().summary(out.terrain.toe_x_m)
             if loaded:

@@ -96,8 +96,8 @@ def make_gravity(config):
 
 
 def make_terrain(config, intrinsics: CameraIntrinsics):
-    """The terrain-map component of a pipeline (:mod:`graph_slam.terrain.builder`)."""
-    from graph_slam.terrain.builder import TerrainBuilder
+    """The terrain-map component of a pipeline (:mod:`graph_slam.terrain.maps.builder`)."""
+    from graph_slam.terrain.maps.builder import TerrainBuilder
 
     return TerrainBuilder(
         config.terrain, intrinsics, config.cloud.min_depth_m, config.cloud.max_depth_m
@@ -107,9 +107,9 @@ def make_terrain(config, intrinsics: CameraIntrinsics):
 def make_live_terrain(
     config, intrinsics: CameraIntrinsics, link_strides: bool = True, refuse: bool = True
 ):
-    """The per-frame terrain component of a pipeline (:mod:`graph_slam.terrain.live`);
+    """The per-frame terrain component of a pipeline (:mod:`graph_slam.terrain.grid.live`);
     ``refuse: False`` (a pipeline without smoothed poses) keeps no clouds for a re-fusion."""
-    from graph_slam.terrain.live import LiveTerrain
+    from graph_slam.terrain.grid.live import LiveTerrain
 
     online = config.terrain.online
     if not refuse:

@@ -12,8 +12,8 @@ from graph_slam.variants import Variant
 
 if TYPE_CHECKING:
     from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
-    from graph_slam.terrain.builder import StrideTerrain
-    from graph_slam.terrain.online import TerrainView
+    from graph_slam.terrain.grid.online import TerrainView
+    from graph_slam.terrain.maps.builder import StrideTerrain
 
 
 @dataclass(frozen=True, eq=False)

@@ -53,8 +53,8 @@ def write_variant(folder: Path, results, cfg, session=None, leg_model=None) -> l
 
 def write_stride_features(folder: Path, results, session=None, leg_model=None) -> list[Path]:
     """Per stride with a grid: ``sNN_features.json`` (terrain features, predicted and measured
-    toe clearance; :mod:`graph_slam.terrain.features_io`)."""
-    from graph_slam.terrain.features_io import stride_features_document, write_features_json
+    toe clearance; :mod:`graph_slam.terrain.features.io`)."""
+    from graph_slam.terrain.features.io import stride_features_document, write_features_json
 
     files = []
     for stride in results.strides:

@@ -377,7 +377,7 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
         swing_clearance_pair,
     )
     from graph_slam.strides.kinematics import session_leg_model
-    from graph_slam.terrain.features_extract import features_of_view
+    from graph_slam.terrain.features.extract import features_of_view
 
     scene = run.session.scene
     if scene is None or not run.references:
@@ -418,7 +418,7 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
 def _warning_summary(rows) -> dict:
     """Swings, those truly under the warning margin (2 cm), how many of them the stance-time
     prediction flagged before toe-off, and the flags raised over swings that cleared it."""
-    from graph_slam.terrain.clearance import ClearanceConfig
+    from graph_slam.terrain.features.clearance import ClearanceConfig
 
     margin = ClearanceConfig().warn_below_m
     low = [w for w, true in rows if true < margin]

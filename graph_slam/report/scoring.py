@@ -177,7 +177,7 @@ def score_session(run: SessionRun) -> dict[RunKey, list[StrideEvaluation]]:
 def truth_map(run: SessionRun, ref: StrideReference, pipeline: PipelineConfig):
     """The stride's map fused with the true poses (mapping-only accuracy), from the same map
     clouds as the pipelines' maps."""
-    from graph_slam.terrain.builder import TerrainBuilder
+    from graph_slam.terrain.maps.builder import TerrainBuilder
 
     terrain = pipeline.terrain.model_copy(update={"enabled": True, "poses": ("online",)})
     builder = TerrainBuilder(

@@ -38,7 +38,7 @@ class GridSnapshot:
     """(nx, ny) float32, NaN where unknown."""
     sigma_m: np.ndarray
     obstacles: tuple
-    """The grid's boxes (:class:`~graph_slam.terrain.grid_obstacles.GridObstacle`)."""
+    """The grid's boxes (:class:`~graph_slam.terrain.grid.grid_obstacles.GridObstacle`)."""
     floor_T_stride: np.ndarray | None = None
 
 
@@ -63,11 +63,11 @@ class TerrainTrace:
     _last: tuple[int, float] = field(default=(-(10**9), -math.inf), init=False, repr=False)
     snapshots: dict[int, GridSnapshot] = field(default_factory=dict)
     features: list = field(default_factory=list)
-    """The grid's terrain features (:class:`~graph_slam.terrain.features.TerrainFeatures`)
+    """The grid's terrain features (:class:`~graph_slam.terrain.features.model.TerrainFeatures`)
     at the frames whose boxes were searched (None elsewhere): the per-feature deadline."""
     predictions: list = field(default_factory=list)
     """At the searched frames in stance, the coming swing's predicted clearance
-    (:class:`~graph_slam.terrain.clearance.Clearance`; None elsewhere): the warnings."""
+    (:class:`~graph_slam.terrain.features.clearance.Clearance`; None elsewhere): the warnings."""
 
     def __call__(self, out) -> None:
         view = out.terrain
@@ -96,7 +96,7 @@ class TerrainTrace:
         self.features.append(feats)
         prediction = None
         if feats is not None and getattr(out, "foot_loaded", False):
-            from graph_slam.terrain.clearance import predict_clearance
+            from graph_slam.terrain.features.clearance import predict_clearance
 
             prediction = predict_clearance(view, feats)
         self.predictions.append(prediction)
@@ -112,7 +112,7 @@ def complete_boxes(view) -> tuple:
     """The view's whole boxes (those of ``view.obstacle_map.complete``, without measuring the
     others: ``grid_obstacles(complete_only=True)``)."""
     from graph_slam.errors import MappingError
-    from graph_slam.terrain.grid_obstacles import grid_obstacles
+    from graph_slam.terrain.grid.grid_obstacles import grid_obstacles
 
     try:
         return grid_obstacles(view, complete_only=True).obstacles

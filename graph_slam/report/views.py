@@ -10,7 +10,7 @@ import numpy as np
 from graph_slam.evaluation.boxes import collect_measurements, truth_boxes_in_stride
 from graph_slam.report.keys import MapSource
 from graph_slam.report.terrain_trace import log_grids
-from graph_slam.terrain.builder import scaled_intrinsics
+from graph_slam.terrain.maps.builder import scaled_intrinsics
 from graph_slam.viz.rerun_logger import MAP
 
 __all__ = [

@@ -1,14 +1,22 @@
-"""Terrain maps of a stride: fused clouds, an elevation grid, the floor and the boxes on it.
+"""Terrain maps of a stride (``maps``): fused clouds, an elevation grid, the floor and the boxes.
 
 Inputs are plain arrays (camera-frame clouds and ``stride_T_camera`` poses), so the same
 functions serve the online poses, the smoothed poses and any pipeline. The per-frame grid for
-the controller (``online``, ``live``, ``grid_obstacles``): docs/terrain.md.
+the controller is in ``grid``, the features and toe clearance in ``features``:
+docs/terrain.md.
 """
 
-from graph_slam.terrain.carry import carry_map
-from graph_slam.terrain.elevation import ElevationConfig, ElevationGrid, elevation_grid
-from graph_slam.terrain.fusion import FusedMap, fuse_clouds, voxel_keys
-from graph_slam.terrain.obstacles import (
+from graph_slam.terrain.grid.carry import carry_map
+from graph_slam.terrain.grid.online import (
+    DepthNoiseModel,
+    OnlineElevationMap,
+    OnlineTerrainConfig,
+    TerrainView,
+    fuse_frames,
+)
+from graph_slam.terrain.maps.elevation import ElevationConfig, ElevationGrid, elevation_grid
+from graph_slam.terrain.maps.fusion import FusedMap, fuse_clouds, voxel_keys
+from graph_slam.terrain.maps.obstacles import (
     SKIP_REASONS,
     Coverage,
     FloorPlane,
@@ -18,14 +26,7 @@ from graph_slam.terrain.obstacles import (
     extract_obstacles,
     fit_floor,
 )
-from graph_slam.terrain.online import (
-    DepthNoiseModel,
-    OnlineElevationMap,
-    OnlineTerrainConfig,
-    TerrainView,
-    fuse_frames,
-)
-from graph_slam.terrain.stride_map import MappingConfig, StrideMap, build_stride_map
+from graph_slam.terrain.maps.stride_map import MappingConfig, StrideMap, build_stride_map
 
 __all__ = [
     "SKIP_REASONS",

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from graph_slam.evaluation.boxes import DIMENSIONS
-from graph_slam.terrain.elevation import ElevationGrid
-from graph_slam.terrain.obstacles import Obstacle
+from graph_slam.terrain.maps.elevation import ElevationGrid
+from graph_slam.terrain.maps.obstacles import Obstacle
 
 
 def _figure(ncols: int = 1, width_in: float = 6.0, height_in: float = 4.5):

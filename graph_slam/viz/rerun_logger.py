@@ -21,7 +21,7 @@ import numpy as np
 
 from graph_slam.errors import GraphSlamError
 from graph_slam.session.records import CameraIntrinsics
-from graph_slam.terrain.obstacles import Obstacle
+from graph_slam.terrain.maps.obstacles import Obstacle
 
 WORLD = "world"
 STRIDE = "world/stride"
@@ -135,7 +135,7 @@ def grid_layers(snapshot) -> dict[str, np.ndarray]:
 
 def grid_boxes(obstacles, floor_T_stride: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Centres and sizes (stride frame, N×3 each) of a grid's boxes
-    (:class:`~graph_slam.terrain.grid_obstacles.GridObstacle`: axis-aligned, height above the
+    (:class:`~graph_slam.terrain.grid.grid_obstacles.GridObstacle`: axis-aligned, height above the
     floor plane), standing on the floor plane (``floor_T_stride``; None: on z = 0)."""
     centers, sizes = [], []
     for o in obstacles:

@@ -1,4 +1,4 @@
-"""The feature extraction of :mod:`graph_slam.terrain.features` (the steps of its docstring)."""
+"""The feature extraction of :mod:`graph_slam.terrain.features.model` (the steps of its docstring)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numba
 import numpy as np
 
 from graph_slam.errors import MappingError
-from graph_slam.terrain.features import (
+from graph_slam.terrain.features.model import (
     BoxFeature,
     Curb,
     EdgeLine,
@@ -24,7 +24,7 @@ _DEFAULT = FeatureConfig()
 
 
 def features_of_view(view, config: FeatureConfig | None = None, source: str = "online"):
-    """The features of a :class:`~graph_slam.terrain.online.TerrainView` (online or re-fused)."""
+    """The features of a :class:`~graph_slam.terrain.grid.online.TerrainView` (online or re-fused)."""
     s = view.sums
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = (s.b / s.w).reshape(view.shape)

@@ -1,8 +1,8 @@
 """Boxes on the online elevation grid, each dimension with a σ (stride frame, metres).
 
-On demand from a :class:`graph_slam.terrain.online.TerrainView`:
+On demand from a :class:`graph_slam.terrain.grid.online.TerrainView`:
 
-1. **Floor**: :func:`graph_slam.terrain.obstacles.fit_floor` (the stride maps' RANSAC) on the
+1. **Floor**: :func:`graph_slam.terrain.maps.obstacles.fit_floor` (the stride maps' RANSAC) on the
    known cells' centres at their heights; heights above it are cell heights minus the plane.
 2. **Boxes**: 8-connected components of known cells at least ``min_height_m`` above the floor,
    with at least ``min_cells`` cells. The box's *height* is the median height of its top cells
@@ -30,7 +30,7 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
-from graph_slam.terrain.obstacles import FloorPlane, ObstacleConfig, fit_floor
+from graph_slam.terrain.maps.obstacles import FloorPlane, ObstacleConfig, fit_floor
 
 
 class GridObstacleConfig(ConfigModel):
@@ -89,7 +89,7 @@ def _edges(h: np.ndarray, mask: np.ndarray, height: float, axis: int) -> tuple:
 def grid_obstacles(
     view, config: GridObstacleConfig | None = None, *, complete_only: bool = False
 ) -> GridObstacleMap:
-    """The floor and the boxes of a :class:`~graph_slam.terrain.online.TerrainView` (see the
+    """The floor and the boxes of a :class:`~graph_slam.terrain.grid.online.TerrainView` (see the
     module docstring). Raises :class:`~graph_slam.errors.MappingError` without a floor.
     ``complete_only``: leave out the boxes not seen whole before measuring them (the same
     whole boxes, in less time: most components of a grid touch its unobserved border)."""

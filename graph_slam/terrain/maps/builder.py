@@ -19,8 +19,8 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
-from graph_slam.terrain.online import OnlineTerrainConfig
-from graph_slam.terrain.stride_map import MappingConfig, StrideMap, build_stride_map
+from graph_slam.terrain.grid.online import OnlineTerrainConfig
+from graph_slam.terrain.maps.stride_map import MappingConfig, StrideMap, build_stride_map
 
 log = logging.getLogger(__name__)
 

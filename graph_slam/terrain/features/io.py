@@ -4,9 +4,9 @@ The document (``FEATURES_SCHEMA`` 1), stride frame, metres, radians, NaN as null
 
 - ``stride``: the stride's index; ``frames``: its first and last frame index;
 - ``online`` / ``smoothed``: :meth:`TerrainFeatures.to_dict
-  <graph_slam.terrain.features.TerrainFeatures.to_dict>` of the stride's online grid at its last
+  <graph_slam.terrain.features.model.TerrainFeatures.to_dict>` of the stride's online grid at its last
   frame and of its final grid (re-fused from the smoothed poses; null when there is none);
-- ``predicted_clearance``: :func:`~graph_slam.terrain.clearance.predict_clearance` of the
+- ``predicted_clearance``: :func:`~graph_slam.terrain.features.clearance.predict_clearance` of the
   final grid from the heel's stride (the toe at ``toe_x_m``): the reference swing's clearance
   over the terrain this stride mapped;
 - ``swing_clearance``: the measured swing — the toe path (the smoothed camera poses of the
@@ -25,8 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from graph_slam.errors import EvaluationError, GraphSlamError
-from graph_slam.terrain.clearance import Clearance, clearance_along, predict_clearance, toe_path
-from graph_slam.terrain.features import TerrainFeatures
+from graph_slam.terrain.features.clearance import (
+    Clearance,
+    clearance_along,
+    predict_clearance,
+    toe_path,
+)
+from graph_slam.terrain.features.model import TerrainFeatures
 
 FEATURES_SCHEMA = 1
 _FIELDS = ("schema", "stride", "frames", "online", "smoothed", "predicted_clearance",
@@ -55,7 +60,7 @@ def swing_toe_path(stride, results, session, leg_model) -> tuple[np.ndarray | No
 
 def stride_features_document(stride, results, session=None, leg_model=None) -> dict:
     """The document of one stride (see the module docstring)."""
-    from graph_slam.terrain.features_extract import features_of_view
+    from graph_slam.terrain.features.extract import features_of_view
 
     online = None if stride.online_grid is None else features_of_view(stride.online_grid)
     final_grid = stride.smoothed_grid

@@ -3,7 +3,7 @@ at every frame with the frame's online pose, carried across the foot strike, re-
 smoothed poses when they come.
 
 A pipeline calls :meth:`LiveTerrain.frame` once per frame (after its pose estimate) and gets
-the read-only :class:`~graph_slam.terrain.online.TerrainView` it puts in
+the read-only :class:`~graph_slam.terrain.grid.online.TerrainView` it puts in
 ``FrameOutput.terrain``; when a stride closes, :meth:`LiveTerrain.close` gives the stride's
 online map at its last frame, and :meth:`LiveTerrain.refuse` its map from the smoothed poses.
 
@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from graph_slam.terrain.carry import carry_map
-from graph_slam.terrain.kernels import frame_point_terms
-from graph_slam.terrain.online import (
+from graph_slam.terrain.grid.carry import carry_map
+from graph_slam.terrain.grid.kernels import frame_point_terms
+from graph_slam.terrain.grid.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     TerrainView,

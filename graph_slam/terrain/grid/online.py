@@ -29,7 +29,7 @@ at a depth jump: its height is then no one surface's). Sums are additive: the ma
 **Re-fusion**: the map keeps the stride's subsampled clouds; :meth:`OnlineElevationMap.refuse`
 builds the stride's map again from its smoothed poses (the batch path).
 
-**Carry** (:func:`graph_slam.terrain.carry.carry_map`): at a foot strike the previous stride's cells ahead of the new
+**Carry** (:func:`graph_slam.terrain.grid.carry.carry_map`): at a foot strike the previous stride's cells ahead of the new
 heel are moved into the new stride frame through ``new_T_old`` and enter the new map as prior
 points whose variance is grown by that pose's covariance (docs/terrain.md).
 """
@@ -56,7 +56,7 @@ class DepthNoiseModel(ConfigModel):
     may be a *flying pixel*, a mixture of both surfaces anywhere between them along its ray;
     its range variance gets ``edge_factor · R² / 3`` (the second moment of an error uniform on
     [0, R]). R is the range of the valid depths at the pixel and at ±1, ±2 pixels along u and
-    v of the full-resolution image (:mod:`graph_slam.terrain.depth_edges`)."""
+    v of the full-resolution image (:mod:`graph_slam.terrain.grid.depth_edges`)."""
 
     sigma_at_1m_m: float = Field(0.0019, ge=0)
     exponent: float = Field(2.0, ge=0, le=3)
@@ -190,7 +190,7 @@ def point_terms(
     depth_range_m: np.ndarray | None = None,
 ) -> PointTerms:
     """One frame's points in the stride frame with their depth and pose variances;
-    ``depth_range_m`` (per point, :mod:`graph_slam.terrain.depth_edges`; None: no edge term)
+    ``depth_range_m`` (per point, :mod:`graph_slam.terrain.grid.depth_edges`; None: no edge term)
     adds the
     depth-edge variance along the ray."""
     pts = np.asarray(points_camera_m, dtype=np.float64)
@@ -335,9 +335,9 @@ class TerrainView:
 
     @cached_property
     def obstacle_map(self):
-        """The boxes on the grid (:func:`graph_slam.terrain.grid_obstacles.grid_obstacles`),
+        """The boxes on the grid (:func:`graph_slam.terrain.grid.grid_obstacles.grid_obstacles`),
         computed once on demand; None when no floor is found."""
-        from graph_slam.terrain.grid_obstacles import grid_obstacles
+        from graph_slam.terrain.grid.grid_obstacles import grid_obstacles
 
         try:
             return grid_obstacles(self)
@@ -356,14 +356,14 @@ class TerrainView:
     @cached_property
     def features(self):
         """Stairs, ramps, curbs and boxes of the grid with σ
-        (:func:`graph_slam.terrain.features_extract.features_of_view`), computed once on demand."""
-        from graph_slam.terrain.features_extract import features_of_view
+        (:func:`graph_slam.terrain.features.extract.features_of_view`), computed once on demand."""
+        from graph_slam.terrain.features.extract import features_of_view
 
         return features_of_view(self)
 
     def features_ahead(self, min_x_m: float | None = None):
         """The features reaching beyond ``min_x_m`` (default: the toe)
-        (:class:`graph_slam.terrain.features.TerrainFeatures`)."""
+        (:class:`graph_slam.terrain.features.model.TerrainFeatures`)."""
         return self.features.ahead(self.toe_x_m if min_x_m is None else min_x_m)
 
 
@@ -411,7 +411,7 @@ class OnlineElevationMap:
         self, terms: PointTerms, t_s: float, points_camera_m, depth_range_m=None
     ) -> TerrainView:
         """Add one frame's point terms (:func:`point_terms`, or the compiled
-        :func:`graph_slam.terrain.kernels.frame_point_terms`); its camera-frame points and depth ranges are kept for the
+        :func:`graph_slam.terrain.grid.kernels.frame_point_terms`); its camera-frame points and depth ranges are kept for the
         re-fusion when ``keep_clouds``."""
         self.sums = self.sums.plus(terms, t_s)
         self.t_s = float(t_s)

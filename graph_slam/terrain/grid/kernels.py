@@ -1,13 +1,13 @@
 """The online terrain's per-frame pass over the depth image, compiled (numba).
 
-Per frame the live grid (:class:`graph_slam.terrain.live.LiveTerrain`) takes every
+Per frame the live grid (:class:`graph_slam.terrain.grid.live.LiveTerrain`) takes every
 ``pixel_step``-th pixel with depth in range, back-projects it, finds the depth range of its
-neighbourhood (:mod:`graph_slam.terrain.depth_edges`), moves it into the stride frame and
+neighbourhood (:mod:`graph_slam.terrain.grid.depth_edges`), moves it into the stride frame and
 gives it its cell, its depth variance (range noise and depth-edge term along the ray) and its
-pose variance (:func:`graph_slam.terrain.online.z_variance`). Written with numpy
-(:func:`~graph_slam.terrain.builder.map_pixels`, :func:`~graph_slam.terrain.builder.map_cloud`,
-:func:`~graph_slam.terrain.depth_edges.depth_range_image`,
-:func:`~graph_slam.terrain.online.point_terms`) that was about thirty array operations,
+pose variance (:func:`graph_slam.terrain.grid.online.z_variance`). Written with numpy
+(:func:`~graph_slam.terrain.maps.builder.map_pixels`, :func:`~graph_slam.terrain.maps.builder.map_cloud`,
+:func:`~graph_slam.terrain.grid.depth_edges.depth_range_image`,
+:func:`~graph_slam.terrain.grid.online.point_terms`) that was about thirty array operations,
 1.3 ms per 424×240 frame; this is one loop with the same arithmetic
 (``tests/test_terrain_kernels.py`` checks it against them).
 """
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from graph_slam.terrain.online import (
+from graph_slam.terrain.grid.online import (
     OnlineTerrainConfig,
     PointTerms,
     checked_pose,
@@ -119,7 +119,7 @@ def frame_point_terms(
     """One frame's map cloud (every ``cfg.pixel_step``-th pixel with depth strictly inside
     ``depth_limits_m``, camera frame), its depth ranges (None without the edge term) and its
     :func:`point_terms`, in one compiled pass over the depth image
-    (:func:`graph_slam.terrain.kernels.frame_terms`)."""
+    (:func:`graph_slam.terrain.grid.kernels.frame_terms`)."""
     depth = np.asarray(depth_m)
     pose = np.ascontiguousarray(checked_pose(stride_T_camera))
     if cov is None:

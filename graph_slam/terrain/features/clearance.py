@@ -31,7 +31,7 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
-from graph_slam.terrain.features import TerrainFeatures, _plain
+from graph_slam.terrain.features.model import TerrainFeatures, _plain
 
 
 class ClearanceConfig(ConfigModel):

@@ -2,7 +2,7 @@
 
 A pixel whose neighbourhood spans a large depth range sits on a depth discontinuity (a box's
 outline against the floor behind it) and may be a flying pixel; the online terrain's variance
-model gives it the depth-edge term (:class:`graph_slam.terrain.online.DepthNoiseModel`,
+model gives it the depth-edge term (:class:`graph_slam.terrain.grid.online.DepthNoiseModel`,
 docs/terrain.md). The neighbourhood: the pixel and ±1, ±2 pixels along u and v of the
 full-resolution image; invalid depth (0 or NaN) is never a neighbour.
 """

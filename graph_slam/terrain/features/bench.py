@@ -1,6 +1,6 @@
 """The per-frame cost of the terrain features (and the clearance prediction) on a session.
 
-``python -m graph_slam.terrain.features_bench SESSION [--strides N]`` replays a simulated
+``python -m graph_slam.terrain.features.bench SESSION [--strides N]`` replays a simulated
 session's frames into the online grid placed by its true poses (one grid per true stride, as
 the pipelines' live grid) and times, per frame, :func:`features_of_view` and the stance-time
 clearance prediction; prints the median and p95 (ms) and how many features it found.
@@ -23,10 +23,10 @@ def _strides(session):
 
 def run(path: str, max_strides: int = 3) -> dict:
     from graph_slam.session.format import open_session
-    from graph_slam.terrain.clearance import predict_clearance
-    from graph_slam.terrain.features_extract import features_of_view
-    from graph_slam.terrain.kernels import frame_point_terms
-    from graph_slam.terrain.online import (
+    from graph_slam.terrain.features.clearance import predict_clearance
+    from graph_slam.terrain.features.extract import features_of_view
+    from graph_slam.terrain.grid.kernels import frame_point_terms
+    from graph_slam.terrain.grid.online import (
         OnlineElevationMap,
         OnlineTerrainConfig,
         fallback_covariance,

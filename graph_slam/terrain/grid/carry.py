@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from graph_slam.terrain.online import (
+from graph_slam.terrain.grid.online import (
     CellSums,
     OnlineTerrainConfig,
     PointTerms,
