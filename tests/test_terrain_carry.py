@@ -8,7 +8,8 @@ import numpy as np
 
 from graph_slam.terrain.features.extract import features_of_view
 from graph_slam.terrain.grid.carry import carry_map
-from graph_slam.terrain.grid.online import CellSums, OnlineTerrainConfig, PointTerms, TerrainView
+from graph_slam.terrain.grid.online import CellSums, OnlineTerrainConfig, PointTerms
+from graph_slam.terrain.grid.view import TerrainView
 
 CFG = OnlineTerrainConfig()
 LEAD, TRAIL, HEIGHT = 1.003, 1.2062, 0.1905  # a Box1 across the walk, y in [-0.4, -0.133)

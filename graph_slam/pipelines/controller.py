@@ -6,7 +6,7 @@ itself) and, after each frame, reads the frame's output into a :class:`Controlle
 - **gait phase**: ``stance`` while the foot is loaded, ``swing`` after the toe-off, with the
   fraction of the predicted stance elapsed; ``none`` before the first foot strike;
 - **obstacle ahead**: the nearest box of ``FrameOutput.terrain`` whose leading edge lies ahead
-  of the toe (:meth:`graph_slam.terrain.grid.online.TerrainView.obstacles_ahead`): its distance
+  of the toe (:meth:`graph_slam.terrain.grid.view.TerrainView.obstacles_ahead`): its distance
   from the toe and its height, with σ (stride frame, metres), and whether it is seen whole;
 - **time left to toe-off**: the stance duration predicted from the strides seen so far (the
   mean of the last ``history`` stances, each from its foot strike to the first frame seen

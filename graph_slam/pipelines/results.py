@@ -12,7 +12,7 @@ from graph_slam.variants import Variant
 
 if TYPE_CHECKING:
     from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
-    from graph_slam.terrain.grid.online import TerrainView
+    from graph_slam.terrain.grid.view import TerrainView
     from graph_slam.terrain.maps.builder import StrideTerrain
 
 

@@ -11,9 +11,9 @@ from graph_slam.terrain.grid.online import (
     DepthNoiseModel,
     OnlineElevationMap,
     OnlineTerrainConfig,
-    TerrainView,
     fuse_frames,
 )
+from graph_slam.terrain.grid.view import TerrainView
 from graph_slam.terrain.maps.elevation import ElevationConfig, ElevationGrid, elevation_grid
 from graph_slam.terrain.maps.fusion import FusedMap, fuse_clouds, voxel_keys
 from graph_slam.terrain.maps.obstacles import (

@@ -24,7 +24,7 @@ _DEFAULT = FeatureConfig()
 
 
 def features_of_view(view, config: FeatureConfig | None = None, source: str = "online"):
-    """The features of a :class:`~graph_slam.terrain.grid.online.TerrainView` (online or re-fused)."""
+    """The features of a :class:`~graph_slam.terrain.grid.view.TerrainView` (online or re-fused)."""
     s = view.sums
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = (s.b / s.w).reshape(view.shape)

@@ -3,7 +3,7 @@
 What a controller plans a swing with is a handful of numbers, each with its σ, in the stride
 frame (x forward from the heel, y left, z up; metres, radians). :func:`extract_features` reads
 them off any elevation grid (the online grid of a frame, :meth:`TerrainView.features_ahead
-<graph_slam.terrain.grid.online.TerrainView.features_ahead>`, or a stride's re-fused grid):
+<graph_slam.terrain.grid.view.TerrainView.features_ahead>`, or a stride's re-fused grid):
 
 1. **Local planes**: every known cell gets a least-squares plane over its
    ``window_cells``² neighbourhood (box sums, no loop): slope and RMS residual.

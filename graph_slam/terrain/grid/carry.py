@@ -12,9 +12,9 @@ from graph_slam.terrain.grid.online import (
     CellSums,
     OnlineTerrainConfig,
     PointTerms,
-    TerrainView,
     z_variance,
 )
+from graph_slam.terrain.grid.view import TerrainView
 
 MIN_COVERED_FRACTION = 0.5
 """A new cell is carried when known old cells cover at least this fraction of it."""

@@ -1,6 +1,6 @@
 """Boxes on the online elevation grid, each dimension with a σ (stride frame, metres).
 
-On demand from a :class:`graph_slam.terrain.grid.online.TerrainView`:
+On demand from a :class:`graph_slam.terrain.grid.view.TerrainView`:
 
 1. **Floor**: :func:`graph_slam.terrain.maps.obstacles.fit_floor` (the stride maps' RANSAC) on the
    known cells' centres at their heights; heights above it are cell heights minus the plane.
@@ -89,7 +89,7 @@ def _edges(h: np.ndarray, mask: np.ndarray, height: float, axis: int) -> tuple:
 def grid_obstacles(
     view, config: GridObstacleConfig | None = None, *, complete_only: bool = False
 ) -> GridObstacleMap:
-    """The floor and the boxes of a :class:`~graph_slam.terrain.grid.online.TerrainView` (see the
+    """The floor and the boxes of a :class:`~graph_slam.terrain.grid.view.TerrainView` (see the
     module docstring). Raises :class:`~graph_slam.errors.MappingError` without a floor.
     ``complete_only``: leave out the boxes not seen whole before measuring them (the same
     whole boxes, in less time: most components of a grid touch its unobserved border)."""

@@ -3,7 +3,7 @@ at every frame with the frame's online pose, carried across the foot strike, re-
 smoothed poses when they come.
 
 A pipeline calls :meth:`LiveTerrain.frame` once per frame (after its pose estimate) and gets
-the read-only :class:`~graph_slam.terrain.grid.online.TerrainView` it puts in
+the read-only :class:`~graph_slam.terrain.grid.view.TerrainView` it puts in
 ``FrameOutput.terrain``; when a stride closes, :meth:`LiveTerrain.close` gives the stride's
 online map at its last frame, and :meth:`LiveTerrain.refuse` its map from the smoothed poses.
 
@@ -30,9 +30,9 @@ from graph_slam.terrain.grid.kernels import frame_point_terms
 from graph_slam.terrain.grid.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
-    TerrainView,
     fallback_covariance,
 )
+from graph_slam.terrain.grid.view import TerrainView
 from kinematics.conversions import adjoint_rot_first
 
 

@@ -32,20 +32,22 @@ builds the stride's map again from its smoothed poses (the batch path).
 **Carry** (:func:`graph_slam.terrain.grid.carry.carry_map`): at a foot strike the previous stride's cells ahead of the new
 heel are moved into the new stride frame through ``new_T_old`` and enter the new map as prior
 points whose variance is grown by that pose's covariance (docs/terrain.md).
+
+The read-only snapshot a controller gets, heights and variances from these sums:
+:class:`~graph_slam.terrain.grid.view.TerrainView`.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 from pydantic import Field, model_validator
 
 from graph_slam.config import ConfigModel
 from graph_slam.errors import MappingError
+from graph_slam.terrain.grid.view import TerrainView
 
 
 class DepthNoiseModel(ConfigModel):
@@ -256,120 +258,6 @@ class CellSums:
             self.wz2 + np.bincount(terms.flat, w * terms.z_m**2, n),
             self.d + np.bincount(terms.flat, w * terms.var_depth_m2, n),
         )
-
-
-@dataclass(frozen=True, eq=False)
-class TerrainView:
-    """A read-only snapshot of the stride's elevation grid at one frame (stride frame, metres).
-
-    Arrays are (nx, ny), axis 0 x, axis 1 y; empty cells are NaN (``count`` 0 and not carried).
-    ``count`` counts this stride's points; a cell known only from the previous stride (carried)
-    has a height and ``count`` 0."""
-
-    stride_index: int
-    t_s: float
-    origin_xy_m: np.ndarray
-    """(x, y) of the corner of cell (0, 0)."""
-    cell_m: float
-    sums: CellSums
-    shape: tuple[int, int]
-    toe_x_m: float = 0.2
-
-    @cached_property
-    def height_m(self) -> np.ndarray:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            h = np.where(self.sums.w > 0, self.sums.wz / self.sums.w, np.nan)
-        return _frozen(h.reshape(self.shape))
-
-    @cached_property
-    def variance_m2(self) -> np.ndarray:
-        """Height variance: depth noise (averaged) + camera pose (correlated) + the spread
-        beyond the depth noise."""
-        s = self.sums
-        with np.errstate(invalid="ignore", divide="ignore"):
-            h = s.wz / s.w
-            excess = np.maximum(0.0, s.wz2 / s.w - h**2 - s.d / s.w)
-            v = np.where(s.w > 0, s.a / s.w**2 + (s.b / s.w) ** 2 + excess, np.nan)
-        return _frozen(v.reshape(self.shape))
-
-    @property
-    def sigma_m(self) -> np.ndarray:
-        return np.sqrt(self.variance_m2)
-
-    @cached_property
-    def count(self) -> np.ndarray:
-        return _frozen(self.sums.count.reshape(self.shape))
-
-    @cached_property
-    def last_update_t_s(self) -> np.ndarray:
-        """Time of the latest point in each cell (NaN: none this stride)."""
-        return _frozen(self.sums.last_t_s.reshape(self.shape))
-
-    @property
-    def known(self) -> np.ndarray:
-        return self.sums.w.reshape(self.shape) > 0
-
-    def cell_centers_m(self) -> tuple[np.ndarray, np.ndarray]:
-        """x centres (nx,) and y centres (ny,)."""
-        nx, ny = self.shape
-        x = self.origin_xy_m[0] + (np.arange(nx) + 0.5) * self.cell_m
-        y = self.origin_xy_m[1] + (np.arange(ny) + 0.5) * self.cell_m
-        return x, y
-
-    def _cell(self, x_m: float, y_m: float) -> tuple[int, int] | None:
-        """The cell holding (x, y); None off the grid, or for a NaN / infinite coordinate."""
-        if not (math.isfinite(x_m) and math.isfinite(y_m)):
-            return None
-        i = int(np.floor((x_m - self.origin_xy_m[0]) / self.cell_m))
-        j = int(np.floor((y_m - self.origin_xy_m[1]) / self.cell_m))
-        return (i, j) if 0 <= i < self.shape[0] and 0 <= j < self.shape[1] else None
-
-    def height_at(self, x_m: float, y_m: float) -> float:
-        """Height (stride z, m) of the cell holding (x, y); NaN when unknown or off the grid."""
-        ij = self._cell(x_m, y_m)
-        return float("nan") if ij is None else float(self.height_m[ij])
-
-    def sigma_at(self, x_m: float, y_m: float) -> float:
-        ij = self._cell(x_m, y_m)
-        return float("nan") if ij is None else float(self.sigma_m[ij])
-
-    @cached_property
-    def obstacle_map(self):
-        """The boxes on the grid (:func:`graph_slam.terrain.grid.grid_obstacles.grid_obstacles`),
-        computed once on demand; None when no floor is found."""
-        from graph_slam.terrain.grid.grid_obstacles import grid_obstacles
-
-        try:
-            return grid_obstacles(self)
-        except MappingError:
-            return None
-
-    def obstacles_ahead(self, min_x_m: float | None = None) -> tuple:
-        """Boxes whose leading edge lies ahead of ``min_x_m`` (default: the toe), nearest
-        first."""
-        m = self.obstacle_map
-        if m is None:
-            return ()
-        lo = self.toe_x_m if min_x_m is None else min_x_m
-        return tuple(o for o in m.obstacles if o.leading_edge_x_m >= lo)
-
-    @cached_property
-    def features(self):
-        """Stairs, ramps, curbs and boxes of the grid with σ
-        (:func:`graph_slam.terrain.features.extract.features_of_view`), computed once on demand."""
-        from graph_slam.terrain.features.extract import features_of_view
-
-        return features_of_view(self)
-
-    def features_ahead(self, min_x_m: float | None = None):
-        """The features reaching beyond ``min_x_m`` (default: the toe)
-        (:class:`graph_slam.terrain.features.model.TerrainFeatures`)."""
-        return self.features.ahead(self.toe_x_m if min_x_m is None else min_x_m)
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a.flags.writeable = False
-    return a
 
 
 class OnlineElevationMap:
