@@ -15,16 +15,14 @@ from graph_slam.terrain.grid.online import (
 )
 from graph_slam.terrain.grid.view import TerrainView
 from graph_slam.terrain.maps.elevation import ElevationConfig, ElevationGrid, elevation_grid
+from graph_slam.terrain.maps.floor import FloorPlane, ObstacleConfig, fit_floor
 from graph_slam.terrain.maps.fusion import FusedMap, fuse_clouds, voxel_keys
 from graph_slam.terrain.maps.obstacles import (
     SKIP_REASONS,
     Coverage,
-    FloorPlane,
     Obstacle,
-    ObstacleConfig,
     ObstacleMap,
     extract_obstacles,
-    fit_floor,
 )
 from graph_slam.terrain.maps.stride_map import MappingConfig, StrideMap, build_stride_map
 

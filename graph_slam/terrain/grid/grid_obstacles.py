@@ -30,7 +30,7 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
-from graph_slam.terrain.maps.obstacles import FloorPlane, ObstacleConfig, fit_floor
+from graph_slam.terrain.maps.floor import FloorPlane, ObstacleConfig, fit_floor
 
 
 class GridObstacleConfig(ConfigModel):

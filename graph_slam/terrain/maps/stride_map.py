@@ -12,8 +12,9 @@ from pydantic import Field
 from graph_slam.config import ConfigModel
 from graph_slam.errors import MappingError
 from graph_slam.terrain.maps.elevation import ElevationConfig, ElevationGrid, elevation_grid
+from graph_slam.terrain.maps.floor import ObstacleConfig
 from graph_slam.terrain.maps.fusion import FusedMap, fuse_clouds
-from graph_slam.terrain.maps.obstacles import ObstacleConfig, ObstacleMap, extract_obstacles
+from graph_slam.terrain.maps.obstacles import ObstacleMap, extract_obstacles
 
 log = logging.getLogger(__name__)
 
