@@ -37,6 +37,9 @@ TERRAIN_LABELS = (
 
 _TREAD_MAX_M = 0.5
 _MARGIN_M = 0.02
+_RISER_GAP_M = 0.10  # the toe stays this far back from a riser or a drop ahead
+_DROP_GAP_M = 0.25
+_EDGE_MID_M = 0.35  # a curb's edge this far from the toe before it and the heel after it  # the heel lands this far beyond a drop (a curb's or a box's edge)
 _SLOPE_EPS = 1e-3  # tan of ~0.06°
 
 
@@ -133,12 +136,27 @@ class FootholdPlanner:
         raise SimulationError(f"x = {x:.3f} m is outside the planned walking line")
 
     def _range(self, seg: Segment) -> tuple[float, float] | None:
-        """Valid heel x range on a segment (the flat foot on it with a margin)."""
+        """Valid heel x range on a segment (the flat foot on it with a margin; on a long
+        segment the toe stays ``_RISER_GAP_M`` back from a riser or edge ahead)."""
         foot_dx = self.foot_m * math.cos(math.atan(seg.slope_tan))
         margin = min(_MARGIN_M, (seg.length_m - foot_dx) / 2)
         if margin < 0.004:
             return None
-        return seg.x0_m + margin, seg.x1_m - margin - foot_dx
+        start = end = margin
+        i = self.segs.index(seg) if seg in self.segs else -1
+        if i >= 0 and not seg.is_tread:
+            room = seg.length_m - foot_dx - margin
+            if i < len(self.segs) - 1:
+                nxt = self.segs[i + 1]
+                if abs(nxt.z0_m - float(seg.z_at(seg.x1_m))) > EDGE_JUMP_M:
+                    end = max(margin, min(_RISER_GAP_M, room))
+            if i > 0:
+                prev = self.segs[i - 1]
+                if float(prev.z_at(prev.x1_m)) > seg.z0_m + EDGE_JUMP_M:  # below a drop
+                    start = max(margin, min(_DROP_GAP_M, room - end + margin))
+        if seg.x0_m + start > seg.x1_m - end - foot_dx + 1e-9:
+            return None
+        return seg.x0_m + start, seg.x1_m - end - foot_dx
 
     def _snap(self, x: float) -> float | None:
         """The valid heel position nearest ``x``."""
@@ -172,12 +190,21 @@ class FootholdPlanner:
             return self._stairs_next(f, L)
         # An obstacle to step over (a raised segment too short for the foot, not a tread).
         for i in ahead:
-            s = segs[i]
+            s, before = segs[i], segs[i - 1]
+            jump = abs(s.z0_m - float(before.z_at(before.x1_m))) > EDGE_JUMP_M
+            if jump and self._range(s) is not None and s.feature[2] != "step_on":
+                # a curb (up or down): the edge in the middle of the prosthetic foot's swing
+                land = self._snap(s.x0_m + _EDGE_MID_M)
+                if land is not None and 0.5 * L <= land - x <= 1.25 * L and land > s.x0_m:
+                    return land
+                pre = s.x0_m - _EDGE_MID_M - self.foot_m
+                if pre - x >= 0.45 * L:
+                    return self._checked(f, min(pre, x + L))
             if self._range(s) is None and s.z0_m > cur.z_at(s.x0_m) + EDGE_JUMP_M:
-                land = self._snap(s.x1_m + 0.25 + 0.02)
+                land = self._snap(s.x1_m + _EDGE_MID_M)
                 if land is not None and land - x <= 1.25 * L:
                     return land
-                pre = s.x0_m - 0.30 - self.foot_m
+                pre = s.x0_m - _EDGE_MID_M - self.foot_m
                 return self._checked(f, max(pre, x + 0.45 * L) if pre > x + 0.3 else x + L)
             if s.feature[2] == "step_on" and self._range(s) is not None:
                 land = self._range(s)[0] + 0.03

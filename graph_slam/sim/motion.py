@@ -180,7 +180,6 @@ class ThighMotion:
         return (a - b) / (2.0 * h_s)
 
 
-
 class GaitMotion(ThighMotion):
     """The walking motion: thigh pose, joint angles and gait events at any session time.
 

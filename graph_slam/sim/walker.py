@@ -53,6 +53,9 @@ from kinematics.leg_params import LegParams
 
 #: The sole may touch the surface within this (m) as it lands and leaves (numerical).
 GROUND_TOLERANCE_M = 2e-4
+#: The walker refuses a plan whose leg leaves these (the URDF's knee limit is 120°).
+KNEE_MAX_RAD = math.radians(125.0)
+THIGH_RANGE_RAD = (math.radians(-45.0), math.radians(95.0))
 #: Edges this close to the foothold left or landed on are not held to the clearance margin.
 EDGE_KEEPOUT_M = 0.03
 
@@ -425,7 +428,7 @@ class TerrainMotion(ThighMotion):
     def _plan_swings(self) -> None:
         for k in range(len(self.footholds) - 1):
             lift = self._leave[k].lift_m
-            if k == len(self.footholds) - 2:  # after the session: no clearance search
+            if k > self.strides + 1:  # after the session: no clearance search
                 self._lift[k] = lift
                 break
             for _ in range(40):
@@ -504,11 +507,20 @@ class TerrainMotion(ThighMotion):
         return hip, ankle, gamma, thigh, knee, k, stance
 
     def _check_reach(self) -> None:
-        u = np.arange(self._strike_u[0], self._strike_u[-2], 1e-3)
+        u = np.arange(self.u0, self.u0 + self.duration_s, 1e-3)
         hip, ankle, *_ = self._sagittal_unchecked(u)
         reach = np.linalg.norm(hip - ankle, axis=1) / (
             self.leg.thigh_length_m + self.leg.shank_length_m
         )
+        thigh, knee = _ik(hip, ankle, self.leg)
+        bad = (knee > KNEE_MAX_RAD) | (thigh < THIGH_RANGE_RAD[0]) | (thigh > THIGH_RANGE_RAD[1])
+        if bad.any():
+            k = int(self._index(u[bad][:1])[0])
+            raise SimulationError(
+                f"stride {k} ({self.labels[k]}): the leg leaves the human range (knee up to "
+                f"{math.degrees(knee.max()):.0f} deg, thigh {math.degrees(thigh.min()):.0f}.."
+                f"{math.degrees(thigh.max()):.0f} deg); the scene's layout asks too much"
+            )
         if reach.max() > math.cos(math.radians(1.0)):
             i = int(reach.argmax())
             k = int(self._index(u[i : i + 1])[0])
