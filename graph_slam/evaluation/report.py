@@ -67,7 +67,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -94,15 +94,21 @@ class StrideEvaluation:
     """Stride number within its speed group (thesis Table 4.2's 'Stride #')."""
     frames: FrameCounts
     trajectory: StrideTrajectoryMetrics | None
+    terrain: str | None = None
+    """The terrain under the stance foot (a simulated session's ``strides_truth.csv``:
+    level, stairs_up, ramp_down, ...); None when the session does not say."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "index": self.index,
             "speed": self.speed,
             "number": self.number,
             "frames": self.frames.to_dict(),
             "trajectory": None if self.trajectory is None else self.trajectory.to_dict(),
         }
+        if self.terrain is not None:
+            out["terrain"] = self.terrain
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +132,7 @@ class VariantEvaluation:
                 "max": float(values.max()),
             }
 
-        return {
+        out = {
             "strides": len(self.strides),
             "frames_recorded": sum(s.frames.recorded for s in self.strides),
             "frames_registered": sum(s.frames.registered for s in self.strides),
@@ -135,6 +141,25 @@ class VariantEvaluation:
             "rmse_unaligned_m": stats("rmse_unaligned_m"),
             "rmse_aligned_m": stats("rmse_aligned_m"),
         }
+        if any(s.terrain is not None for s in self.strides):
+            out["by_terrain"] = self.by_terrain()
+        return out
+
+    def by_terrain(self) -> dict[str, dict[str, Any]]:
+        """Per terrain label (strides that carry one): stride count and RMSE statistics."""
+        out: dict[str, dict[str, Any]] = {}
+        labels = sorted({s.terrain for s in self.strides if s.terrain is not None})
+        for label in labels:
+            group = VariantEvaluation(
+                [replace(s, terrain=None) for s in self.strides if s.terrain == label]
+            )
+            full = group.summary()
+            out[label] = {
+                "strides": full["strides"],
+                "rmse_unaligned_m": full["rmse_unaligned_m"],
+                "rmse_aligned_m": full["rmse_aligned_m"],
+            }
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         return {
