@@ -34,6 +34,7 @@ class TerrainStrideScore:
     tilt_deg: float
     case: str
     slope_deg: float
+    floor: str = ""
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,7 @@ def score_terrain_run(scene: str, speed: str, path: Path, preset: str | None, as
                 scene, speed, "level" if assume_level else "new", int(ref.stride_index), label,
                 sc.smoothed_rmse_m * 1e3, sc.online_rmse_m * 1e3, tilt,
                 _flag(flags, "anchor:") or "-", float(slope) if slope else float("nan"),
+                _flag(flags, "floor:"),
             )
         )  # fmt: skip
     online = np.isfinite(res.online_stride_T_camera[:, 0, 0]).sum()
@@ -153,7 +155,7 @@ def run_lines(run: TerrainRun) -> list[str]:
         lines.append(
             f"  stride {s.stride} {s.label:11s} smoothed {s.smoothed_mm:6.1f} mm online "
             f"{s.online_mm:6.1f} mm  tilt {s.tilt_deg:5.2f} deg  {s.case:5s} "
-            f"slope {s.slope_deg:6.2f} deg"
+            f"slope {s.slope_deg:6.2f} deg  {s.floor}"
         )
     return lines
 

@@ -56,6 +56,8 @@ GROUND_TOLERANCE_M = 2e-4
 #: The walker refuses a plan whose leg leaves these (the URDF's knee limit is 120°).
 KNEE_MAX_RAD = math.radians(125.0)
 THIGH_RANGE_RAD = (math.radians(-45.0), math.radians(95.0))
+#: The share of the hip's rise in our swing (the other leg's mid-stance) the foot does not follow.
+HIP_RISE_SHARE = 0.7
 #: Edges this close to the foothold left or landed on are not held to the clearance margin.
 EDGE_KEEPOUT_M = 0.03
 
@@ -314,6 +316,11 @@ class TerrainMotion(ThighMotion):
             raise SimulationError(f"stance {k}: the hip is out of the leg's reach")
         return ankle[:, 1] + np.sqrt(d2 - dx * dx)
 
+    def _stance_apex(self, k: int) -> float:
+        """The highest hip of stance ``k``."""
+        u = np.linspace(self._strike_u[k], self._toe_off_u[k], 41)
+        return float(self._stance_hip_z(k, u).max())
+
     def _hip_z_state(self, k: int, t: float, side: int, h: float = 2e-4) -> np.ndarray:
         """Hip z, rate and acceleration at the end ``t`` of stance ``k`` (one-sided)."""
         u = t + side * h * np.arange(3)
@@ -338,12 +345,16 @@ class TerrainMotion(ThighMotion):
     def _swing_hip_z(self, k: int, u: np.ndarray) -> np.ndarray:
         if k not in self._swing_ends:
             t0, t1 = self._toe_off_u[k], self._strike_u[k + 1]
-            self._swing_ends[k] = (self._hip_z_state(k, t0, -1), self._hip_z_state(k + 1, t1, +1))
-        (p0, v0, c0), (p1, v1, c1) = self._swing_ends[k]
+            start, end = self._hip_z_state(k, t0, -1), self._hip_z_state(k + 1, t1, +1)
+            # the other leg's mid-stance: the hip as high as the mean of our two apexes
+            apex = 0.5 * (self._stance_apex(k) + self._stance_apex(k + 1))
+            mid = float(_quintic(np.array([0.5]), t1 - t0, start, end)[0])
+            self._swing_ends[k] = (start, end, max(0.0, apex - mid))
+        start, end, rise = self._swing_ends[k]
         t0, t1 = self._toe_off_u[k], self._strike_u[k + 1]
         T = t1 - t0
         sc = np.clip((u - t0) / T, 0.0, 1.0)
-        return _quintic(sc, T, (p0, v0, c0), (p1, v1, c1))
+        return _quintic(sc, T, start, end) + rise * bump(sc)
 
     def _hip_derivatives(self, t: float, h: float = 2e-4) -> tuple[np.ndarray, np.ndarray]:
         """Hip velocity and acceleration (2,) at a stance end ``t`` (central differences of
@@ -374,7 +385,8 @@ class TerrainMotion(ThighMotion):
             + (-4 * s3 + 7 * s4 - 3 * s5) * v1 + 0.5 * (s3 - 2 * s4 + s5) * c1
         )  # fmt: skip
         out = self._hip(t0 + sc[:, 0] * T) + rel
-        out[:, 1] += lift * bump(sc[:, 0])
+        hip_rise = self._swing_ends[k][2]  # the hip's rise in our swing does not lift the foot
+        out[:, 1] += (lift - HIP_RISE_SHARE * hip_rise) * bump(sc[:, 0])
         return out
 
     def _swing_clearance(
