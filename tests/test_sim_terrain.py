@@ -121,3 +121,28 @@ def test_features_truth_lists_steps_and_ramp() -> None:
     assert stairs.steps[0].nosing_m[0][2] == pytest.approx(0.3513 + 0.17)
     assert feats["Ramp"].slope_deg == pytest.approx(8.0, abs=0.01)
     assert feats["Ramp"].start_line_m[0][0] == pytest.approx(1.5)
+
+
+#: Bands (deg) around published means: level walking (Schwartz et al. 2008, the curves the
+#: level walker plays), stair ascent (Riener et al. 2002; Protopapadaki et al. 2007), ramps
+#: (McIntosh et al. 2006). docs/simulator.md has the table and what is not met (the ankle).
+BANDS = {
+    "level": {"knee_swing": (50, 80), "thigh_max": (20, 50), "knee_stance": (10, 45)},
+    "ramp_up": {"knee_swing": (50, 85), "thigh_max": (25, 55), "knee_strike": (5, 25)},
+    "ramp_down": {"knee_swing": (50, 85), "thigh_max": (20, 50)},
+    "stairs_up": {"knee_swing": (85, 110), "thigh_max": (50, 80), "knee_strike": (50, 65)},
+}
+
+
+@pytest.mark.parametrize("scene", ["flat-floor", "stairs-ascent", "ramp-up-10", "ramp-down-8"])
+def test_joint_angles_within_the_published_bands(scene) -> None:
+    from graph_slam.bench.terrain_walk import joint_peaks
+
+    rows = [r for r in joint_peaks(scene, "normal", 4) if r["label"] in BANDS]
+    labels = {r["label"] for r in rows}
+    assert labels & set(BANDS)
+    for r in rows:
+        if r["label"] == "level" and r["knee_strike"] > 30:  # arrived from the stairs
+            continue
+        for key, (lo, hi) in BANDS[r["label"]].items():
+            assert lo <= r[key] <= hi, (scene, r["label"], key, r[key])

@@ -378,6 +378,12 @@ def terrain_walk_bench(
         "realtime"
     ),
     seed: Annotated[int, typer.Option(help="Simulator seed.")] = 3,
+    angles: Annotated[
+        bool,
+        typer.Option(
+            "--angles", help="Only the walker's joint-angle peaks per terrain (no rendering)."
+        ),
+    ] = False,
 ) -> None:
     """The full graph on the terrain walker's scenes (stairs, ramps, curbs, boxes): per-stride
     RMSE beside level walking, the anchor's tilt error with the level-ground anchor beside it,
@@ -389,6 +395,10 @@ def terrain_walk_bench(
     chosen = [v.strip() for v in speeds.split(",") if v.strip()]
     if unknown := [v for v in chosen if v not in SPEEDS_M_S]:
         raise typer.BadParameter(f"unknown speeds {unknown}; choose from slow, normal, fast")
+    if angles:
+        for line in tw.angle_lines(names, chosen, max(strides, 4), seed):
+            typer.echo(line)
+        return
     runs = tw.run_terrain_bench(
         names, chosen, strides, resolution, preset or None, seed, progress=typer.echo
     )
