@@ -76,7 +76,7 @@ def test_swing_clears_the_edges_by_the_margin(walk) -> None:
 def test_imu_integration_and_fk_reproduce_the_motion(walk, leg_model) -> None:
     _, m = walk
     thigh_T_imu = leg_model.thigh_T_frame("imu")
-    rate = 4000.0  # the swing's thigh rates reach 10-17 rad/s on curbs and boxes
+    rate = 1000.0
     t0 = m.foot_strikes_s[1]
     t = t0 + np.arange(int((m.foot_strikes_s[2] - t0) * rate) + 1) / rate
     gyro, accel = m.imu_ideal(t, thigh_T_imu)
@@ -91,7 +91,7 @@ def test_imu_integration_and_fk_reproduce_the_motion(walk, leg_model) -> None:
         pos = pos + vel * dt + 0.5 * acc * dt * dt
         vel = vel + acc * dt
         rot = rot @ steps[i]
-    assert np.linalg.norm(pos - truth[-1, :3, 3]) < 0.01
+    assert np.linalg.norm(pos - truth[-1, :3, 3]) < 0.005
     assert math.degrees(Rotation.from_matrix(rot.T @ truth[-1, :3, :3]).magnitude()) < 0.3
     # encoders: the leg model's FK from the heel frame gives the camera pose
     thigh_T_camera = leg_model.thigh_T_frame("camera_optical")
