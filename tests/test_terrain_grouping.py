@@ -53,3 +53,14 @@ def test_labels_come_from_the_sessions_truth(tmp_path):
     )
     with pytest.raises(Exception, match="escalator"):
         read_stride_terrain(tmp_path)
+
+
+def test_anchor_case_and_slope_from_the_flags():
+    from graph_slam.report.summary import anchor_of
+
+    flags = ("floor:ok", "anchor:slope", "slope_deg:7.71", "icp:ok")
+    assert anchor_of(flags) == {"anchor": "slope", "slope_deg": 7.71}
+    assert anchor_of(("icp:ok",)) == {}
+    s = StrideEvaluation(0, "normal", 1, FrameCounts(1, 1, 0, 0, 0), None, "ramp_up",
+                         anchor_of(flags))  # fmt: skip
+    assert s.to_dict()["anchor"] == "slope" and s.to_dict()["slope_deg"] == 7.71

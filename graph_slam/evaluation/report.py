@@ -14,12 +14,14 @@ Schema (``schema_version`` 3; every length in metres, every time in seconds; NaN
                         "partial": int},
              "trajectory": null | {"n_frames", "n_evaluated", "rmse_unaligned_m", "rmse_aligned_m",
                                    "rmse_by_phase_m": {"stance"|"swing": {"unaligned", "aligned", "n"}},
-                                   "rpe_rmse_m"}}
+                                   "rpe_rmse_m"},
+             "terrain"?: str, "anchor"?: str, "slope_deg"?: float}
           ],
           "summary": {"strides": int, "frames_recorded": int, "frames_registered": int,
                       "frames_bridged": int, "frames_partial": int,
                       "rmse_unaligned_m": {"mean", "median", "max"},
-                      "rmse_aligned_m": {"mean", "median", "max"}},
+                      "rmse_aligned_m": {"mean", "median", "max"},
+                      "by_terrain"?: {"<label>": {"strides", "rmse_unaligned_m", "rmse_aligned_m"}}},
           "timing": null | {"n", "median_s", "p95_s", "mean_s", "max_s"},
           "obstacles": {"<box>": {"depth"|"width"|"height": {"n", "truth_m", "mean_m", "std_m", "rmse_m"}}}
         }
@@ -55,6 +57,10 @@ Schema (``schema_version`` 3; every length in metres, every time in seconds; NaN
         }
       }
     }
+
+Keys with ``?`` are written only when known: ``terrain`` (the stance foot's terrain, from a
+simulated session's ``strides_truth.csv``) and ``by_terrain``; ``anchor`` and ``slope_deg``
+(the stride anchor's case and measured slope, graph variants).
 
 Version 1 (before the completeness filter) had no ``maps`` and measured every box, whole or
 not; version 2 had no ``terrain_deadlines`` (when the online map knew each obstacle of a
@@ -97,6 +103,9 @@ class StrideEvaluation:
     terrain: str | None = None
     """The terrain under the stance foot (a simulated session's ``strides_truth.csv``:
     level, stairs_up, ramp_down, ...); None when the session does not say."""
+    anchor: dict | None = None
+    """The stride anchor's case and slope (``{"anchor": ..., "slope_deg": ...}``, graph
+    variants)."""
 
     def to_dict(self) -> dict[str, Any]:
         out = {
@@ -108,6 +117,8 @@ class StrideEvaluation:
         }
         if self.terrain is not None:
             out["terrain"] = self.terrain
+        if self.anchor:
+            out.update(self.anchor)
         return out
 
 

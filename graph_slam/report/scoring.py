@@ -153,6 +153,12 @@ def _trajectory(ref: StrideReference, poses: np.ndarray):
     )
 
 
+def anchor_of(flags) -> dict:
+    from graph_slam.report.summary import anchor_of as _anchor_of
+
+    return _anchor_of(flags)
+
+
 def terrain_labels(run: SessionRun) -> list[str | None]:
     """Per reference stride, the terrain under the stance foot from the session's
     ``strides_truth.csv`` (the simulator's terrain walker writes it; the true stride whose
@@ -189,6 +195,7 @@ def score_session(run: SessionRun) -> dict[RunKey, list[StrideEvaluation]]:
                     frames=_counts([cats[i] for i in ref.frame_indices]),
                     trajectory=_trajectory(ref, poses),
                     terrain=labels[k],
+                    anchor=anchor_of(res.frames[int(ref.frame_indices[0])].flags) or None,
                 )
                 for k, ref in enumerate(run.references)
             ]
