@@ -91,3 +91,12 @@ def test_no_depth_or_no_imu():
     assert anchor.at_strike(0.0, 0.05, None).case == "imu"
     anchor.gravity.up_at = lambda t, w: None
     assert anchor.at_strike(0.0, 0.05, ramp_points(0.0)).case == "none"
+
+
+def test_a_first_strike_takes_the_ground_as_level():
+    """Under a second of IMU history the up vector is too poor to tell a slope: fused."""
+    anchor = StrideAnchor(FakeGravity(np.array([0.0, 0.0, 1.0])), FloorConfig(), np.eye(4),
+                          0.01, 100.0, 0.2)  # fmt: skip
+    a = anchor.at_strike(0.0, 0.05, ramp_points(8.0))
+    assert a.case == "floor" and a.sigma_rad < 0.01
+    assert tilt_deg(a.up_in_imu) == pytest.approx(8.0, abs=0.2)

@@ -10,7 +10,9 @@ within ``level_gate_sigmas`` combined σ (IMU and plane, at least ``level_gate_m
 IMU's up. Otherwise (a ramp, a tread seen at an angle) the anchor keeps the IMU's up alone and
 records the plane's slope. :class:`StrideAnchor` returns which case applied:
 
-* ``floor``: the plane is level within its σ; fused by inverse variance;
+* ``floor``: the plane is level within its σ (at a session's first strike, whose IMU up has
+  under a second of history and is 10-40° off, any plane found is taken as level); fused by
+  inverse variance;
 * ``slope``: a plane was found but is tilted against the IMU's up: IMU alone, slope recorded;
 * ``imu``: no plane (no depth, too few points, none near up) or the floor is off: IMU alone;
 * ``none``: no IMU up vector either (the back end's own default anchor).
@@ -120,7 +122,9 @@ class StrideAnchor:
         n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
         tilt = fit.angle_to_hint_rad
         slope = self.signed_slope(up, n_imu)
-        if cfg.assume_level:
+        if cfg.assume_level or sigma is None:
+            # a first strike's IMU up (under a second of history) is 10-40° off: nothing
+            # tells a slope from that error, so the ground is taken as level, as before
             consistent = True
         else:
             gate = cfg.level_gate_sigmas * math.hypot(sigma_imu, fit.sigma_rad)
