@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -160,9 +160,12 @@ def run_lines(run: TerrainRun) -> list[str]:
     return lines
 
 
-def summary_lines(runs: list[TerrainRun]) -> list[str]:
+def summary_lines(runs: list[TerrainRun], skip_first: bool = True) -> list[str]:
     """Per scene and speed: median smoothed/online RMSE over the level reference's, the worst
-    tilt error of each anchor on ramp strides."""
+    tilt error of each anchor on ramp strides. ``skip_first``: leave out each session's first
+    stride (its anchor has under a second of IMU history: 10-40° off, on every scene)."""
+    if skip_first:
+        runs = [replace(r, strides=[s for s in r.strides if s.stride > 1]) for r in runs]
     level = {r.speed: r for r in runs if r.anchor == "new" and r.scene == runs[0].scene}
     lines = [
         f"{'scene':16s} {'speed':6s} {'smoothed mm':>11s} {'×level':>6s} {'online mm':>9s} "

@@ -402,6 +402,9 @@ def terrain_walk_bench(
     runs = tw.run_terrain_bench(
         names, chosen, strides, resolution, preset or None, seed, progress=typer.echo
     )
-    typer.echo("== summary (median per stride; × level: over flat-floor at the same speed)")
+    typer.echo(
+        "== summary (median per stride, each session's first stride left out; × level: over "
+        "flat-floor at the same speed)"
+    )
     for line in tw.summary_lines(runs):
         typer.echo(line)
