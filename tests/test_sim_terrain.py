@@ -16,7 +16,10 @@ from kinematics.leg_model import LegModel
 from kinematics.leg_params import LegParams
 
 LEG = LegParams()
-SCENES = ("stairs-ascent", "ramp-up-8", "ramp-down-10", "curb-up", "step-over", "step-onto")
+SCENES = (
+    "stairs-ascent", "stairs-descent", "ramp-up-8", "ramp-down-10", "curb-up", "step-over",
+    "step-onto",
+)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -146,3 +149,23 @@ def test_joint_angles_within_the_published_bands(scene) -> None:
             continue
         for key, (lo, hi) in BANDS[r["label"]].items():
             assert lo <= r[key] <= hi, (scene, r["label"], key, r[key])
+
+
+def test_the_camera_goes_down_the_stairs(leg_model) -> None:
+    scene = load_scene("stairs-descent")
+    m = TerrainMotion(1.1, 4, seed=1, surfaces=scene.surfaces, leg=LEG)
+    cam = m.world_T(m.foot_strikes_s, leg_model.thigh_T_frame("camera_optical"))
+    assert m.stride_labels[1:4] == ["stairs_down"] * 3
+    assert cam[0, 2, 3] - cam[-1, 2, 3] > 0.5
+    z = [f.heel_z_m for f in m.stride_footholds]
+    assert np.allclose(np.diff(z[1:4]), -0.34)  # step over step
+    knee_strike = [
+        r["knee_strike"] for r in _peaks("stairs-descent") if r["label"] == "stairs_down"
+    ]
+    assert all(5 <= k <= 20 for k in knee_strike)  # Riener et al. 2002: ~10-15° at contact
+
+
+def _peaks(scene):
+    from graph_slam.bench.terrain_walk import joint_peaks
+
+    return joint_peaks(scene, "normal", 4)

@@ -43,6 +43,7 @@ SCENARIOS: tuple[Scenario, ...] = (
     Scenario("stairs-up", "stairs-up"),
     # the terrain-following walker: on the stairs, ramps, curbs and boxes (docs/simulator.md)
     Scenario("stairs-ascent", "stairs-ascent"),
+    Scenario("stairs-descent", "stairs-descent"),
     *(Scenario(f"ramp-{d}-{a}", f"ramp-{d}-{a}") for d in ("up", "down") for a in (5, 8, 10)),
     Scenario("curb-up", "curb-up"),
     Scenario("curb-down", "curb-down"),

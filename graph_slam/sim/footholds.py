@@ -39,7 +39,8 @@ _TREAD_MAX_M = 0.5
 _MARGIN_M = 0.02
 _RISER_GAP_M = 0.10  # the toe stays this far back from a riser or a drop ahead
 _DROP_GAP_M = 0.25
-_EDGE_MID_M = 0.35  # a curb's edge this far from the toe before it and the heel after it  # the heel lands this far beyond a drop (a curb's or a box's edge)
+_EDGE_MID_M = 0.35
+_DESCENT_HEEL_M = 0.06  # going down a flight the heel lands this far onto the tread  # a curb's edge this far from the toe before it and the heel after it  # the heel lands this far beyond a drop (a curb's or a box's edge)
 _SLOPE_EPS = 1e-3  # tan of ~0.06°
 
 
@@ -221,15 +222,21 @@ class FootholdPlanner:
         if cur.is_tread:
             nxt = segs[f.segment + 2] if f.segment + 2 < len(segs) else None
             if nxt is not None and nxt.is_tread:
+                if nxt.z0_m < cur.z0_m:  # going down: the toe overhangs the nosing
+                    return nxt.x0_m + _DESCENT_HEEL_M
                 return self._range(nxt)[0]
             one = segs[f.segment + 1]
             run = cur.length_m
+            down = one.z0_m < cur.z0_m  # off the flight's foot: beyond the drop gap
             if one.is_tread:  # two treads ahead is the landing (or the floor)
-                return self._checked(f, one.x1_m + _MARGIN_M, exact=True)
-            return self._checked(f, one.x0_m + run + _MARGIN_M, exact=True)
+                return self._checked(f, one.x1_m + _MARGIN_M, exact=not down)
+            return self._checked(f, one.x0_m + run + _MARGIN_M, exact=not down)
         first = next(i for i in range(f.segment + 1, len(segs)) if segs[i].is_tread)
         t1 = self._range(segs[first])[0]
         t2 = self._range(segs[first + 1])[0] if segs[first + 1].is_tread else None
+        if segs[first].z0_m < cur.z0_m:  # a flight down: land on its 2nd tread
+            t2 = segs[first + 1].x0_m + _DESCENT_HEEL_M if segs[first + 1].is_tread else None
+            t1 = segs[first].x0_m + _DESCENT_HEEL_M
         if t2 is not None and 0.45 <= t2 - x <= 1.0:
             return t2
         if 0.45 <= t1 - x <= 1.0:

@@ -124,9 +124,9 @@ GAIT: dict[str, Gait] = {
     "stairs_down": Gait(
         1.15,
         (-0.12, 0.0),
-        ((0.0, 12.0), (0.25, 20.0), (0.6, 45.0), (1.0, 78.0)),
+        ((0.0, 12.0), (0.25, 20.0), (0.6, 38.0), (1.0, 55.0)),
         0.0,
-        15.0,
+        0.0,  # the toe overhangs the nosing: the foot leaves flat
         0.05,
         0.60,
         0.12,
@@ -385,6 +385,10 @@ class TerrainMotion(ThighMotion):
             + (-4 * s3 + 7 * s4 - 3 * s5) * v1 + 0.5 * (s3 - 2 * s4 + s5) * c1
         )  # fmt: skip
         out = self._hip(t0 + sc[:, 0] * T) + rel
+        drop = self.footholds[k].heel_z_m - self.footholds[k + 1].heel_z_m
+        if drop > 0.05 and self.labels[k] == "stairs_down":  # over the nosing, then down
+            w = smoothstep((sc[:, 0] - 0.45) / 0.3)
+            out[:, 0] += (a1[0] - out[:, 0]) * w
         hip_rise = self._swing_ends[k][2]  # the hip's rise in our swing does not lift the foot
         out[:, 1] += (lift - HIP_RISE_SHARE * hip_rise) * bump(sc[:, 0])
         return out
