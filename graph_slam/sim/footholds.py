@@ -8,7 +8,8 @@ kink. The planner walks forward at the speed's stride length and adapts:
 
 * a flight of stairs (treads shorter than 0.5 m) is taken step over step: the foot lands on
   every second tread, the first one being the 1st or 2nd tread so that the approach stride is
-  plausible (≤ 1 m);
+  plausible (≤ 1 m); going down, the heel lands 6 cm onto the tread and the toe overhangs
+  the nosing (the one exception to the whole foot on one segment);
 * an obstacle too small to stand on is stepped over by the prosthetic foot: the stride before
   it ends with the toe 0.30 m before the obstacle, the next one lands 0.25 m after it;
 * a box marked ``step_on`` is stepped onto when it is in reach;
