@@ -6,22 +6,21 @@ pose, joint angles, events, IMU) but plans where the foot lands
 the level-walking curves:
 
 * **Stance (strike → toe-off): the foot is pinned on its foothold.** Its pitch relative to the
-  surface rolls over the heel (toe up ``heel_rocker_deg`` at the strike, level and stairs
-  down... see :data:`GAIT`), lies flat on the tread or slope, then rolls over the toe up to
-  toe-off. Each roll is a quintic smoothstep, so the ankle point is C2 and at rest at the
-  strike and at toe-off. The pivot (heel, then toe) does not move at all.
-* **Hip path**: a C2 cubic spline in x and z through a posture per strike (the hip behind and
-  above the landing foot's ankle, per activity: low and close on a stair ascent, high and
-  further back on level ground) and one at mid-stance; lateral placement, swing roll, yaw and
-  pelvis sway as in the level walker (only in swing; stance stays exactly sagittal).
-* **Swing (toe-off → strike)**: the ankle moves from where the stance left it to where the
-  next one starts: forward along a delayed smoothstep (the foot lifts before it moves on),
-  up or down along a smoothstep (early for a rise, late for a drop) plus a lift
-  ``c · 64 s³(1-s)³``; ``c`` is raised until every convex edge the swing passes over (stair
-  nosings, a box's or a curb's edge, a ramp's top) is cleared by the sole by at least
-  ``clearance_m``, and the foot is nowhere below the surface. The ankle angle blends from its
-  toe-off value to its strike value (cubic Hermite on the angle and its rate).
-* **Joint angles** by two-link IK of thigh and shank from the hip and the ankle; the ankle
+  surface rolls over the heel, lies flat on the tread or slope, then rolls over the toe up to
+  toe-off (quintic smoothsteps: the ankle point is C2 and at rest at the strike and at
+  toe-off); the pivot (heel, then toe) does not move at all. The hip's height is the leg's
+  length at a target knee flexion over the ankle (the level curve, Schwartz 2008, or the
+  activity's knots, :mod:`graph_slam.sim.gaits`); its x a C2 spline through one posture per
+  strike.
+* **Swing (toe-off → strike)**: the hip's height bridges the two stances (quintic Hermite,
+  C2) and rises to the mean of their apexes (the other leg's mid-stance); the ankle moves
+  relative to the hip on a quintic Hermite from rest to rest in the world, follows 30 % of
+  that rise, and is lifted by ``c · 64 s³(1-s)³``; ``c`` is raised until every convex edge
+  the swing passes over (nosings, box and curb edges, a ramp's top) is cleared by the sole by
+  ``clearance_m`` and the foot touches no surface. Going down stairs the forward motion ends
+  at 75 % of the swing (over the nosing, then straight down). The ankle angle blends between
+  its toe-off and strike values (quintic Hermite on angle, rate and acceleration).
+* **Joint angles** by two-link IK of thigh and shank from the hip to the ankle; the ankle
   angle follows from the foot's pitch. The encoders report these angles, so the leg model's
   forward kinematics from the pinned foot reproduces the camera pose exactly.
 
@@ -32,7 +31,6 @@ here is designed instead. Simplifications are listed in docs/simulator.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -46,6 +44,7 @@ from graph_slam.sim.footholds import (
     crossed_edges,
     stride_label,
 )
+from graph_slam.sim.gaits import GAIT
 from graph_slam.sim.motion import ThighMotion, _rot_x, _rot_y, _rot_z, bump, smoothstep
 from graph_slam.sim.surface import Surfaces
 from kinematics import gait_curves
@@ -60,119 +59,6 @@ THIGH_RANGE_RAD = (math.radians(-45.0), math.radians(95.0))
 HIP_RISE_SHARE = 0.7
 #: Edges this close to the foothold left or landed on are not held to the clearance margin.
 EDGE_KEEPOUT_M = 0.03
-
-
-@dataclass(frozen=True)
-class Gait:
-    """Per-activity shape of a stride (distances in m relative to the flat foot's ankle)."""
-
-    time_factor: float  # stride time / level stride time at the speed
-    hip_strike_xz: tuple[float, float]  # hip − ankle at the strike of a foot that lands here
-    knee_deg: tuple[tuple[float, float], ...]  # stance knee flexion knots (stance fraction, deg);
-    # () = the level-walking curve (Schwartz 2008) at the speed
-    heel_rocker_deg: float  # toe-up pitch at the strike (pivot on the heel)
-    toe_rocker_deg: float  # heel-up pitch at toe-off (pivot on the toe)
-    flat_from: float  # stance fraction where the heel rocker ends
-    toe_from: float  # stance fraction where the toe rocker starts
-    lift_m: float  # minimum swing lift amplitude
-    delay: float  # swing fraction before the foot moves forward (and after it arrives)
-    swing_warp: float = 2.5  # > 1: the foot moves forward early in swing
-    back_per_stride: float = 0.0  # > 0: the hip is this × the arriving stride behind the ankle
-    knee_extra_deg: tuple[float, float] = (0.0, 0.0)  # added to the level curve: at the
-    # strike (fading by 60 % of stance) and at mid-stance (a bump)
-
-
-GAIT: dict[str, Gait] = {
-    "level": Gait(1.0, (0.0, 0.0), (), 12.0, 30.0, 0.20, 0.55, 0.03, 0.0, back_per_stride=0.25),
-    "ramp_up": Gait(
-        1.05,
-        (0.0, 0.0),
-        (),
-        14.0,
-        28.0,
-        0.20,
-        0.55,
-        0.04,
-        0.0,
-        back_per_stride=0.25,
-        knee_extra_deg=(10.0, 0.0),
-    ),
-    "ramp_down": Gait(
-        1.05,
-        (0.0, 0.0),
-        (),
-        10.0,
-        28.0,
-        0.20,
-        0.55,
-        0.03,
-        0.0,
-        back_per_stride=0.25,
-        knee_extra_deg=(0.0, 12.0),
-    ),
-    "stairs_up": Gait(
-        1.25,
-        (-0.25, 0.0),
-        ((0.0, 58.0), (0.35, 30.0), (0.7, 10.0), (1.0, 22.0)),
-        0.0,
-        18.0,
-        0.05,
-        0.60,
-        0.20,
-        0.22,
-    ),
-    "stairs_down": Gait(
-        1.15,
-        (-0.12, 0.0),
-        ((0.0, 12.0), (0.25, 20.0), (0.6, 38.0), (1.0, 55.0)),
-        0.0,
-        0.0,  # the toe overhangs the nosing: the foot leaves flat
-        0.05,
-        0.60,
-        0.12,
-        0.22,
-    ),
-    "curb_up": Gait(
-        1.1,
-        (0.0, 0.0),
-        (),
-        6.0,
-        25.0,
-        0.15,
-        0.55,
-        0.06,
-        0.0,
-        back_per_stride=0.22,
-        knee_extra_deg=(25.0, 0.0),
-    ),
-    "curb_down": Gait(
-        1.1,
-        (0.0, 0.0),
-        (),
-        6.0,
-        25.0,
-        0.15,
-        0.55,
-        0.03,
-        0.0,
-        back_per_stride=0.22,
-        knee_extra_deg=(0.0, 15.0),
-    ),
-    "step_over": Gait(1.1, (0.0, 0.0), (), 12.0, 30.0, 0.20, 0.55, 0.06, 0.0, back_per_stride=0.25),
-    "step_onto": Gait(
-        1.1,
-        (0.0, 0.0),
-        (),
-        6.0,
-        25.0,
-        0.15,
-        0.55,
-        0.06,
-        0.0,
-        back_per_stride=0.22,
-        knee_extra_deg=(25.0, 0.0),
-    ),
-}
 
 
 def _rot2(a):
@@ -281,7 +167,7 @@ class TerrainMotion(ThighMotion):
         t, x = [], []
         for k in range(len(self.footholds)):
             g = self._arrive[k]
-            back = g.hip_strike_xz[0]
+            back = g.hip_back_m
             if g.back_per_stride > 0.0:
                 prev = self.footholds[max(k - 1, 0)].heel_x_m
                 stride = self.footholds[k].heel_x_m - prev if k > 0 else self._level_stride_m
@@ -500,21 +386,11 @@ class TerrainMotion(ThighMotion):
                        self._strike_u.size - 2)  # fmt: skip
 
     def _sagittal(self, u: np.ndarray):
-        """Hip (n, 2), ankle (n, 2), foot pitch, thigh, knee at model times ``u``."""
+        """Hip (n, 2), ankle (n, 2), foot pitch, thigh, knee, stride index and stance flag at
+        model times ``u``."""
         k = self._index(u)
         stance = u < self._toe_off_u[k]
-        ankle = np.zeros((u.size, 2))
-        gamma = np.zeros(u.size)
-        hip = self._hip(u)
-        for kk in np.unique(k):
-            sel = k == kk
-            st, sw = sel & stance, sel & ~stance
-            if st.any():
-                tau = (u[st] - self._strike_u[kk]) / (self._toe_off_u[kk] - self._strike_u[kk])
-                ankle[st], gamma[st], _ = self._stance_foot(kk, tau)
-            if sw.any():
-                s = (u[sw] - self._toe_off_u[kk]) / (self._strike_u[kk + 1] - self._toe_off_u[kk])
-                ankle[sw] = self._swing_ankle(kk, s, self._lift[kk])
+        hip, ankle, gamma = self._hip_and_ankle(u, k, stance)
         thigh, knee = _ik(hip, ankle, self.leg)
         for kk in np.unique(k):
             sw = (k == kk) & ~stance
@@ -524,7 +400,8 @@ class TerrainMotion(ThighMotion):
 
     def _check_reach(self) -> None:
         u = np.arange(self.u0, self.u0 + self.duration_s, 1e-3)
-        hip, ankle, *_ = self._sagittal_unchecked(u)
+        k = self._index(u)
+        hip, ankle, _ = self._hip_and_ankle(u, k, u < self._toe_off_u[k])
         reach = np.linalg.norm(hip - ankle, axis=1) / (
             self.leg.thigh_length_m + self.leg.shank_length_m
         )
@@ -545,20 +422,20 @@ class TerrainMotion(ThighMotion):
                 f"(stride {k}, {self.labels[k]})"
             )
 
-    def _sagittal_unchecked(self, u):
-        k = self._index(u)
-        stance = u < self._toe_off_u[k]
+    def _hip_and_ankle(self, u: np.ndarray, k: np.ndarray, stance: np.ndarray):
+        """Hip (n, 2), ankle (n, 2) and the stance foot's pitch (0 in swing) at ``u``."""
         ankle = np.zeros((u.size, 2))
+        gamma = np.zeros(u.size)
         for kk in np.unique(k):
             sel = k == kk
             st, sw = sel & stance, sel & ~stance
             if st.any():
                 tau = (u[st] - self._strike_u[kk]) / (self._toe_off_u[kk] - self._strike_u[kk])
-                ankle[st] = self._stance_foot(kk, tau)[0]
+                ankle[st], gamma[st], _ = self._stance_foot(kk, tau)
             if sw.any():
                 s = (u[sw] - self._toe_off_u[kk]) / (self._strike_u[kk + 1] - self._toe_off_u[kk])
                 ankle[sw] = self._swing_ankle(kk, s, self._lift[kk])
-        return self._hip(u), ankle
+        return self._hip(u), ankle, gamma
 
     def _model_time(self, t_s) -> np.ndarray:
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
