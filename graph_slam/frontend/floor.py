@@ -82,12 +82,6 @@ class FloorConfig(ConfigModel):
     level_gate_sigmas: float = Field(
         3.0, gt=0, description="a plane is level when within this many combined σ of up"
     )
-    anchor_min_extent_m: float = Field(
-        0.1,
-        gt=0,
-        description="the stride anchor accepts planes this small (a stair tread's 2σ spread "
-        "is ~0.11 m; the plane's σ grows as its extent shrinks); min_extent_m elsewhere",
-    )
     level_gate_min_rad: float = Field(
         math.radians(2.0),
         ge=0,

@@ -115,10 +115,7 @@ class StrideAnchor:
         level_gate = cfg.max_angle_rad + 3.0 * sigma_imu
         search = level_gate if cfg.assume_level else max(level_gate, cfg.slope_search_rad)
         hint = self.camera_T_imu[:3, :3] @ up
-        fit_cfg = cfg
-        if not cfg.assume_level and cfg.anchor_min_extent_m < cfg.min_extent_m:
-            fit_cfg = cfg.model_copy(update={"min_extent_m": cfg.anchor_min_extent_m})
-        fit = fit_floor(points_m, hint, fit_cfg, max_angle_rad=search)
+        fit = fit_floor(points_m, hint, cfg, max_angle_rad=search)
         if not fit.ok:
             log.info("t=%.3f s: no floor for the anchor (%s)", t_s, fit.reason)
             return AnchorUp(t_s, up, sigma, "imu", fit=fit)
