@@ -139,3 +139,11 @@ def test_demo_strides_option_is_checked(tmp_path: Path, capsys) -> None:
     err = capsys.readouterr().err
     assert "--strides" in err and "1,0" in err
     assert not (tmp_path / "d").exists()  # checked before anything is simulated
+
+
+def test_demo_course_option_is_checked(tmp_path: Path, capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["demo", "--out", str(tmp_path / "d"), "--course", "hills"])
+    assert exc.value.code == 2
+    assert "--course" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()

@@ -59,6 +59,7 @@ class StrideSLAM:
         self.strides = make_stride_chain(self.cfg, self.camera_T_imu, self.imu)
         self.results: Results = self.strides.results
         self._strike_up: StrikeUp | None = None
+        self._contact_slope_rad = 0.0
         self._last_frame_t = -np.inf
 
     # ------------------------------------------------------------------ inputs
@@ -76,6 +77,7 @@ class StrideSLAM:
         up_in_imu: np.ndarray | None = None,
         up_sigma_rad: float | None = None,
         up_t_s: float | None = None,
+        contact_slope_rad: float = 0.0,
     ) -> StrideSummary | None:
         """A foot strike: close the current stride (smoothing); the next frame starts a new one.
 
@@ -84,8 +86,11 @@ class StrideSLAM:
         default: the accelerometer mean before that frame (biased by the swing leg's
         deceleration). ``up_sigma_rad``: that direction's σ; given, the anchor's covariance is
         :func:`graph_slam.strides.kinematics.anchor_covariance` (docs/backend.md).
+        ``contact_slope_rad``: the ground's pitch along the heading under the new foot (+
+        rising ahead; 0: level), where the stance contact factors put the toe.
         """
         self._strike_up = StrikeUp.checked(t_s, up_in_imu, up_sigma_rad, up_t_s)
+        self._contact_slope_rad = float(contact_slope_rad) if np.isfinite(contact_slope_rad) else 0.0
         return self.strides.foot_strike()
 
     def finish(self) -> Results:
@@ -159,7 +164,7 @@ class StrideSLAM:
         """A stride's first frame: its anchor and priors; no ICP across the strike."""
         anchor = kinematics if kinematics is not None else self._anchor(t_s)
         flags = self.strides.start(t_s, anchor, foot_loaded)
-        self.stance.start_stride()
+        self.stance.start_stride(self._contact_slope_rad)
         self.registration.start_stride()
         self._strike_up = None
         gate = None

@@ -6,7 +6,8 @@ Two strategies, chosen by :func:`make_stance_model` from ``kinematics.stance_mod
   heel, lies flat, then rolls over its toe, so a *point* stays put, not the foot's
   orientation. Heel at the stride origin until heel-off, toe at its foot-flat position
   (level ground) while the foot is not pitched toe-up; each a 3-D contact-point factor. The
-  foot pitch comes from the predicted IMU orientation and the encoders: below
+  foot pitch (against the ground's slope under the foot, given at the strike; 0: level)
+  comes from the predicted IMU orientation and the encoders: below
   ``-contact_pitch_rad`` the heel has lifted, for the rest of the stride (the state machine:
   :attr:`ContactPointStance.heel_off`). A point farther than ``max_mahalanobis`` from the
   prediction (its σ combined with the predicted covariance) is not added
@@ -47,7 +48,7 @@ class FootPoseStance:
         self.leg = leg
         self.camera_T_imu = np.asarray(camera_T_imu, float)
 
-    def start_stride(self) -> None:
+    def start_stride(self, contact_slope_rad: float = 0.0) -> None:
         """Nothing per stride: the struck foot is the leg kinematics' last anchor."""
 
     def factors(
@@ -97,9 +98,12 @@ class ContactPointStance:
         self.leg = leg
         self.measured = measured
         self.heel_off = False
+        self.slope_rad = 0.0
 
-    def start_stride(self) -> None:
+    def start_stride(self, contact_slope_rad: float = 0.0) -> None:
+        """A new stance on ground pitched ``contact_slope_rad`` along the heading (+ up)."""
         self.heel_off = False
+        self.slope_rad = float(contact_slope_rad)
 
     def factors(
         self,
@@ -145,7 +149,7 @@ class ContactPointStance:
         pitch ``stride_R_imu · imu_R_foot``; updates :attr:`heel_off`."""
         imu_T_foot = geometry.imu_T_foot
         x = (stride_R_imu @ imu_T_foot[:3, :3])[:, 0]
-        pitch = float(np.arctan2(x[2], np.hypot(x[0], x[1])))
+        pitch = float(np.arctan2(x[2], np.hypot(x[0], x[1]))) - self.slope_rad  # vs the ground
         if pitch < -self.cfg.contact_pitch_rad:
             self.heel_off = True
         points = []
@@ -153,7 +157,9 @@ class ContactPointStance:
             points.append(("heel", imu_T_foot[:3, 3], np.zeros(3)))
         if pitch < self.cfg.contact_pitch_rad:
             toe = imu_T_foot[:3, :3] @ geometry.foot_p_toe + imu_T_foot[:3, 3]
-            points.append(("toe", toe, geometry.foot_p_toe))
+            c, s = np.cos(self.slope_rad), np.sin(self.slope_rad)  # the foot flat on the slope
+            ground_R_foot = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+            points.append(("toe", toe, ground_R_foot @ geometry.foot_p_toe))
         return points
 
     def distance(self, stride_T_imu, imu_p, stride_p, cov_pred: np.ndarray | None) -> float:

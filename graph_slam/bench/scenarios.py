@@ -41,6 +41,15 @@ SCENARIOS: tuple[Scenario, ...] = (
     # every sensor's noise σ doubled: depth, IMU, encoders and load cell
     Scenario("boxes-noise-x2", "thesis-boxes", sim={"noise_scale": 2.0}),
     Scenario("stairs-up", "stairs-up"),
+    # the terrain-following walker: on the stairs, ramps, curbs and boxes (docs/simulator.md)
+    Scenario("stairs-ascent", "stairs-ascent"),
+    Scenario("stairs-descent", "stairs-descent"),
+    *(Scenario(f"ramp-{d}-{a}", f"ramp-{d}-{a}") for d in ("up", "down") for a in (5, 8, 10)),
+    Scenario("curb-up", "curb-up"),
+    Scenario("curb-down", "curb-down"),
+    Scenario("step-over", "step-over"),
+    Scenario("step-onto", "step-onto"),
+    Scenario("terrain-course", "terrain-course"),
 )
 
 

@@ -400,3 +400,48 @@ def terrain_bench(
         figures = [r.figures() for r in results + pooled]
         out.write_text(json.dumps(figures, indent=1, default=float))
         typer.echo(f"wrote {out}")
+
+
+@bench_app.command("terrain-walk")
+def terrain_walk_bench(
+    scenes: Annotated[
+        str,
+        typer.Option(help="Comma-separated scenes of the terrain-following walker."),
+    ] = "stairs-ascent,ramp-up-8,ramp-down-8,curb-up,step-over,terrain-course",
+    speeds: Annotated[str, typer.Option(help="Comma-separated: slow,normal,fast.")] = "normal",
+    strides: Annotated[int, typer.Option(help="Strides simulated per session.")] = 2,
+    resolution: Annotated[str, typer.Option(help="Image size WxH.")] = "424x240",
+    preset: Annotated[str, typer.Option(help="Pipeline preset ('' for the defaults).")] = (
+        "realtime"
+    ),
+    seed: Annotated[int, typer.Option(help="Simulator seed.")] = 3,
+    angles: Annotated[
+        bool,
+        typer.Option(
+            "--angles", help="Only the walker's joint-angle peaks per terrain (no rendering)."
+        ),
+    ] = False,
+) -> None:
+    """The full graph on the terrain walker's scenes (stairs, ramps, curbs, boxes): per-stride
+    RMSE beside level walking, the anchor's tilt error with the level-ground anchor beside it,
+    the anchor's case and slope, every frame posed (docs/benchmarks.md)."""
+    from graph_slam.bench import terrain_walk as tw
+    from graph_slam.sim import SPEEDS_M_S
+
+    names = [s.strip() for s in scenes.split(",") if s.strip()]
+    chosen = [v.strip() for v in speeds.split(",") if v.strip()]
+    if unknown := [v for v in chosen if v not in SPEEDS_M_S]:
+        raise typer.BadParameter(f"unknown speeds {unknown}; choose from slow, normal, fast")
+    if angles:
+        for line in tw.angle_lines(names, chosen, max(strides, 4), seed):
+            typer.echo(line)
+        return
+    runs = tw.run_terrain_bench(
+        names, chosen, strides, resolution, preset or None, seed, progress=typer.echo
+    )
+    typer.echo(
+        "== summary (median per stride, each session's first stride left out; × level: over "
+        "flat-floor at the same speed)"
+    )
+    for line in tw.summary_lines(runs):
+        typer.echo(line)

@@ -200,6 +200,13 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         seed: Annotated[int, typer.Option(help="Simulator seed.")] = 1,
+        course: Annotated[
+            str,
+            typer.Option(
+                help="boxes (the thesis box course, walked beside) or terrain (level, an 8° "
+                "ramp up, a platform, 4 steps up and a landing: the terrain-course scene)."
+            ),
+        ] = "boxes",
         config: options.Config = None,
         overwrite: options.Overwrite = False,
         workers: Annotated[
@@ -224,6 +231,9 @@ def register(app: typer.Typer) -> None:
         from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
         t0 = time.perf_counter()
+        courses = {"boxes": "thesis-boxes", "terrain": "terrain-course"}
+        if course not in courses:
+            raise typer.BadParameter(f"--course {course!r}: choose boxes or terrain")
         counts = _demo_strides(strides, strides_scale)
         size = _demo_resolution(resolution, full_resolution)
         cfg = _load_compare_config(config, variants, preset, baseline_pixel_step, map_files)
@@ -232,7 +242,7 @@ def register(app: typer.Typer) -> None:
             config_from_dict(
                 SimConfig,
                 dict(
-                    scene="thesis-boxes",
+                    scene=courses[course],
                     speed_m_s=SPEEDS_M_S[speed],
                     strides=n_strides,
                     seed=seed,

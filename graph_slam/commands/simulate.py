@@ -8,6 +8,18 @@ from typing import Annotated
 import typer
 
 
+def _scene_names() -> str:
+    """The shipped scenes, for --help (a glob of models/scenes; no heavy import)."""
+    try:
+        from graph_slam_models import MODELS_DIR
+    except ImportError:  # pragma: no cover - the models package ships with graph_slam
+        return "see docs/simulator.md"
+    return ", ".join(sorted(p.stem for p in (MODELS_DIR / "scenes").glob("*.yaml")))
+
+
+_SCENES = _scene_names()
+
+
 def parse_speed(text: str) -> float:
     """``slow`` / ``normal`` / ``fast`` (the thesis's speeds) or a number in m/s."""
     from graph_slam.errors import ConfigError
@@ -34,9 +46,9 @@ def register(app: typer.Typer) -> None:
                 "--out", help="Session folder to write (with --export: the recording's folder)."
             ),
         ],
-        scene: Annotated[str, typer.Option(help="models/scenes/<name>.yaml or a path.")] = (
-            "thesis-boxes"
-        ),
+        scene: Annotated[
+            str, typer.Option(help=f"models/scenes/<name>.yaml or a path: {_SCENES}.")
+        ] = "thesis-boxes",
         speed: Annotated[
             str, typer.Option(help="slow (0.8), normal (1.1), fast (1.4) or m/s.")
         ] = "normal",

@@ -15,12 +15,14 @@ Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN
                         "partial": int},
              "trajectory": null | {"n_frames", "n_evaluated", "rmse_unaligned_m", "rmse_aligned_m",
                                    "rmse_by_phase_m": {"stance"|"swing": {"unaligned", "aligned", "n"}},
-                                   "rpe_rmse_m"}}
+                                   "rpe_rmse_m"},
+             "terrain"?: str, "anchor"?: str, "slope_deg"?: float}
           ],
           "summary": {"strides": int, "frames_recorded": int, "frames_registered": int,
                       "frames_bridged": int, "frames_partial": int,
                       "rmse_unaligned_m": {"mean", "median", "max"},
-                      "rmse_aligned_m": {"mean", "median", "max"}},
+                      "rmse_aligned_m": {"mean", "median", "max"},
+                      "by_terrain"?: {"<label>": {"strides", "rmse_unaligned_m", "rmse_aligned_m"}}},
           "timing": null | {"n", "median_s", "p95_s", "mean_s", "max_s"},
           "obstacles": {"<box>": {"depth"|"width"|"height": {"n", "truth_m", "mean_m", "std_m", "rmse_m"}}}
         }
@@ -72,6 +74,10 @@ Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN
       }
     }
 
+Keys with ``?`` are written only when known: ``terrain`` (the stance foot's terrain, from a
+simulated session's ``strides_truth.csv``) and ``by_terrain``; ``anchor`` and ``slope_deg``
+(the stride anchor's case and measured slope, graph variants).
+
 Version 1 (before the completeness filter) had no ``maps`` and measured every box, whole or
 not; version 2 had no ``terrain_deadlines`` (when the online map knew each obstacle of a
 stride's final map, relative to toe-off: :mod:`graph_slam.evaluation.terrain_deadline`);
@@ -85,7 +91,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -112,15 +118,26 @@ class StrideEvaluation:
     """Stride number within its speed group (thesis Table 4.2's 'Stride #')."""
     frames: FrameCounts
     trajectory: StrideTrajectoryMetrics | None
+    terrain: str | None = None
+    """The terrain under the stance foot (a simulated session's ``strides_truth.csv``:
+    level, stairs_up, ramp_down, ...); None when the session does not say."""
+    anchor: dict | None = None
+    """The stride anchor's case and slope (``{"anchor": ..., "slope_deg": ...}``, graph
+    variants)."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "index": self.index,
             "speed": self.speed,
             "number": self.number,
             "frames": self.frames.to_dict(),
             "trajectory": None if self.trajectory is None else self.trajectory.to_dict(),
         }
+        if self.terrain is not None:
+            out["terrain"] = self.terrain
+        if self.anchor:
+            out.update(self.anchor)
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,7 +161,7 @@ class VariantEvaluation:
                 "max": float(values.max()),
             }
 
-        return {
+        out = {
             "strides": len(self.strides),
             "frames_recorded": sum(s.frames.recorded for s in self.strides),
             "frames_registered": sum(s.frames.registered for s in self.strides),
@@ -153,6 +170,25 @@ class VariantEvaluation:
             "rmse_unaligned_m": stats("rmse_unaligned_m"),
             "rmse_aligned_m": stats("rmse_aligned_m"),
         }
+        if any(s.terrain is not None for s in self.strides):
+            out["by_terrain"] = self.by_terrain()
+        return out
+
+    def by_terrain(self) -> dict[str, dict[str, Any]]:
+        """Per terrain label (strides that carry one): stride count and RMSE statistics."""
+        out: dict[str, dict[str, Any]] = {}
+        labels = sorted({s.terrain for s in self.strides if s.terrain is not None})
+        for label in labels:
+            group = VariantEvaluation(
+                [replace(s, terrain=None) for s in self.strides if s.terrain == label]
+            )
+            full = group.summary()
+            out[label] = {
+                "strides": full["strides"],
+                "rmse_unaligned_m": full["rmse_unaligned_m"],
+                "rmse_aligned_m": full["rmse_aligned_m"],
+            }
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         return {

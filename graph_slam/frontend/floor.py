@@ -67,6 +67,26 @@ class FloorConfig(ConfigModel):
         "statistical σ from the fit is usually far smaller",
     )
     seed: int = Field(0, ge=0, description="RANSAC random generator seed")
+    assume_level: bool = Field(
+        False,
+        description="the level-ground anchor: fuse any plane within max_angle_rad (+3σ of "
+        "the IMU's up) as if the ground were level; false: fuse only a plane consistent with "
+        "level (graph_slam.strides.anchor), keep the IMU's up and record the slope otherwise",
+    )
+    slope_search_rad: float = Field(
+        math.radians(15.0),
+        gt=0,
+        le=math.pi / 2,
+        description="the plane is searched this far from the IMU's up (its slope is recorded)",
+    )
+    level_gate_sigmas: float = Field(
+        3.0, gt=0, description="a plane is level when within this many combined σ of up"
+    )
+    level_gate_min_rad: float = Field(
+        math.radians(2.0),
+        ge=0,
+        description="the level gate is never tighter than this (the IMU's σ is a model)",
+    )
 
 
 @dataclass(frozen=True)

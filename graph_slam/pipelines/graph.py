@@ -24,6 +24,7 @@ from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOut
 from graph_slam.pipelines.stages import StageTimer
 from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+from graph_slam.strides.anchor import make_anchor
 
 log = logging.getLogger(__name__)
 
@@ -118,6 +119,7 @@ class GraphPipeline(PipelineBase):
         self._uncoloured: set[int] = set()
         self.imu_guess = imu_guess_on(config, self.registration)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
+        self.anchor = make_anchor(config, self.camera_T_imu, self.gravity)
         self.keys = Keyframes(config.graph.keyframe)
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
@@ -138,40 +140,23 @@ class GraphPipeline(PipelineBase):
         self.gravity.foot_strike(self._pending_strike)
 
     def _strike_with_up(self, t_frame_s: float, cloud, stages: dict):
-        """Close the stride at the pending strike. The new anchor's up vector (IMU frame at the
-        new stride's first frame): the gyro-rotated accelerometer mean over about one stride
-        (:class:`graph_slam.strides.gravity.GravityEstimator`), fused with the floor plane in
-        this frame's depth when one lies near it (:mod:`graph_slam.frontend.floor`). Returns
-        the floor fit (None: not tried — no IMU up vector, no depth or the floor disabled)."""
-        from graph_slam.frontend.floor import fit_floor, fuse_up
-
+        """Close the stride at the pending strike with the new anchor's up vector and contact
+        slope (:class:`graph_slam.strides.anchor.StrideAnchor`: the IMU's up, fused with the
+        plane in this frame's depth only where that plane is level). Returns the anchor."""
         t_strike, self._pending_strike = self._pending_strike, None
-        window = self.gravity.window_before(t_strike)
-        up = self.gravity.up_at(t_frame_s, window)
-        sigma = None
-        if (
-            up is not None
-            and self.cfg.gravity_sigma_rad is not None
-            and min(window, self.gravity.history_s(t_frame_s)) >= self.cfg.gravity_min_window_s
-        ):
-            sigma = self.cfg.gravity_sigma_rad
-        fcfg = self.cfg.graph.floor
-        fit = None
-        if up is not None and cloud is not None and fcfg.enabled:
-            sigma_imu = sigma if sigma is not None else self.cfg.gravity_short_sigma_rad
-            hint = self.camera_T_imu[:3, :3] @ up  # camera frame
-            fit = fit_floor(
-                cloud.points_m, hint, fcfg, max_angle_rad=fcfg.max_angle_rad + 3.0 * sigma_imu
-            )
-            if fit.ok:
-                n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
-                up, sigma = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
-            else:
-                log.info("t=%.3f s: no floor for the anchor (%s)", t_frame_s, fit.reason)
+        anchor = self.anchor.at_strike(
+            t_strike, t_frame_s, None if cloud is None else cloud.points_m
+        )
         t_close = time.perf_counter()
-        self.slam.foot_strike(t_strike, up_in_imu=up, up_sigma_rad=sigma, up_t_s=t_frame_s)
+        self.slam.foot_strike(
+            t_strike,
+            up_in_imu=anchor.up_in_imu,
+            up_sigma_rad=anchor.sigma_rad,
+            up_t_s=t_frame_s,
+            contact_slope_rad=anchor.contact_slope_rad,
+        )
         stages["stride_close"] = time.perf_counter() - t_close  # smoothing of the last stride
-        return fit
+        return anchor
 
     def _guess(self, t_s: float) -> np.ndarray:
         """Initial ``prev_T_current``: the IMU's prediction (``graph.imu_guess``; by default
@@ -255,10 +240,9 @@ class GraphPipeline(PipelineBase):
         if self._pending_strike is not None:
             cloud = None if prepared is None else prepared.cloud
             with timer("floor"):
-                fit = self._strike_with_up(frame.t_s, cloud, timer.stages_s)
+                anchor = self._strike_with_up(frame.t_s, cloud, timer.stages_s)
             timer.exclude("floor", "stride_close")
-            if fit is not None:
-                floor_flag = (f"floor:{fit.reason}",)
+            floor_flag = anchor.flags
         frontend_s = timer.total_s
         with timer("graph"):  # a missed strike's smoothing included
             est = self.slam.add_frame(frame.t_s, icp=icp, foot_loaded=foot_loaded)

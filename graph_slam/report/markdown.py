@@ -36,6 +36,27 @@ def summary_table(report) -> str:
     return _phase_table(report.variants)
 
 
+def terrain_section(variants: dict) -> list[str]:
+    """Per variant and terrain label (strides on simulated terrain): median RMSE (mm)."""
+    if not any(s.terrain is not None for v in variants.values() for s in v.strides):
+        return []
+    lines = [
+        "## By terrain (the stance foot's terrain, from the simulator's truth)",
+        "",
+        "| variant | terrain | strides | RMSE unaligned median (mm) | aligned median (mm) |",
+        "| :-- | :-- | --: | --: | --: |",
+    ]
+    for name, v in variants.items():
+        for label, g in v.by_terrain().items():
+            un, al = g["rmse_unaligned_m"]["median"], g["rmse_aligned_m"]["median"]
+            lines.append(
+                f"| {name} | {label} | {g['strides']} | "
+                + " | ".join("–" if not np.isfinite(x) else f"{x * 1e3:.1f}" for x in (un, al))
+                + " |"
+            )
+    return [*lines, ""]
+
+
 def _warnings_section(report) -> list[str]:
     """Caveats that apply to the numbers below (also ``warnings`` in metrics.json)."""
     warnings = report.warnings
@@ -203,6 +224,7 @@ def report_markdown(report, cfg) -> str:
             report.table_4_2_smoothed,
         ]
     lines += ["## Summary", "", summary_table(report)]
+    lines += terrain_section(report.variants)
     lines += [
         "## Table 4.1 — obstacle dimensions (mm)",
         "",

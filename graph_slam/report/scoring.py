@@ -153,9 +153,35 @@ def _trajectory(ref: StrideReference, poses: np.ndarray):
     )
 
 
+def anchor_of(flags) -> dict:
+    from graph_slam.report.summary import anchor_of as _anchor_of
+
+    return _anchor_of(flags)
+
+
+def terrain_labels(run: SessionRun) -> list[str | None]:
+    """Per reference stride, the terrain under the stance foot from the session's
+    ``strides_truth.csv`` (the simulator's terrain walker writes it; the true stride whose
+    strike is within 0.1 s of the reference's), else None."""
+    from pathlib import Path
+
+    from graph_slam.sim.terrain_truth import STRIDES_NAME, read_stride_terrain
+
+    path = getattr(run.session, "path", None)
+    if path is None or not (Path(path) / STRIDES_NAME).is_file():
+        return [None] * len(run.references)
+    rows = read_stride_terrain(Path(path))
+    out: list[str | None] = []
+    for ref in run.references:
+        near = [r for r in rows if abs(r.strike_t_s - ref.t_strike_s) < 0.1]
+        out.append(near[0].label if near else None)
+    return out
+
+
 def score_session(run: SessionRun) -> dict[RunKey, list[StrideEvaluation]]:
     """Per key (variant and pose kind) and complete stride: frame counts and trajectory."""
     out: dict[RunKey, list[StrideEvaluation]] = {}
+    labels = terrain_labels(run)
     for v, res in run.results.items():
         cats = frame_categories(res)
         kinds = [Kind.ONLINE] + ([] if v.is_baseline else [Kind.SMOOTHED])
@@ -168,6 +194,8 @@ def score_session(run: SessionRun) -> dict[RunKey, list[StrideEvaluation]]:
                     number=k + 1,
                     frames=_counts([cats[i] for i in ref.frame_indices]),
                     trajectory=_trajectory(ref, poses),
+                    terrain=labels[k],
+                    anchor=anchor_of(res.frames[int(ref.frame_indices[0])].flags) or None,
                 )
                 for k, ref in enumerate(run.references)
             ]

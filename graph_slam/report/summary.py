@@ -59,8 +59,21 @@ def stride_counts(results) -> list[dict]:
                 "frames": len(idx),
                 **{c: mine.count(c) for c in ("registered", "partial", "bridged", "other")},
                 "stop_reason": s.stop_reason,
+                **anchor_of(results.frames[idx[0]].flags),
             }
         )
+    return out
+
+
+def anchor_of(flags) -> dict:
+    """The stride anchor's case and measured slope from a stride's first frame's flags
+    (``anchor:<case>``, ``slope_deg:<x>``; graph variants), else nothing."""
+    out: dict = {}
+    for f in flags:
+        if f.startswith("anchor:"):
+            out["anchor"] = f.split(":", 1)[1]
+        elif f.startswith("slope_deg:"):
+            out["slope_deg"] = float(f.split(":", 1)[1])
     return out
 
 

@@ -134,7 +134,49 @@ def _rot_z(a: np.ndarray) -> np.ndarray:
     return r
 
 
-class GaitMotion:
+class ThighMotion:
+    """What every walking motion derives from its thigh pose: sensor frames, IMU, velocity.
+
+    A subclass provides ``world_T_thigh(t_s)`` ((n, 4, 4), C2 in time).
+    """
+
+    def world_T_thigh(self, t_s: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def world_T(self, t_s: np.ndarray, thigh_T_frame: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) pose of a thigh-fixed frame (camera, IMU) given its ``thigh_T_frame``."""
+        return self.world_T_thigh(t_s) @ thigh_T_frame
+
+    def imu_ideal(
+        self, t_s: np.ndarray, thigh_T_imu: np.ndarray, h_s: float = 2e-4
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Noise-free gyro (rad/s) and specific force (m/s²) in the IMU frame at ``t_s``.
+
+        Central differences of the exact pose (step ``h_s``): the motion is C2, so the error
+        is O(h²) (about 1e-6 m/s² here).
+        """
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        stacked = self.world_T(np.concatenate([t - h_s, t, t + h_s]), thigh_T_imu)
+        before, mid, after = np.split(stacked, 3)
+        rel = np.einsum("nji,njk->nik", before[:, :3, :3], after[:, :3, :3])
+        gyro = Rotation.from_matrix(rel).as_rotvec() / (2.0 * h_s)
+        # rotvec of R(t-h)ᵀR(t+h) is in the frame at t-h; rotate it to the frame at t.
+        mid_R = mid[:, :3, :3]
+        gyro = np.einsum("nji,njk,nk->ni", mid_R, before[:, :3, :3], gyro)
+        acc_world = (after[:, :3, 3] - 2.0 * mid[:, :3, 3] + before[:, :3, 3]) / h_s**2
+        specific = acc_world + np.array([0.0, 0.0, GRAVITY_M_S2])
+        accel = np.einsum("nji,nj->ni", mid_R, specific)
+        return gyro, accel
+
+    def velocity_world(self, t_s: np.ndarray, thigh_T_frame: np.ndarray, h_s: float = 2e-4):
+        """(n, 3) world velocity of a thigh-fixed frame's origin."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        a = self.world_T(t + h_s, thigh_T_frame)[:, :3, 3]
+        b = self.world_T(t - h_s, thigh_T_frame)[:, :3, 3]
+        return (a - b) / (2.0 * h_s)
+
+
+class GaitMotion(ThighMotion):
     """The walking motion: thigh pose, joint angles and gait events at any session time.
 
     Session time 0 is ``lead_in_s`` before the first foot strike of the prosthetic leg; the
@@ -353,38 +395,6 @@ class GaitMotion:
         sag_R = thigh[:, :3, :3] @ _rot_y(p_leg.thigh_rad)
         heel[:, :3, 3] = thigh[:, :3, 3] + np.einsum("nij,nj->ni", sag_R, rel)
         return heel
-
-    def world_T(self, t_s: np.ndarray, thigh_T_frame: np.ndarray) -> np.ndarray:
-        """(n, 4, 4) pose of a thigh-fixed frame (camera, IMU) given its ``thigh_T_frame``."""
-        return self.world_T_thigh(t_s) @ thigh_T_frame
-
-    def imu_ideal(
-        self, t_s: np.ndarray, thigh_T_imu: np.ndarray, h_s: float = 2e-4
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Noise-free gyro (rad/s) and specific force (m/s²) in the IMU frame at ``t_s``.
-
-        Central differences of the exact pose (step ``h_s``): the motion is C2, so the error
-        is O(h²) (about 1e-6 m/s² here).
-        """
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        stacked = self.world_T(np.concatenate([t - h_s, t, t + h_s]), thigh_T_imu)
-        before, mid, after = np.split(stacked, 3)
-        rel = np.einsum("nji,njk->nik", before[:, :3, :3], after[:, :3, :3])
-        gyro = Rotation.from_matrix(rel).as_rotvec() / (2.0 * h_s)
-        # rotvec of R(t-h)ᵀR(t+h) is in the frame at t-h; rotate it to the frame at t.
-        mid_R = mid[:, :3, :3]
-        gyro = np.einsum("nji,njk,nk->ni", mid_R, before[:, :3, :3], gyro)
-        acc_world = (after[:, :3, 3] - 2.0 * mid[:, :3, 3] + before[:, :3, 3]) / h_s**2
-        specific = acc_world + np.array([0.0, 0.0, GRAVITY_M_S2])
-        accel = np.einsum("nji,nj->ni", mid_R, specific)
-        return gyro, accel
-
-    def velocity_world(self, t_s: np.ndarray, thigh_T_frame: np.ndarray, h_s: float = 2e-4):
-        """(n, 3) world velocity of a thigh-fixed frame's origin."""
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        a = self.world_T(t + h_s, thigh_T_frame)[:, :3, 3]
-        b = self.world_T(t - h_s, thigh_T_frame)[:, :3, 3]
-        return (a - b) / (2.0 * h_s)
 
     @property
     def mean_speed_m_s(self) -> float:

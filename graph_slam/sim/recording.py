@@ -98,7 +98,7 @@ class Simulation:
     camera: CameraProfile
     imu: ImuProfile
     prosthesis: ProsthesisProfile
-    motion: GaitMotion
+    motion: GaitMotion  # or graph_slam.sim.walker.TerrainMotion (same interface)
     thigh_T_camera: np.ndarray
     thigh_T_imu: np.ndarray
     frame_times_s: np.ndarray
@@ -130,7 +130,14 @@ def prepare(cfg: SimConfig) -> Simulation:
     image_size(camera, cfg.fast, cfg.resolution)  # a wrong size fails before any work
     leg = LegParams(mount_pitch_down_rad=math.radians(cfg.mount_pitch_deg))
     model = LegModel(leg)
-    motion = GaitMotion(cfg.speed_m_s, cfg.strides, cfg.seed, leg, cfg.motion)
+    if scene.spec.walk == "terrain":
+        from graph_slam.sim.walker import TerrainMotion
+
+        motion = TerrainMotion(
+            cfg.speed_m_s, cfg.strides, cfg.seed, scene.surfaces, leg, cfg.motion
+        )
+    else:
+        motion = GaitMotion(cfg.speed_m_s, cfg.strides, cfg.seed, leg, cfg.motion)
     t_frames, _ = frame_schedule(
         motion.duration_s, camera.rate_hz, camera.drops, np.random.default_rng([cfg.seed, _DROPS])
     )
@@ -260,6 +267,10 @@ def simulate(
                 PoseTrajectory(t_hf, motion.world_T(t_hf, sim.thigh_T_camera)), high_rate=True
             )
             writer.write_scene(sim.scene.truth())
+            if sim.scene.spec.walk == "terrain":
+                from graph_slam.sim.terrain_truth import write_terrain_truth
+
+                write_terrain_truth(tmp, motion, sim.scene, motion.duration_s)
         path = Path(out)
         strikes = motion.foot_strikes_s
         per_stride = np.histogram(t_frames, bins=strikes)[0]

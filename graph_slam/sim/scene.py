@@ -24,6 +24,7 @@ from pydantic import Field
 from graph_slam.config import ConfigModel
 from graph_slam.errors import SimulationError
 from graph_slam.session.records import SceneObject, SceneTruth
+from graph_slam.sim.surface import Surfaces
 
 TEXTURE_TEXEL_M = 0.005
 TEXTURE_TILE_PX = 1024  # 5.12 m period
@@ -39,6 +40,15 @@ class ObjectSpec(ConfigModel):
     center_xy_m: tuple[float, float] = Field(description="box/ramp: centre; stairs: first step")
     yaw_deg: float = 0.0
     steps: int = Field(1, ge=1, le=50, description="stairs only")
+    base_m: float = Field(0.0, ge=0, le=5, description="stairs: height of the floor they start on")
+    direction: Literal["up", "down"] = Field(
+        "up", description="ramp/stairs: rising (up) or falling (down) along +x"
+    )
+    role: Literal["obstacle", "step_on", "platform", "curb"] = Field(
+        "obstacle",
+        description="box: what the walker does with it (terrain truth): an obstacle beside "
+        "or in the path, a box to step onto, a platform (stair landing, ramp top) or a curb",
+    )
     color_rgb: tuple[int, int, int] = (170, 120, 80)
 
 
@@ -73,6 +83,11 @@ class SceneSpec(ConfigModel):
     objects: tuple[ObjectSpec, ...] = ()
     repeat: RepeatSpec = RepeatSpec()
     random_boxes: RandomBoxesSpec = RandomBoxesSpec()
+    walk: Literal["floor", "terrain"] = Field(
+        "floor",
+        description="floor: the level-floor walker (objects beside the path); terrain: the "
+        "terrain-following walker steps onto, up, down and over what is in its path",
+    )
 
 
 @dataclass
@@ -117,6 +132,12 @@ def _ramp_mesh(spec: ObjectSpec, dx: float) -> tuple[np.ndarray, np.ndarray]:
         [[x0, y0, 0], [x1, y0, 0], [x1, y0, rise], [x0, y1, 0], [x1, y1, 0], [x1, y1, rise]],
         dtype=float,
     )
+    if spec.direction == "down":  # mirror along x about the ramp's centre
+        v[:, 0] = x0 + x1 - v[:, 0]
+        tris = np.array(
+            [[0, 1, 2], [3, 5, 4], [0, 5, 3], [0, 2, 5], [1, 5, 2], [1, 4, 5], [0, 4, 1], [0, 3, 4]]
+        )
+        return v, tris
     tris = np.array(
         [[0, 2, 1], [3, 4, 5], [0, 3, 5], [0, 5, 2], [1, 2, 5], [1, 5, 4], [0, 1, 4], [0, 4, 3]]
     )
@@ -131,6 +152,7 @@ class Scene:
         self.source = source
         self.solids: list[Solid] = []
         self.truth_objects: list[SceneObject] = []
+        self.surfaces = Surfaces()
         rng = np.random.default_rng([spec.texture_seed, 5])
         f = spec.floor
         (x0, x1), (y0, y1) = f.x_range_m, f.y_range_m
@@ -158,14 +180,19 @@ class Scene:
             center = np.array([cx, cy, size[2] / 2])
             self._add(name, *_box_mesh(center, size, yaw), obj.color_rgb, rng)
             self.truth_objects.append(SceneObject(name, _pose(center, yaw), size, "box"))
+            self.surfaces.add_box(name, center, size, yaw, obj.role)
         elif obj.kind == "ramp":
             self._add(name, *_ramp_mesh(obj, dx), obj.color_rgb, rng)
             center = np.array([cx, cy, size[2] / 2])
             self.truth_objects.append(SceneObject(name, _pose(center, 0.0), size, "ramp"))
-        else:  # stairs: step i is a box of height (i+1)·rise starting at x + i·run
+            self.surfaces.add_ramp(name, center, size, obj.direction)
+        else:  # stairs up: step i is a box of height (i+1)·rise starting at x + i·run;
+            # down: (steps-1-i)·rise (steps - 1 boxes; the top is the platform before them)
             run, width, rise = size
-            for i in range(obj.steps):
-                h = (i + 1) * rise
+            down = obj.direction == "down"
+            self.surfaces.add_stairs(name, (cx, cy), size, obj.steps, obj.direction, obj.base_m)
+            for i in range(obj.steps - 1 if down else obj.steps):
+                h = obj.base_m + (obj.steps - 1 - i if down else i + 1) * rise
                 center = np.array([cx + (i + 0.5) * run, cy, h / 2])
                 step_size = np.array([run, width, h])
                 step_name = f"{name}.step{i + 1}"
@@ -187,11 +214,16 @@ class Scene:
             name = f"Obstacle{i + 1}"
             self._add(name, *_box_mesh(center, size, yaw), color, rng_tex)
             self.truth_objects.append(SceneObject(name, _pose(center, yaw), size, "box"))
+            self.surfaces.add_box(name, center, size, yaw, "obstacle")
 
     # ---------------------------------------------------------------- products
     @property
     def name(self) -> str:
         return self.spec.name
+
+    def height_at(self, x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
+        """Height (m, world z) of the top surface at world (x, y): the floor is 0 (vectorised)."""
+        return self.surfaces.height_at(x_m, y_m)
 
     def truth(self) -> SceneTruth:
         return SceneTruth(self.spec.name, tuple(self.truth_objects))

@@ -1,0 +1,158 @@
+"""The stride anchor's up vector at a foot strike: the IMU's, fused with the ground in view
+only when that ground is level.
+
+The stride frame is gravity-aligned: its z axis is "up" from the IMU (the gyro-rotated
+accelerometer mean over the last stride, :class:`graph_slam.strides.gravity.GravityEstimator`).
+An accelerometer cannot tell its own bias from a tilt, so on level ground the plane under and
+ahead of the foot (fitted in the first frame's depth, :func:`graph_slam.frontend.floor.fit_floor`)
+sharpens it. That plane is fused **only when it is consistent with level ground**: its normal
+within ``level_gate_sigmas`` combined σ (IMU and plane, at least ``level_gate_min_rad``) of the
+IMU's up. Otherwise (a ramp, a tread seen at an angle) the anchor keeps the IMU's up alone and
+records the plane's slope. :class:`StrideAnchor` returns which case applied:
+
+* ``floor``: the plane is level within its σ (at a session's first strike, whose IMU up has
+  under a second of history and is 10-40° off, any plane found is taken as level); fused by
+  inverse variance;
+* ``slope``: a plane was found but is tilted against the IMU's up: IMU alone, slope recorded;
+* ``imu``: no plane (no depth, too few points, none near up) or the floor is off: IMU alone;
+* ``none``: no IMU up vector either (the back end's own default anchor).
+
+``graph.floor.assume_level: true`` restores the level-ground anchor (any plane within
+``max_angle_rad`` + 3σ of the IMU's up is fused): the comparison of the two on one session.
+
+The signed slope is the plane's pitch along the camera's heading (+ rising ahead), the angle
+the contact factors of the stance need (the toe lies on the slope, not on level ground).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from graph_slam.frontend.floor import FloorConfig, FloorFit, fit_floor, fuse_up
+
+log = logging.getLogger(__name__)
+
+ANCHOR_CASES = ("floor", "slope", "imu", "none")
+
+
+@dataclass(frozen=True)
+class AnchorUp:
+    """The new stride's up vector (IMU frame at ``t_s``) and how it was decided."""
+
+    t_s: float
+    up_in_imu: np.ndarray | None
+    sigma_rad: float | None
+    case: str
+    slope_rad: float = float("nan")
+    """The ground plane's signed pitch along the heading (NaN: no plane)."""
+    tilt_rad: float = float("nan")
+    """The plane's normal against the IMU's up (NaN: no plane)."""
+    fit: FloorFit | None = None
+
+    @property
+    def contact_slope_rad(self) -> float:
+        """The slope the stance contact factors use: the plane's where it was not fused."""
+        return self.slope_rad if self.case == "slope" else 0.0
+
+    @property
+    def flags(self) -> tuple[str, ...]:
+        out = [f"anchor:{self.case}"]
+        if self.fit is not None:
+            out.insert(0, f"floor:{self.fit.reason}")
+        if math.isfinite(self.slope_rad):
+            out.append(f"slope_deg:{math.degrees(self.slope_rad):.2f}")
+        return tuple(out)
+
+
+class StrideAnchor:
+    """The up vector at a foot strike (module text). Built by :func:`make_anchor`."""
+
+    def __init__(
+        self,
+        gravity,
+        floor: FloorConfig,
+        camera_T_imu: np.ndarray,
+        sigma_rad: float | None,
+        min_window_s: float,
+        short_sigma_rad: float,
+    ) -> None:
+        self.gravity = gravity
+        self.floor = floor
+        self.camera_T_imu = np.asarray(camera_T_imu, float)
+        self.sigma_rad = sigma_rad
+        self.min_window_s = float(min_window_s)
+        self.short_sigma_rad = float(short_sigma_rad)
+
+    def imu_up(self, t_strike_s: float, t_s: float) -> tuple[np.ndarray | None, float | None]:
+        """The IMU's up at ``t_s`` over about the last stride, and its σ (None: the first
+        strike's short window, which keeps the back end's looser anchor covariance)."""
+        window = self.gravity.window_before(t_strike_s)
+        up = self.gravity.up_at(t_s, window)
+        sigma = None
+        long_enough = min(window, self.gravity.history_s(t_s)) >= self.min_window_s
+        if up is not None and self.sigma_rad is not None and long_enough:
+            sigma = self.sigma_rad
+        return up, sigma
+
+    def at_strike(self, t_strike_s: float, t_s: float, points_m: np.ndarray | None) -> AnchorUp:
+        """The anchor for the stride struck at ``t_strike_s``, at its first frame ``t_s``
+        (``points_m``: that frame's cloud, camera frame; None: no depth)."""
+        up, sigma = self.imu_up(t_strike_s, t_s)
+        if up is None:
+            return AnchorUp(t_s, None, None, "none")
+        if points_m is None or not self.floor.enabled:
+            return AnchorUp(t_s, up, sigma, "imu")
+        return self.with_plane(t_s, up, sigma, points_m)
+
+    def with_plane(self, t_s: float, up: np.ndarray, sigma: float | None, points_m) -> AnchorUp:
+        """Fit the plane near ``up`` and decide the case (module text)."""
+        cfg = self.floor
+        sigma_imu = sigma if sigma is not None else self.short_sigma_rad
+        level_gate = cfg.max_angle_rad + 3.0 * sigma_imu
+        search = level_gate if cfg.assume_level else max(level_gate, cfg.slope_search_rad)
+        hint = self.camera_T_imu[:3, :3] @ up
+        fit = fit_floor(points_m, hint, cfg, max_angle_rad=search)
+        if not fit.ok:
+            log.info("t=%.3f s: no floor for the anchor (%s)", t_s, fit.reason)
+            return AnchorUp(t_s, up, sigma, "imu", fit=fit)
+        n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
+        tilt = fit.angle_to_hint_rad
+        slope = self.signed_slope(up, n_imu)
+        if cfg.assume_level or sigma is None:
+            # a first strike's IMU up (under a second of history) is 10-40° off: nothing
+            # tells a slope from that error, so the ground is taken as level, as before
+            consistent = True
+        else:
+            gate = cfg.level_gate_sigmas * math.hypot(sigma_imu, fit.sigma_rad)
+            consistent = tilt <= max(gate, cfg.level_gate_min_rad)
+        if not consistent:
+            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit)
+        fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
+        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit)
+
+    def signed_slope(self, up_imu: np.ndarray, normal_imu: np.ndarray) -> float:
+        """The plane's pitch along the camera's heading (+ rising ahead), radians."""
+        u = np.asarray(up_imu, float) / np.linalg.norm(up_imu)
+        n = np.asarray(normal_imu, float) / np.linalg.norm(normal_imu)
+        view = self.camera_T_imu[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # optical axis, IMU
+        ahead = view - (view @ u) * u
+        if np.linalg.norm(ahead) < 1e-6:
+            return float("nan")
+        ahead /= np.linalg.norm(ahead)
+        return float(math.atan2(-(n @ ahead), n @ u))
+
+
+def make_anchor(config, camera_T_imu: np.ndarray, gravity) -> StrideAnchor:
+    """The stride anchor of a graph pipeline from its :class:`PipelineConfig`."""
+    return StrideAnchor(
+        gravity,
+        config.graph.floor,
+        camera_T_imu,
+        config.gravity_sigma_rad,
+        config.gravity_min_window_s,
+        config.gravity_short_sigma_rad,
+    )

@@ -1,0 +1,102 @@
+"""The stride anchor: the ground plane fused with the IMU's up only where it is level
+(known answers on synthetic planes; no rendering)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from graph_slam.frontend.floor import FloorConfig
+from graph_slam.strides.anchor import StrideAnchor
+
+PITCH = math.radians(35.0)
+# world x forward, y left, z up; camera (optical: x right, y down, z forward) 35° down
+Z_CAM = np.array([math.cos(PITCH), 0.0, -math.sin(PITCH)])
+X_CAM = np.array([0.0, -1.0, 0.0])
+WORLD_R_CAMERA = np.column_stack([X_CAM, np.cross(Z_CAM, X_CAM), Z_CAM])
+CAMERA_POS = np.array([0.0, 0.0, 0.6])
+
+
+class FakeGravity:
+    """The IMU's up (IMU frame = camera frame here) with a chosen error, for any window."""
+
+    def __init__(self, up_world: np.ndarray) -> None:
+        self.up = 9.81 * WORLD_R_CAMERA.T @ (up_world / np.linalg.norm(up_world))
+
+    def window_before(self, t_s: float) -> float:
+        return 1.1
+
+    def up_at(self, t_s: float, window_s: float) -> np.ndarray:
+        return self.up
+
+    def history_s(self, t_s: float) -> float:
+        return 10.0
+
+
+def ramp_points(slope_deg: float, seed: int = 0, n: int = 4000) -> np.ndarray:
+    """Camera-frame points of ground rising along +x at ``slope_deg`` (1 mm noise)."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.5, 2.0, n)
+    y = rng.uniform(-0.6, 0.6, n)
+    z = math.tan(math.radians(slope_deg)) * x + rng.normal(0.0, 0.001, n)
+    world = np.column_stack([x, y, z])
+    return (world - CAMERA_POS) @ WORLD_R_CAMERA
+
+
+def anchor_for(up_world, **floor) -> StrideAnchor:
+    return StrideAnchor(FakeGravity(np.asarray(up_world, float)), FloorConfig(**floor),
+                        np.eye(4), 0.01, 0.8, 0.2)  # fmt: skip
+
+
+def tilt_deg(up_camera: np.ndarray) -> float:
+    up = WORLD_R_CAMERA @ (up_camera / np.linalg.norm(up_camera))
+    return math.degrees(math.acos(min(1.0, up[2])))
+
+
+@pytest.mark.parametrize("slope_deg", [5.0, 8.0, -10.0])
+def test_a_slope_is_recorded_and_the_frame_stays_level(slope_deg):
+    a = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, ramp_points(slope_deg))
+    assert a.case == "slope"
+    assert math.degrees(a.slope_rad) == pytest.approx(slope_deg, abs=0.1)
+    assert math.degrees(a.contact_slope_rad) == pytest.approx(slope_deg, abs=0.1)
+    assert tilt_deg(a.up_in_imu) < 1e-5  # the IMU's up, untouched: the frame is level
+    assert "anchor:slope" in a.flags and any(f.startswith("slope_deg:") for f in a.flags)
+
+
+def test_level_ground_is_fused_as_before():
+    imu_error = math.radians(1.0)  # the IMU's up 1° off (an accelerometer bias)
+    up = [math.sin(imu_error), 0.0, math.cos(imu_error)]
+    new = anchor_for(up).at_strike(0.0, 0.05, ramp_points(0.0))
+    old = anchor_for(up, assume_level=True).at_strike(0.0, 0.05, ramp_points(0.0))
+    assert new.case == old.case == "floor"
+    assert np.allclose(new.up_in_imu, old.up_in_imu) and new.sigma_rad == old.sigma_rad
+    assert tilt_deg(new.up_in_imu) < 0.1  # the plane fixed the IMU's tilt
+    assert new.contact_slope_rad == 0.0
+
+
+def test_the_level_ground_anchor_tilts_with_a_gentle_ramp():
+    """Today's level-ground anchor on a 3° ramp tilts the stride frame by almost the slope;
+    the new one keeps the IMU's (here exact) up."""
+    points = ramp_points(3.0)
+    old = anchor_for([0.0, 0.0, 1.0], assume_level=True).at_strike(0.0, 0.05, points)
+    new = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points)
+    assert old.case == "floor" and tilt_deg(old.up_in_imu) > 2.5
+    assert new.case == "slope" and tilt_deg(new.up_in_imu) < 1e-5
+
+
+def test_no_depth_or_no_imu():
+    anchor = anchor_for([0.0, 0.0, 1.0])
+    assert anchor.at_strike(0.0, 0.05, None).case == "imu"
+    anchor.gravity.up_at = lambda t, w: None
+    assert anchor.at_strike(0.0, 0.05, ramp_points(0.0)).case == "none"
+
+
+def test_a_first_strike_takes_the_ground_as_level():
+    """Under a second of IMU history the up vector is too poor to tell a slope: fused."""
+    anchor = StrideAnchor(FakeGravity(np.array([0.0, 0.0, 1.0])), FloorConfig(), np.eye(4),
+                          0.01, 100.0, 0.2)  # fmt: skip
+    a = anchor.at_strike(0.0, 0.05, ramp_points(8.0))
+    assert a.case == "floor" and a.sigma_rad < 0.01
+    assert tilt_deg(a.up_in_imu) == pytest.approx(8.0, abs=0.2)
