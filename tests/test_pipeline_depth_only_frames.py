@@ -53,7 +53,7 @@ def test_graph_registers_colourless_frames_with_the_depth_only_settings(
     session = open_session(walk)
     assert session.manifest.sensors.camera.has_color
     assert session.n_color_frames == session.n_frames - blanked
-    config = PipelineConfig(variant="icp+imu+kin", max_frames=FRAMES)
+    config = PipelineConfig(variant="icp+imu+kin", max_frames=FRAMES, preset="accurate")
     results = run_session(session, config)
     assert len(results.frames) == FRAMES
     assert all(f.stride_T_camera is not None for f in results.frames if f.stride_index >= 0)
