@@ -79,3 +79,91 @@ def test_feature_deadline_known_answer():
     summary = summarise_feature_deadlines(rows)
     assert summary["n"] == 4 and summary["n_known"] == 4 and summary["n_before_toe_off"] == 2
     assert math.isclose(summary["lead_s_min"], -0.05, abs_tol=1e-9)
+
+
+def _spec(scene, name):
+    return next(o for o in scene.spec.objects if o.name == name)
+
+
+def _stride_at(x, y, z):
+    t = _stride(x, y)
+    t[2, 3] = z
+    return t
+
+
+def test_truth_of_the_walked_stairs_from_the_scene_yaml():
+    for name, heel in (("stairs-ascent", (0.5, -0.3, 0.0)), ("stairs-descent", (0.0, 0.0, 1.02))):
+        scene = load_scene(name)
+        spec = _spec(scene, "Stairs")
+        tread, width, rise = spec.size_m
+        sign = -1.0 if spec.direction == "down" else 1.0
+        # the session's SceneTruth gives the same truth as the scene itself
+        for source in (scene, scene.truth()):
+            flight = feature_truth_from_scene(source, _stride_at(*heel)).stairs[0]
+            assert flight.n_steps == spec.steps and flight.ascending == (sign > 0)
+            for k, step in enumerate(flight.steps):
+                x = spec.center_xy_m[0] + k * tread - heel[0]
+                assert math.isclose(step.nosing.x_m, x, abs_tol=1e-9), (name, k)
+                assert math.isclose(step.nosing.yaw_rad, 0.0, abs_tol=1e-12)
+                assert np.allclose(
+                    step.nosing.y_range_m, (-width / 2 - heel[1], width / 2 - heel[1])
+                )
+                assert math.isclose(step.rise_m, sign * rise, abs_tol=1e-9)
+                top = (k + 1) * rise if sign > 0 else (spec.steps - k) * rise
+                assert math.isclose(step.upper_height_m, top - heel[2], abs_tol=1e-9)
+                assert math.isclose(step.upper_height_m - step.lower_height_m, rise, abs_tol=1e-9)
+                if k + 1 < flight.n_steps:
+                    assert math.isclose(step.tread_m, tread, abs_tol=1e-9)
+                else:
+                    assert math.isnan(step.tread_m)
+    # the descent's platform edge is the flight's first nosing, not a curb too
+    curbs = feature_truth_from_scene(load_scene("stairs-descent"), _stride_at(0, 0, 1.02)).curbs
+    assert all(abs(c.edge.x_m - 1.0) > 0.1 for c in curbs)
+
+
+def test_truth_of_the_walked_ramps_and_curbs_from_the_scene_yaml():
+    for name, uphill in (("ramp-up-8", 0.0), ("ramp-down-8", math.pi)):
+        scene = load_scene(name)
+        length, _, rise = _spec(scene, "Ramp").size_m
+        x0 = _spec(scene, "Ramp").center_xy_m[0] - length / 2
+        ramps = feature_truth_from_scene(scene.truth(), _stride(0.5, 0.0)).ramps
+        assert len(ramps) == 1
+        assert math.isclose(ramps[0].slope_rad, math.atan2(rise, length), abs_tol=1e-12)
+        assert math.isclose(math.degrees(ramps[0].slope_rad), 8.0, abs_tol=0.01)
+        assert math.isclose(abs(ramps[0].uphill_yaw_rad), uphill, abs_tol=1e-9)
+        assert math.isclose(ramps[0].start.x_m, x0 - 0.5, abs_tol=1e-9)
+        assert np.allclose(ramps[0].x_range_m, (x0 - 0.5, x0 + length - 0.5))
+    # the platform at the ramp's top is flush with it: no curb there
+    curbs = feature_truth_from_scene(load_scene("ramp-up-8"), _stride(0.5, 0.0)).curbs
+    assert all(abs(c.edge.x_m - 3.0) > 0.1 for c in curbs)
+    for name, heel, sign in (
+        ("curb-up", (0.5, 0.0, 0.0), 1.0),
+        ("curb-down", (0.0, 0.0, 0.12), -1.0),
+    ):
+        scene = load_scene(name)
+        spec = _spec(scene, "Curb")
+        depth, width, height = spec.size_m
+        x_edge = spec.center_xy_m[0] - sign * depth / 2 - heel[0]
+        truth = feature_truth_from_scene(scene.truth(), _stride_at(*heel))
+        assert not truth.boxes and not truth.stairs
+        curb = min(truth.curbs, key=lambda c: abs(c.edge.x_m - x_edge))
+        assert math.isclose(curb.edge.x_m, x_edge, abs_tol=1e-9)
+        assert math.isclose(curb.height_m, sign * height, abs_tol=1e-9)
+        assert math.isclose(curb.near_height_m, 0.0, abs_tol=1e-9)
+        assert np.allclose(curb.edge.y_range_m, (-width / 2, width / 2))
+
+
+def test_truth_of_a_box_stepped_onto_and_a_changed_scene():
+    scene = load_scene("step-onto")
+    depth, _, height = _spec(scene, "Box").size_m
+    (box,) = feature_truth_from_scene(scene.truth(), _stride(0.3, 0.0)).boxes
+    assert math.isclose(box.leading.x_m, 1.3 - depth / 2 - 0.3, abs_tol=1e-9)
+    assert math.isclose(box.height_m, height, abs_tol=1e-12)
+    assert math.isclose(box.depth_m, depth, abs_tol=1e-12)
+    # a session whose objects no longer match the scene file keeps the objects' own truth
+    moved = scene.truth().objects[0]
+    pose = moved.world_T_object.copy()
+    pose[0, 3] += 0.1
+    changed = SceneTruth("step-onto", (SceneObject(moved.name, pose, moved.size_m, moved.kind),))
+    (box,) = feature_truth_from_scene(changed, _stride(0.3, 0.0)).boxes
+    assert math.isclose(box.leading.x_m, 1.4 - depth / 2 - 0.3, abs_tol=1e-9)

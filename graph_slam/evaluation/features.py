@@ -5,8 +5,10 @@ would give (a :class:`~graph_slam.terrain.features.model.TerrainFeatures` with Ï
 frame: ``box`` objects are boxes; the ``step`` objects of a flight (``NAME.stepK``: step K a
 box of height KÂ·rise, its near face the K-th nosing) are stairs; a ``ramp`` (a wedge rising
 along its x) is a ramp whose start line is its low edge; ``curb`` objects (a block of the
-given height running on across the walk; a scene's kind may add them) are curbs. It is the one
-place a scene's geometry becomes feature truth: new scene kinds plug in here.
+given height running on across the walk; a scene's kind may add them) are curbs. A scene
+with walkable surfaces (flights down, ramps down, platforms and curbs by role) gives its truth
+from those instead (:mod:`graph_slam.evaluation.surface_features`). It is the one place a
+scene's geometry becomes feature truth: new scene kinds plug in here.
 
 :func:`score_features` matches each measured feature to the truth (a nosing or an edge to the
 nearest true one within ``match_m`` along x, in its y range; a ramp to the true ramp it
@@ -58,7 +60,13 @@ def _near_face(centre, yaw: float, depth: float, width: float):
 
 
 def feature_truth_from_scene(scene, world_T_stride: np.ndarray) -> TerrainFeatures:
-    """The scene's features in the stride frame (see the module docstring)."""
+    """The scene's features in the stride frame (see the module docstring); from its walkable
+    surfaces when it has them (graph_slam.evaluation.surface_features)."""
+    from graph_slam.evaluation.surface_features import features_from_surfaces, scene_surfaces
+
+    surfaces = scene_surfaces(scene)
+    if surfaces is not None:
+        return features_from_surfaces(surfaces, world_T_stride)
     stride_T_world = np.linalg.inv(np.asarray(world_T_stride, dtype=np.float64))
     floor_z = float(stride_T_world[2, 3])  # the world floor (z = 0) in the stride frame
     boxes, ramps, curbs, flights = [], [], [], {}
@@ -190,11 +198,18 @@ def summarise_scores(scores: Sequence[dict[str, list[dict]]]) -> dict[str, dict]
 
 def scene_height_at(scene, world_T_stride: np.ndarray, xy_m: np.ndarray) -> np.ndarray:
     """The scene's surface height (stride z) at stride-frame (x, y): the floor, boxes and
-    steps (their tops), ramps (their wedge)."""
+    steps (their tops), ramps (their wedge, up or down when the scene's surfaces are known)."""
+    from graph_slam.evaluation.surface_features import scene_surfaces
+
     stride_T_world = np.linalg.inv(np.asarray(world_T_stride, dtype=np.float64))
     world_T_stride = np.asarray(world_T_stride, dtype=np.float64)
     xy = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
     world = np.column_stack([xy, np.zeros(len(xy)), np.ones(len(xy))]) @ world_T_stride.T
+    surfaces = scene_surfaces(scene)
+    if surfaces is not None:
+        up = np.column_stack([world[:, :2], surfaces.height_at(world[:, 0], world[:, 1]),
+                              np.ones(len(xy))])  # fmt: skip
+        return (up @ stride_T_world.T)[:, 2]
     h = np.zeros(len(xy))
     for obj in scene.objects:
         size = np.asarray(obj.size_m, dtype=np.float64)
