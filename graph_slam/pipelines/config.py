@@ -151,6 +151,12 @@ class GraphFrontendConfig(ConfigModel):
         default_factory=FloorConfig,
         description="the floor plane in the stride's first frame, fused into the anchor's tilt",
     )
+    recolour_keyframe: bool = Field(
+        True,
+        description="a frame with colour whose keyframe has none (colour slower than depth) "
+        "registers without colour, then becomes the keyframe with its colour, so the frames "
+        "after it register with colour again; False: colourless until the next stride",
+    )
     depth_only: DepthOnlyConfig | None = Field(
         default_factory=DepthOnlyConfig,
         description="a session without colour: point-to-plane with these settings in place of "
