@@ -152,10 +152,12 @@ class GraphFrontendConfig(ConfigModel):
         description="the floor plane in the stride's first frame, fused into the anchor's tilt",
     )
     recolour_keyframe: bool = Field(
-        True,
-        description="a frame with colour whose keyframe has none (colour slower than depth) "
-        "registers without colour, then becomes the keyframe with its colour, so the frames "
-        "after it register with colour again; False: colourless until the next stride",
+        False,
+        description="True: a frame with colour whose keyframe has none (colour slower than "
+        "depth) registers without colour, then becomes the keyframe with its colour, so the "
+        "frames after it register with colour again; False: colourless until the keyframe is "
+        "reset. Off: on simulated 30 Hz colour recordings it helped one walk and hurt another "
+        "(docs/pipelines.md, Keyframes)",
     )
     depth_only: DepthOnlyConfig | None = Field(
         default_factory=DepthOnlyConfig,
