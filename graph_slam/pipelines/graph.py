@@ -316,7 +316,12 @@ class GraphPipeline(PipelineBase):
         target = prepared if prepared is not None and prepared.is_target else None
         keep = accepted and not est.stride_start
         key = self.keys.key
-        if key is not None and key.index in self._uncoloured and index not in self._uncoloured:
+        if (
+            self.cfg.graph.recolour_keyframe
+            and key is not None
+            and key.index in self._uncoloured
+            and index not in self._uncoloured
+        ):
             keep = False  # a coloured frame replaces a keyframe without colour
         if keep and target is not None and self._waits_for_colour(index, t_s):
             return  # the coloured keyframe stays the target (a colourless one would make
