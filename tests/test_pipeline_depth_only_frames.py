@@ -71,3 +71,52 @@ def test_thesis_baseline_runs_a_session_with_colourless_frames(walk: Path) -> No
     config = PipelineConfig(variant="icp", max_frames=FRAMES)
     results = run_session(walk, config)
     assert len(results.frames) == FRAMES
+
+
+def _blank_colour(session: Path, first: int, last: int) -> None:
+    """No colour image for frames ``first``..``last`` (a gap in the colour stream)."""
+    lines = (session / "frames.csv").read_text().splitlines()
+    out = [lines[0]]
+    for k, line in enumerate(lines[1:]):
+        fields = line.split(",")
+        if first <= k <= last:
+            fields[3] = ""
+        out.append(",".join(fields))
+    (session / "frames.csv").write_text("\n".join(out) + "\n")
+
+
+@pytest.mark.parametrize("recolour", [True, False])
+def test_a_coloured_frame_replaces_a_keyframe_without_colour(
+    walk: Path, monkeypatch: pytest.MonkeyPatch, recolour: bool
+) -> None:
+    """A colour gap longer than twice the keyframe interval leaves a colourless keyframe; with
+    ``graph.recolour_keyframe`` the first frame with colour after the gap becomes the keyframe
+    and the frames after it register with colour again; without, they register without
+    colour until the keyframe is reset."""
+    from graph_slam.pipelines.graph import GraphPipeline
+
+    _blank_colour(walk, 5, 16)  # 12 frames at 90 Hz: 0.13 s > 2 × 0.05 s
+    seen: list[tuple[int, bool]] = []
+    coloured = GraphPipeline._coloured
+
+    def spy(self, frame, index, key_index):
+        used = coloured(self, frame, index, key_index)
+        seen.append((index, used))
+        return used
+
+    monkeypatch.setattr(GraphPipeline, "_coloured", spy)
+    config = PipelineConfig.model_validate(
+        {"variant": "icp+imu+kin", "max_frames": FRAMES, "graph": {"recolour_keyframe": recolour}}
+    )
+    results = run_session(walk, config)
+    assert len(results.frames) == FRAMES
+    assert any(used for index, used in seen if index < 5)  # with colour before the gap
+    assert not any(used for index, used in seen if 5 <= index <= 17)
+    # the frames after the gap, before anything else resets the keyframe in this walk (a
+    # colourless keyframe is dropped by frame 25 here either way)
+    after = [used for index, used in seen if 19 <= index <= 24]
+    assert len(after) == 6
+    if recolour:
+        assert all(after), str(seen)
+    else:
+        assert not any(after), str(seen)

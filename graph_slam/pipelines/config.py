@@ -164,6 +164,14 @@ class GraphFrontendConfig(ConfigModel):
         default_factory=FloorConfig,
         description="the floor plane in the stride's first frame, fused into the anchor's tilt",
     )
+    recolour_keyframe: bool = Field(
+        False,
+        description="True: a frame with colour whose keyframe has none (colour slower than "
+        "depth) registers without colour, then becomes the keyframe with its colour, so the "
+        "frames after it register with colour again; False: colourless until the keyframe is "
+        "reset. Off: on simulated 30 Hz colour recordings it helped one walk and hurt another "
+        "(docs/pipelines.md, Keyframes)",
+    )
     depth_only: DepthOnlyConfig | None = Field(
         default_factory=DepthOnlyConfig,
         description="a session without colour: point-to-plane with these settings in place of "

@@ -206,7 +206,17 @@ class GraphPipeline(PipelineBase):
                 icp, fitness = _measured(
                     lambda: registration.register(prepared, target, guess), index, key_index
                 )
+        if registration is self.registration_depth_only and self._recolours(frame):
+            with timer("preprocess"):  # its coloured cloud: the next (coloured) keyframe
+                prepared = self.registration.prepare(frame, None)
+            timer.exclude("preprocess", "cloud")
         return prepared, icp, fitness
+
+    def _recolours(self, frame: RgbdFrame) -> bool:
+        """The frame has colour but its keyframe has none (``graph.recolour_keyframe``): it
+        registers without colour, is prepared again with colour and becomes the keyframe, so
+        the frames after it register with colour again."""
+        return self.cfg.graph.recolour_keyframe and self.has_color and frame.color_rgb is not None
 
     def _coloured(self, frame: RgbdFrame, index: int, key_index: int | None) -> bool:
         """Whether frame ``index`` registers with colour: the session has colour, the frame
@@ -214,7 +224,8 @@ class GraphPipeline(PipelineBase):
         if not self.has_color:
             return False
         if frame.color_rgb is None or key_index in self._uncoloured:
-            self._uncoloured.add(index)  # its cloud has no colour: a target without colour
+            if not self._recolours(frame):
+                self._uncoloured.add(index)  # its cloud has no colour: a target without colour
             return False
         return True
 
@@ -288,6 +299,14 @@ class GraphPipeline(PipelineBase):
         accepted = est.gate is not None and est.gate.accepted
         target = prepared if prepared is not None and prepared.is_target else None
         keep = accepted and not est.stride_start
+        key = self.keys.key
+        if (
+            self.cfg.graph.recolour_keyframe
+            and key is not None
+            and key.index in self._uncoloured
+            and index not in self._uncoloured
+        ):
+            keep = False  # a coloured frame replaces a keyframe without colour
         if keep and target is not None and self._waits_for_colour(index, t_s):
             return  # the coloured keyframe stays the target (a colourless one would make
             # the frames after it register without colour too)
