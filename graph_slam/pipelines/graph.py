@@ -83,6 +83,19 @@ def imu_guess_on(config: PipelineConfig, registration: Registration) -> bool:
     return registration.needs_guess
 
 
+def _graph_registration(config: PipelineConfig, intrinsics, has_color: bool) -> Registration:
+    """The graph's registration method for frames with (or without) a colour image."""
+    registration = sensor_registration(
+        config.graph.registration, has_color, config.graph.depth_only
+    )
+    return make_registration(
+        with_camera_floor(registration, config.graph.real_camera_floor),
+        intrinsics,
+        config.cloud,
+        has_color,
+    )
+
+
 class GraphPipeline(PipelineBase):
     """Front end + :class:`StrideSLAM` + the up vector at foot strikes + the terrain maps."""
 
@@ -95,27 +108,11 @@ class GraphPipeline(PipelineBase):
         has_color: bool = True,
     ) -> None:
         super().__init__(config, config.variant, intrinsics, camera_T_imu)
-        self.registration = make_registration(
-            with_camera_floor(
-                sensor_registration(config.graph.registration, has_color, config.graph.depth_only),
-                config.graph.real_camera_floor,
-            ),
-            intrinsics,
-            config.cloud,
-            has_color,
-        )
+        self.registration = _graph_registration(config, intrinsics, has_color)
         self.has_color = has_color
         # A frame recorded without a colour image (colour slower than depth, or missing) is
         # registered with the depth-only settings, as is any frame whose keyframe has none.
-        self.registration_depth_only = make_registration(
-            with_camera_floor(
-                sensor_registration(config.graph.registration, False, config.graph.depth_only),
-                config.graph.real_camera_floor,
-            ),
-            intrinsics,
-            config.cloud,
-            False,
-        )
+        self.registration_depth_only = _graph_registration(config, intrinsics, False)
         self._uncoloured: set[int] = set()
         self.imu_guess = imu_guess_on(config, self.registration)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
