@@ -120,3 +120,41 @@ def test_a_coloured_frame_replaces_a_keyframe_without_colour(
         assert all(after), str(seen)
     else:
         assert not any(after), str(seen)
+
+
+def test_the_realtime_preset_registers_a_106x60_walk(walk: Path) -> None:
+    """The projective preset's voxel, depth-jump and correspondence limits grow with the
+    decimated pixel's angle: on a 106×60 image its 2 cm voxels held one pixel each and every
+    frame failed as an empty source; now nearly all register (colour kept, every frame)."""
+    from graph_slam.frontend.config import ProjectiveConfig
+    from graph_slam.frontend.methods import projective_for_camera
+
+    session = open_session(walk)
+    base = ProjectiveConfig()
+    small = projective_for_camera(base, session.intrinsics)
+    scale = small.voxel_m / base.voxel_m
+    assert 1.5 < scale < 2.2  # fx ≈ 56 px against the preset's 100 px
+    assert small.max_jump_ratio == pytest.approx(base.max_jump_ratio * scale)
+    assert small.max_correspondence_m == pytest.approx(base.max_correspondence_m * scale)
+    wide = _scaled_intrinsics(session.intrinsics, 4)  # the same camera at 424×240
+    assert projective_for_camera(base, wide) is base  # unchanged at 212×120 and above
+
+    results = run_session(session, PipelineConfig(variant="icp+imu+kin", max_frames=FRAMES))
+    registered = [f for f in results.frames if f.registered_to is not None]
+    failed = [f for f in registered if any("failed" in fl for fl in f.flags)]
+    assert len(registered) >= FRAMES - 3 and len(failed) <= 2, [f.flags for f in failed]
+
+
+def _scaled_intrinsics(intrinsics, factor: int):
+    """``intrinsics`` of the same camera at ``factor`` times the size."""
+    import dataclasses
+
+    return dataclasses.replace(
+        intrinsics,
+        width_px=intrinsics.width_px * factor,
+        height_px=intrinsics.height_px * factor,
+        fx_px=intrinsics.fx_px * factor,
+        fy_px=intrinsics.fy_px * factor,
+        cx_px=intrinsics.cx_px * factor,
+        cy_px=intrinsics.cy_px * factor,
+    )

@@ -166,13 +166,39 @@ class _Gicp:
         return register_prepared(source.data, target.data, self.config, initial_target_T_source)
 
 
+PROJECTIVE_MIN_FOCAL_PX = 100.0
+"""The decimated image's focal length (pixels) the projective preset's voxel, depth-jump and
+correspondence limits are set for: 106 px at 212×120 (every pixel) and 424×240 (every 2nd)."""
+
+
+def projective_for_camera(config: ProjectiveConfig, intrinsics: CameraIntrinsics):
+    """``config`` for a camera whose decimated pixels are coarser than the preset's: the
+    voxel, the depth-jump limit between neighbouring pixels and the correspondence distance
+    grow with the pixel's angle. On a 106×60 image the preset's 2 cm voxels held one pixel
+    each (a voxel needs ``min_pixel_normals``) and the floor's neighbouring rows differed by
+    more than the jump limit, so no frame had a point to register. Unchanged at 212×120 and
+    above."""
+    focal_px = intrinsics.fx_px / config.pixel_step_for(intrinsics)
+    scale = PROJECTIVE_MIN_FOCAL_PX / focal_px if focal_px > 0 else 1.0
+    if scale <= 1.0:
+        return config
+    return config.model_copy(
+        update={
+            "voxel_m": config.voxel_m * scale,
+            "max_jump_ratio": config.max_jump_ratio * scale,
+            "max_correspondence_m": config.max_correspondence_m * scale,
+        }
+    )
+
+
 class _Projective:
     """Projective association on the organised depth (:mod:`graph_slam.frontend.projective`)."""
 
     needs_guess = True
 
     def __init__(self, config, intrinsics, cloud_config, has_color: bool) -> None:
-        self.config, self.intrinsics, self.cloud_config = config, intrinsics, cloud_config
+        self.config = projective_for_camera(config, intrinsics)
+        self.intrinsics, self.cloud_config = intrinsics, cloud_config
         self.has_color = has_color
 
     def prepare(self, frame, grid_T_cloud=None) -> PreparedFrame:
