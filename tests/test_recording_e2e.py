@@ -175,7 +175,7 @@ def test_trajectory_is_close_to_the_ground_truth(ran, converted) -> None:
     """The smoothed world trajectory against the exported ground truth (not used by convert
     or run) after a rigid alignment of the positions, over ~1.5 strides at 106×60: RMS below
     7 cm. Colour is at 30 Hz beside 90 Hz depth, so two thirds of the frames register without
-    colour (point-to-plane): measured 5.6 cm (2.0 cm when the same walk is exported with colour
+    colour (point-to-plane): measured 4.9 cm (2.0 cm when the same walk is exported with colour
     at every depth frame, RecordingExportConfig.color_rate_hz None)."""
     rec, _ = converted
     t_est, p_est = _read_tum(ran / "recording" / "icp_imu_kin" / "smoothed_world.tum")
