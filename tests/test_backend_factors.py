@@ -267,7 +267,7 @@ def test_factors_use_the_canonical_adjoint_gtsam_convention():
 def test_imu_interval_reads_no_sample_beyond_the_first_after_its_end():
     """Preintegration over [t0, t1] is the same whether samples after the first one at or
     after t1 have arrived: online, a frame waits one IMU period for that sample and reads
-    nothing further ahead (issue 14: causal replay)."""
+    nothing further ahead (causal replay)."""
     from graph_slam.backend.config import ImuNoiseConfig
     from graph_slam.backend.imu import ImuBuffer
 

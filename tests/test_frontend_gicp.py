@@ -149,7 +149,7 @@ def test_information_is_the_gicp_hessian_in_gtsam_tangent_space(floor_sigma: boo
     rel = np.linalg.norm(result.information - expected) / np.linalg.norm(expected)
     assert rel < 0.05, rel
     np.testing.assert_allclose(result.information, result.information.T)
-    if not result.degeneracy.is_degenerate:  # else zero along the free directions (issue 20)
+    if not result.degeneracy.is_degenerate:  # else zero along the free directions
         assert np.all(np.linalg.eigvalsh(result.information) > 0)
     assert result.residual_sigma == pytest.approx(np.sqrt(2 * PLANE_EPSILON * max(kappa, kappa_floor)), rel=0.01)  # fmt: skip
 

@@ -132,7 +132,7 @@ def test_nan_imu_session_finishes_flagged(sim_session, tmp_path):
 
 
 def test_imu_kin_follows_the_truth(sim_session):
-    """Regression (issue 6): ``imu+kin`` diverged by metres because its stance factors held the
+    """Regression: ``imu+kin`` diverged by metres because its stance factors held the
     foot in its orientation at foot strike (the foot then rolls ~8° flat and later lifts its
     heel by up to 19 cm before toe-off) and were rejected as inconsistent. With contact-point
     stance factors (heel, then toe) every scored stride stays within 6 cm (measured 19 and
@@ -169,7 +169,7 @@ def scored_full(sim_session):
 
 
 def test_full_graph_meets_the_stride_rmse_target(scored_full):
-    """Issue 6 target on a small session: smoothed stride-frame RMSE (no alignment) ≤ 5 mm per
+    """The target on a small session: smoothed stride-frame RMSE (no alignment) ≤ 5 mm per
     stride. Measured 2.0 and 2.4 mm (online 1.0, 3.0 mm); without the floor in the anchor's
     tilt 18.0 and 11.4 mm (the IMU's up vector was 1.4° and 0.8° off)."""
     r, scores = scored_full()
@@ -184,8 +184,8 @@ def test_full_graph_meets_the_stride_rmse_target(scored_full):
 
 def test_swing_bridged_by_imu_and_kinematics(scored_full):
     """ICP removed for every swing frame (``graph.icp_in_swing: false``): the IMU carries the
-    swing; the error at the last frame before the next foot strike stays under 3 cm (issue 6;
-    measured 12.4 and 10.9 mm smoothed, 16.5 and 15.7 mm online)."""
+    swing; the error at the last frame before the next foot strike stays under 3 cm
+    (measured 12.4 and 10.9 mm smoothed, 16.5 and 15.7 mm online)."""
     r, scores = scored_full(graph={"icp_in_swing": False})
     assert len(scores) == 2
     for sc in scores:
@@ -197,7 +197,7 @@ def test_swing_bridged_by_imu_and_kinematics(scored_full):
 
 
 def test_deferred_smoothing_keeps_the_accuracy_without_the_strike_spike(scored_full):
-    """Real time (issue 14): with ``backend.defer_smoothing`` the stride's end state carried
+    """Real time: with ``backend.defer_smoothing`` the stride's end state carried
     into the next stride is iSAM2's and the batch smoothing runs at ``finish``; the smoothed
     poses still meet the ≤ 5 mm target and every stride ends up smoothed (no flag left)."""
     r, scores = scored_full(preset="accurate", backend={"defer_smoothing": True})

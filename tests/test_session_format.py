@@ -1,4 +1,4 @@
-"""Session format: round trip, info, lazy memory, and every bad input of issue 2."""
+"""Session format: round trip, info, lazy memory, and every bad input."""
 
 from __future__ import annotations
 
