@@ -168,6 +168,16 @@ class ThighMotion:
         accel = np.einsum("nji,nj->ni", mid_R, specific)
         return gyro, accel
 
+    def _model_time(self, t_s: np.ndarray) -> np.ndarray:
+        """Session time → model time (a subclass sets ``u0`` and ``duration_s``)."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        if t.size and (t.min() < -1.0 or t.max() > self.duration_s + 1.0):
+            raise SimulationError(
+                f"time {t.min():.3f}..{t.max():.3f} s is outside the simulated walk "
+                f"(0..{self.duration_s:.3f} s, ±1 s margin)"
+            )
+        return t + self.u0
+
     def velocity_world(self, t_s: np.ndarray, thigh_T_frame: np.ndarray, h_s: float = 2e-4):
         """(n, 3) world velocity of a thigh-fixed frame's origin."""
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
@@ -309,15 +319,6 @@ class GaitMotion(ThighMotion):
             + (-4 * s3 + 7 * s4 - 3 * s5) * T * h[:, 1, 1]
             + 0.5 * (s3 - 2 * s4 + s5) * T**2 * h[:, 1, 2]
         )
-
-    def _model_time(self, t_s: np.ndarray) -> np.ndarray:
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        if t.size and (t.min() < -1.0 or t.max() > self.duration_s + 1.0):
-            raise SimulationError(
-                f"time {t.min():.3f}..{t.max():.3f} s is outside the simulated walk "
-                f"(0..{self.duration_s:.3f} s, ±1 s margin)"
-            )
-        return t + self.u0
 
     # ---------------------------------------------------------------- public
     @cached_property

@@ -437,15 +437,6 @@ class TerrainMotion(ThighMotion):
                 ankle[sw] = self._swing_ankle(kk, s, self._lift[kk])
         return self._hip(u), ankle, gamma
 
-    def _model_time(self, t_s) -> np.ndarray:
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        if t.size and (t.min() < -1.0 or t.max() > self.duration_s + 1.0):
-            raise SimulationError(
-                f"time {t.min():.3f}..{t.max():.3f} s is outside the simulated walk "
-                f"(0..{self.duration_s:.3f} s, ±1 s margin)"
-            )
-        return t + self.u0
-
     # ------------------------------------------------------------ public
     @cached_property
     def foot_strikes_s(self) -> np.ndarray:
