@@ -308,6 +308,9 @@ class GraphPipeline(PipelineBase):
             return  # the coloured keyframe stays the target (a colourless one would make
             # the frames after it register without colour too)
         self.keys.update(index, target, est.stride_T_camera, t_s, keep=keep)
+        if self._uncoloured:  # only the keyframe's and later frames' colour is asked again
+            oldest = index if self.keys.key is None else min(index, self.keys.key.index)
+            self._uncoloured = {k for k in self._uncoloured if k >= oldest}
         if target is None:  # nothing to register the next frame against
             self._prev = None
             self._prev2 = None
