@@ -32,7 +32,6 @@ from graph_slam.pipelines.results import (
     StrideOutput,
 )
 from graph_slam.pipelines.stages import StageTimer
-from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.strides.joints import JointBuffer
 from graph_slam.strides.kinematics import imu_up_in_model
@@ -80,7 +79,6 @@ class ThesisBaseline(PipelineBase):
         self._map: LocalMap | None = None
         self._stride: _OpenStride | None = None
         self._pending_strike = False
-        self.strike_clock = StrikeClock()
         self._world_T_stride = np.eye(4)
 
     # ------------------------------------------------------------------ streams

@@ -22,7 +22,6 @@ from graph_slam.pipelines.keyframe import Keyframes
 from graph_slam.pipelines.protocol import PipelineBase, sensor_registration, with_camera_floor
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.pipelines.stages import StageTimer
-from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.strides.anchor import make_anchor
 
@@ -121,7 +120,6 @@ class GraphPipeline(PipelineBase):
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
-        self.strike_clock = StrikeClock()
 
     def add_imu(self, t_s, gyro_rad_s, accel_m_s2) -> None:
         self.slam.add_imu(t_s, gyro_rad_s, accel_m_s2)

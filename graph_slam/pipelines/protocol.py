@@ -16,6 +16,7 @@ from graph_slam.frontend.config import (
     with_real_camera_floor,
 )
 from graph_slam.pipelines.results import FrameOutput, PipelineResults
+from graph_slam.pipelines.strikes import StrikeClock
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.variants import Variant
 
@@ -124,7 +125,8 @@ def make_live_terrain(
 
 
 class PipelineBase:
-    """What both pipelines build and keep the same way: the up-vector component
+    """What both pipelines build and keep the same way: the streaming contract's checks
+    (:class:`~graph_slam.pipelines.strikes.StrikeClock`), the up-vector component
     (:func:`make_gravity`), each stride's terrain maps (:func:`make_terrain`), the per-frame
     grid (:func:`make_live_terrain`; ``link_strides`` and ``refuse`` as there) and the results,
     which keep every frame's record without its grid (memory: ``keep_frames``)."""
@@ -147,6 +149,7 @@ class PipelineBase:
         self.terrain = make_terrain(config, intrinsics)
         self.live_terrain = make_live_terrain(config, intrinsics, link_strides, refuse)
         self.results = PipelineResults(variant=variant, config=config.model_dump(mode="json"))
+        self.strike_clock = StrikeClock()  # the streaming contract (pipelines/strikes.py)
 
     def _record(self, out: FrameOutput) -> FrameOutput:
         """Keep the frame's record (without its grid) and return the output."""
