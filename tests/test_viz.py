@@ -45,3 +45,28 @@ def test_rerun_logger_writes_a_nonempty_rrd(tmp_path):
     assert path.is_file()
     data = path.read_bytes()
     assert len(data) > 1000 and data[:4] == b"RRF2"
+
+
+def test_depth_view_is_whole_millimetres_with_unknown_as_zero():
+    from graph_slam.viz.rerun_logger import depth_view_mm
+
+    depth = np.array([[0.0, 1.2344, np.nan], [np.inf, -1.0, 70.0]])
+    view = depth_view_mm(depth)
+    assert view.dtype == np.uint16
+    assert view.tolist() == [[0, 1234, 0], [0, 0, 0]]
+
+
+def test_recording_images_are_compact(tmp_path):
+    """Colour goes in as JPEG and depth as uint16: a frame costs well under its raw float size."""
+    rng = np.random.default_rng(0)
+    color = rng.integers(0, 256, (240, 424, 3), dtype=np.uint8)
+    color[:] = np.clip(color.astype(int) // 8 + 100, 0, 255).astype(np.uint8)  # image-like
+    depth = np.full((240, 424), 1.5) + rng.normal(0, 0.002, (240, 424))
+    path = tmp_path / "r.rrd"
+    logger = make_logger(path)
+    for i in range(5):
+        logger.set_time(0, 0.1 * i)
+        logger.log_camera(np.eye(4), None, depth, color)
+    logger.close()
+    raw_float = 5 * (240 * 424 * 4 + 240 * 424 * 3)
+    assert path.stat().st_size < 0.5 * raw_float

@@ -131,6 +131,35 @@ def _check_demo_out(out: Path, overwrite: bool) -> None:
     mark_folder(out / "sessions", command="demo")
 
 
+def _drop_sessions(out: Path, sim_cfgs, seed: int) -> tuple[int, str]:
+    """Remove the demo's simulated sessions (its inputs, most of its size) once the report is
+    written; ``sessions/README.md`` keeps the commands that simulate them again, byte for byte
+    (the simulator is seeded). Returns the bytes freed and that file's path."""
+    freed = 0
+    lines = [
+        "# The demo's sessions",
+        "",
+        "Removed after the report to keep the demo's output small (`graph-slam demo",
+        "--keep-sessions` keeps them). The simulator is deterministic: these commands write the",
+        "same frames, streams and ground truth again.",
+        "",
+        "```bash",
+    ]
+    for (speed, _, _), cfg in zip(DEMO_SPEEDS, sim_cfgs, strict=True):
+        folder = out / "sessions" / speed
+        if folder.is_dir():
+            freed += sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
+            shutil.rmtree(folder)
+        lines.append(
+            f"graph-slam simulate --scene {cfg.scene} --speed {speed} --strides "
+            f"{cfg.strides} --seed {seed} --drops {cfg.drops} --resolution {cfg.resolution} "
+            f"--out {folder}"
+        )
+    readme = out / "sessions" / "README.md"
+    readme.write_text("\n".join([*lines, "```", ""]))
+    return freed, str(readme)
+
+
 def has_display(env: dict[str, str] | None = None) -> bool:
     env = os.environ if env is None else env
     return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
@@ -217,6 +246,14 @@ def register(app: typer.Typer) -> None:
                 help=workers_option_help(f"the cores this process may use, at most {DEMO_WORKERS}"),
             ),
         ] = None,
+        keep_sessions: Annotated[
+            bool,
+            typer.Option(
+                help="Keep the simulated sessions (about 260 MB at 424x240) after the report; "
+                "by default they are removed and sessions/README.md holds the commands that "
+                "simulate them again, byte for byte."
+            ),
+        ] = False,
     ) -> None:
         """Simulate the thesis box course (9 slow, 9 normal, 7 fast strides, bursty frame drops),
         compare the variants on it and print the tables.
@@ -271,6 +308,12 @@ def register(app: typer.Typer) -> None:
         )
         report = _run_compare(specs, out / "report", cfg, overwrite)
         _print_report(report)
+        if not keep_sessions:
+            freed, readme = _drop_sessions(out, sim_cfgs, seed)
+            typer.echo(
+                f"sessions removed ({freed / 1e6:.0f} MB; --keep-sessions keeps them): "
+                f"{readme} simulates them again"
+            )
         typer.echo(f"demo done in {time.perf_counter() - t0:.0f} s")
 
     @app.command()

@@ -41,10 +41,20 @@ TERRAIN_SIGMA = "world/stride/terrain/sigma"
 TERRAIN_OBSTACLES = "world/stride/terrain/obstacles"
 """The live grid's boxes (red: whole, magenta: seen in part)."""
 SIGMA_COLOUR_MAX_M = 0.02
+VIEW_JPEG_QUALITY = 90
+"""The camera images in a recording are for looking at: colour as JPEG (a fifth of the raw
+size), depth as whole millimetres (half of float32). The data itself is never changed."""
 HEIGHT_COLOUR_SPAN_M = 0.25
 
 TIMELINE_STRIDE = "stride"
 TIMELINE_TIME = "time"
+
+
+def depth_view_mm(depth_m) -> np.ndarray:
+    """Depth for the view: uint16 millimetres (0 where unknown or beyond 65.5 m)."""
+    depth = np.asarray(depth_m, dtype=np.float64)
+    ok = np.isfinite(depth) & (depth > 0) & (depth < 65.535)
+    return np.where(ok, np.rint(np.where(ok, depth, 0.0) * 1000.0), 0).astype(np.uint16)
 
 
 class Logger(Protocol):
@@ -197,9 +207,10 @@ class RerunLogger:
                 ),
             )
         if depth_m is not None:
-            self._rec.log(DEPTH, rr.DepthImage(np.asarray(depth_m, dtype=np.float32), meter=1.0))
+            self._rec.log(DEPTH, rr.DepthImage(depth_view_mm(depth_m), meter=1000.0))
         if color_rgb is not None:
-            self._rec.log(COLOR, rr.Image(np.asarray(color_rgb, dtype=np.uint8)))
+            image = rr.Image(np.asarray(color_rgb, dtype=np.uint8))
+            self._rec.log(COLOR, image.compress(jpeg_quality=VIEW_JPEG_QUALITY))
 
     def log_cloud(self, points_m, colors_rgb=None, entity: str = CLOUD) -> None:
         self._rec.log(
