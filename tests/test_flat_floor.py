@@ -95,3 +95,20 @@ def test_rows_at_several_speeds_are_pooled() -> None:
     assert all_speeds.name == "pico@all" and all_speeds.frames == 20 and all_speeds.partial == 18
     np.testing.assert_array_equal(all_speeds.smoothed_mm, [8.0, 9.3, 5.4])
     assert "8.0/9.3" in all_speeds.line() and pooled(rows[2:]) == []
+
+
+def test_scenario_markdown_table_has_its_caption_and_one_row_per_score() -> None:
+    from graph_slam.bench.scenarios import ScenarioScore, markdown_table
+
+    arr = np.array([1.25, 3.0])
+    rows = [
+        ScenarioScore("flat", 10, 9, 8, 1, 0, 0, arr, arr + 1, 7, arr * 10),
+        ScenarioScore("pico", 5, 5, 0, 5, 0, 1, np.array([]), arr, 0, np.array([])),
+    ]
+    caption, _, header, rule, *body = markdown_table(rows, "graph-slam bench scenarios").splitlines()
+    assert caption.endswith("cores: `graph-slam bench scenarios`)") and "commit" in caption
+    assert header.count("|") == rule.count("|") == 11
+    assert body == [
+        "| flat | 9/10 | 8 | 1 | 0 | 0 | 2.1 / 3.0 | 3.1 / 4.0 | 7 | 21.2 / 30.0 |",
+        "| pico | 5/5 | 0 | 5 | 0 | 1 | – | 2.1 / 3.0 | 0 | – |",
+    ]

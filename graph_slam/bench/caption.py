@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import datetime
 import os
+import shlex
 import subprocess
+import sys
 from pathlib import Path
 
 
@@ -38,3 +40,9 @@ def caption(command: str) -> str:
     """``YYYY-MM-DD, commit abc1234, N cores: `command` ``."""
     today = datetime.datetime.now(datetime.UTC).date().isoformat()
     return f"{today}, commit {commit()}, {cores()} cores: `{command}`"
+
+
+def invoked_command() -> str:
+    """The command line this process was started with, as ``graph-slam …`` (also under
+    ``python -m graph_slam``)."""
+    return shlex.join(["graph-slam", *sys.argv[1:]])

@@ -113,6 +113,32 @@ HEADER = (
 )
 
 
+def markdown_table(scores: list[ScenarioScore], command: str) -> str:
+    """The scores as a markdown table with its caption (date, commit, cores, command): what
+    docs/benchmarks.md pastes ("Scenarios"). Accuracy and counts only: they repeat bit for
+    bit (docs/benchmarks.md, "Determinism")."""
+    from graph_slam.bench.caption import caption
+
+    def stat(values: np.ndarray) -> str:
+        return "–" if values.size == 0 else f"{np.median(values):.1f} / {values.max():.1f}"
+
+    lines = [
+        f"({caption(command)})",
+        "",
+        "| scenario | posed | registered (6 DoF) | partial | bridged | wrong (> 2 cm) "
+        "| smoothed mm median / worst | online mm median / worst | baseline registered "
+        "| baseline mm (aligned) median / worst |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
+    ]
+    for sc in scores:
+        lines.append(
+            f"| {sc.name} | {sc.with_pose}/{sc.frames} | {sc.registered} | {sc.partial} "
+            f"| {sc.bridged} | {sc.wrong_registered} | {stat(sc.smoothed_mm)} "
+            f"| {stat(sc.online_mm)} | {sc.baseline_registered} | {stat(sc.baseline_mm)} |"
+        )
+    return "\n".join(lines)
+
+
 def simulate_scenario(scenario: Scenario, folder: Path, strides: int, seed: int) -> Path:
     from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 

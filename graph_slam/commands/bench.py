@@ -260,11 +260,9 @@ def realtime_bench(
     for line in rt.headline_lines(results):
         typer.echo(line)
     if markdown:
-        import shlex
-        import sys
+        from graph_slam.bench.caption import invoked_command
 
-        command = shlex.join(["graph-slam", *sys.argv[1:]])
-        typer.echo("\n" + rt.markdown_table(results, command))
+        typer.echo("\n" + rt.markdown_table(results, invoked_command()))
     if out is not None:
         typer.echo(f"wrote {rt.write_json(results, out)}")
 
@@ -287,6 +285,13 @@ def scenarios_bench(
         Path | None,
         typer.Option("--config", help="YAML of PipelineConfig overrides for both pipelines."),
     ] = None,
+    markdown: Annotated[
+        bool,
+        typer.Option(
+            "--markdown",
+            help="Also print the markdown table (its caption: date, commit, cores, command).",
+        ),
+    ] = False,
 ) -> None:
     """Scenarios: a fixed list of scenes and conditions (flat floor and box course with and
     without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered
@@ -307,8 +312,13 @@ def scenarios_bench(
     scores = sc.run_scenarios(
         names, strides, seed, on_score=lambda s: typer.echo(s.line()), speeds=chosen, base=base
     )
-    for score in sc.pooled(scores):  # the issue's targets are over the speeds
+    pooled = sc.pooled(scores)  # the targets are over the speeds
+    for score in pooled:
         typer.echo(score.line())
+    if markdown:
+        from graph_slam.bench.caption import invoked_command
+
+        typer.echo("\n" + sc.markdown_table(scores + pooled, invoked_command()))
 
 
 @bench_app.command("calibration")

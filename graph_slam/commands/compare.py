@@ -87,7 +87,9 @@ def _print_report(report) -> None:
     if report.table_4_2_smoothed:
         typer.echo("Table 4.2 (smoothed poses)\n")
         typer.echo(report.table_4_2_smoothed)
-    typer.echo("Summary (medians over strides)\n")
+    from graph_slam.bench.caption import caption, invoked_command
+
+    typer.echo(f"Summary (medians over strides; {caption(invoked_command())})\n")
     typer.echo(summary_table(report))
     for name, table in report.tables_4_1.items():
         typer.echo(f"Table 4.1, obstacle dimensions (mm), boxes seen whole, map from {name}\n")
@@ -314,7 +316,8 @@ def register(app: typer.Typer) -> None:
                 f"sessions removed ({freed / 1e6:.0f} MB; --keep-sessions keeps them): "
                 f"{readme} simulates them again"
             )
-        typer.echo(f"demo done in {time.perf_counter() - t0:.0f} s")
+        size_mb = sum(f.stat().st_size for f in out.rglob("*") if f.is_file()) / 1e6
+        typer.echo(f"demo done in {time.perf_counter() - t0:.0f} s; {out}: {size_mb:.0f} MB")
 
     @app.command()
     def view(
