@@ -16,9 +16,11 @@ finish first).
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import queue
 import signal
 import threading
+import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
@@ -65,9 +67,21 @@ def sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _ignore_sigint() -> None:
-    """A worker's initializer: Ctrl-C is the parent's to handle (:func:`sigint_ignored`)."""
+def worker_init(parent_pid: int) -> None:
+    """A worker's initializer: Ctrl-C is the parent's to handle (:func:`sigint_ignored`), and
+    the worker ends itself within :data:`PARENT_POLL_S` when its parent is gone (killed,
+    SIGTERM): no orphan goes on computing for a report nobody will write."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_with_parent, args=(parent_pid,), daemon=True).start()
+
+
+PARENT_POLL_S = 1.0
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
 
 
 def _cost(variant: Variant) -> int:
@@ -95,7 +109,8 @@ def run_sessions(
     with sigint_ignored():  # the manager process inherits it
         manager = context.Manager()
     with manager, ProcessPoolExecutor(
-        max_workers=workers, mp_context=context, initializer=_ignore_sigint
+        max_workers=workers, mp_context=context, initializer=worker_init,
+        initargs=(os.getpid(),),
     ) as pool:  # fmt: skip
         ticks = manager.Queue()
         futures: dict[tuple[int, Variant], Future] = {}
