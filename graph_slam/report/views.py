@@ -124,10 +124,14 @@ def write_maps_and_views(out: Path, run, cfg, logger, t0_s: float) -> list[Path]
                 files.append(ply)
             if k < cfg.plot_maps_per_session and len(fused) and (source == main or source.is_truth):
                 files += _map_plots(out, source, smap, tag_stride, title, truth_boxes)
-            if cfg.rrd and source == main:
+            if cfg.rrd and source == main:  # the map as its PLY file holds it
+                view = file_cloud(fused, cfg.map_file_voxel_m)
+                colors = (
+                    None if view.colors is None else np.rint(view.colors * 255).astype(np.uint8)
+                )
                 logger.set_time(run.global_index(k), t0_s + float(ref.t_s[-1]))
                 logger.log_stride(ref.world_T_stride)
-                logger.log_cloud(fused.points_m, fused.colors_rgb, entity=MAP)
+                logger.log_cloud(view.points_m, colors, entity=MAP)
                 if smap.obstacles is not None:
                     logger.log_obstacles(
                         smap.obstacles.obstacles, smap.obstacles.floor.floor_T_stride()
