@@ -8,6 +8,8 @@ from typing import Annotated
 
 import typer
 
+from graph_slam.commands import options
+
 bench_app = typer.Typer(
     help="Benchmarks (figures recorded in docs/benchmarks.md).", no_args_is_help=True
 )
@@ -215,13 +217,7 @@ def realtime_bench(
         Path | None, typer.Option("--config", help="YAML of PipelineConfig overrides (base).")
     ] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Write the figures as JSON.")] = None,
-    markdown: Annotated[
-        bool,
-        typer.Option(
-            "--markdown",
-            help="Also print the markdown table (its caption: date, commit, cores, command).",
-        ),
-    ] = False,
+    markdown: options.Markdown = False,
     minutes: Annotated[
         float | None,
         typer.Option(
@@ -285,13 +281,7 @@ def scenarios_bench(
         Path | None,
         typer.Option("--config", help="YAML of PipelineConfig overrides for both pipelines."),
     ] = None,
-    markdown: Annotated[
-        bool,
-        typer.Option(
-            "--markdown",
-            help="Also print the markdown table (its caption: date, commit, cores, command).",
-        ),
-    ] = False,
+    markdown: options.Markdown = False,
 ) -> None:
     """Scenarios: a fixed list of scenes and conditions (flat floor and box course with and
     without texture, Pico Flexx, fast walk, double noise, stairs): coverage, frames registered

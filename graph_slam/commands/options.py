@@ -40,6 +40,13 @@ MapFiles = Annotated[
         "the default), all, none. Every map is scored either way.",
     ),
 ]
+Markdown = Annotated[
+    bool,
+    typer.Option(
+        "--markdown",
+        help="Also print the markdown table (its caption: date, commit, cores, command).",
+    ),
+]
 Overwrite = Annotated[
     bool, typer.Option("--overwrite", help="Replace an output folder graph-slam wrote.")
 ]
