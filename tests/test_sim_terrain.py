@@ -169,3 +169,17 @@ def _peaks(scene):
     from graph_slam.bench.terrain_walk import joint_peaks
 
     return joint_peaks(scene, "normal", 4)
+
+
+def test_terrain_bench_markdown_table_has_its_caption_and_rows() -> None:
+    from graph_slam.bench.terrain import TerrainRow, markdown_table
+
+    row = TerrainRow(
+        "s", "icp", sightings=[(0.001, 0.002), (0.02, 0.0)], carried_errors_m=[0.003],
+        normalised=[0.5, -0.5], update_ms=[1.0, 2.0], first_known_s=[0.3],
+    )  # fmt: skip
+    text = markdown_table([row.figures()], "graph-slam bench terrain s")
+    caption, _, header, rule, body = text.splitlines()
+    assert caption.endswith("cores: `graph-slam bench terrain s`)")
+    assert header.count("|") == rule.count("|") == 14
+    assert body.startswith("| s: icp | 2 | 50% | 10.5 | 1.0 | 1 | 3.0 | 0.50 | 0.74 | 1.50 / 1.95 |")

@@ -270,6 +270,34 @@ def row_line(f: dict[str, Any]) -> str:
     )
 
 
+def markdown_table(figures: list[dict[str, Any]], command: str) -> str:
+    """The rows' figures as a markdown table with its caption (date, commit, cores, command):
+    what docs/benchmarks.md pastes ("Terrain for the controller")."""
+    from graph_slam.bench.caption import caption
+
+    lines = [
+        f"({caption(command)})",
+        "",
+        "| row | sightings | within 5 / 10 mm | median height error mm | median edge error mm "
+        "| carried cells | carried RMSE mm | error/σ std | robust | update ms median / p95 "
+        "| known before toe-off | median lead s | first box known s |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
+    ]
+    for f in figures:
+        d = f["deadline"]
+        lines.append(
+            f"| {f['session']}: {f['row']} | {f['sightings']} "
+            f"| {f['sightings_within_5mm_10mm']:.0%} | {f['height_error_mm_median']:.1f} "
+            f"| {f['edge_error_mm_median']:.1f} | {f['carried_cells']} "
+            f"| {f['carried_rmse_mm']:.1f} | {f['normalised_error_std']:.2f} "
+            f"| {f['normalised_error_robust_std']:.2f} "
+            f"| {f['update_ms_median']:.2f} / {f['update_ms_p95']:.2f} "
+            f"| {d['n_before_toe_off']}/{d['n']} | {d['lead_s_median']:.2f} "
+            f"| {f['first_obstacle_known_s_median']:.2f} |"
+        )
+    return "\n".join(lines)
+
+
 def update_cost_ms(session_path: Path, config: PipelineConfig | None = None, repeats: int = 5):
     """The grid update alone, per frame of a session (its true camera orientations and heights
     over the grid's origin, a fixed pose covariance), the least of ``repeats`` timings per frame (a loaded machine's preemptions

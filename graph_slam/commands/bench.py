@@ -370,6 +370,7 @@ def terrain_bench(
         typer.Option(help="Graph rows: per-frame marginal covariances in the grid's variance."),
     ] = True,
     out: Annotated[Path | None, typer.Option("--out", help="Write the figures as JSON.")] = None,
+    markdown: options.Markdown = False,
 ) -> None:
     """Terrain: the per-frame elevation grid against the scene's truth (docs/terrain.md):
     box sightings at toe-off, the carried map, σ-consistency, update time, deadlines."""
@@ -396,6 +397,11 @@ def terrain_bench(
     typer.echo(bt.HEADER)
     for r in pooled:
         typer.echo(bt.row_line(r.figures()))
+    if markdown:
+        from graph_slam.bench.caption import invoked_command
+
+        figures = [r.figures() for r in results + pooled]
+        typer.echo("\n" + bt.markdown_table(figures, invoked_command()))
     if out is not None:
         figures = [r.figures() for r in results + pooled]
         out.write_text(json.dumps(figures, indent=1, default=float))
