@@ -46,3 +46,17 @@ def test_summary_and_swing_lines_carry_the_known_figures():
     swing = swing_lines(sc)[0]
     assert "3 frames; baseline without pose on 2" in swing
     assert "10.0/1.0 (10.0x)" in swing  # only the frame the baseline posed
+
+
+def test_markdown_table_has_a_row_per_graph_variant_and_its_caption():
+    from graph_slam.bench.accuracy import markdown_table
+
+    timing = {"median": 1.0, "p95": 2.0}
+    graph = [_stride(1, 0.002, 0.004, [], []), _stride(2, 0.006, 0.03, [], [])]
+    sc = SessionScore("s", "normal")
+    sc.variants["icp"] = VariantScore("icp", graph, 0, 0, timing, 1.0)
+    sc.variants["icp+imu+kin"] = VariantScore("icp+imu+kin", graph, 0, 0, timing, 1.0)
+    caption, _, header, rule, *body = markdown_table([sc], "graph-slam bench pipelines s").splitlines()
+    assert caption.endswith("cores: `graph-slam bench pipelines s`)")
+    assert header.count("|") == rule.count("|") == 7
+    assert body == ["| s | icp+imu+kin | 2 | 4.0 / 6.0 | 4.0 / 6.0 | 17.0 / 30.0 |"]

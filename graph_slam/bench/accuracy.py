@@ -235,5 +235,33 @@ def summary_lines(scores: list[SessionScore]) -> list[str]:
     return lines
 
 
+def markdown_table(scores: list[SessionScore], command: str) -> str:
+    """Per session and graph variant: strides, smoothed and online stride-frame RMSE (median /
+    worst), the smoothed error at the next foot strike (median / max), as a markdown table
+    with its caption (date, commit, cores, command)."""
+    from graph_slam.bench.caption import caption
+
+    lines = [
+        f"({caption(command)})",
+        "",
+        "| session | variant | strides | smoothed RMSE mm median / worst "
+        "| online RMSE mm median / worst | next strike mm median / max |",
+        "| :-- | :-- | --: | --: | --: | --: |",
+    ]
+    for sc in scores:
+        for v, vs in sc.variants.items():
+            if v == "icp" or not vs.strides:
+                continue
+            sm = np.array([s.smoothed_rmse_m for s in vs.strides]) * 1e3
+            on = np.array([s.online_rmse_m for s in vs.strides]) * 1e3
+            ends = np.array([s.end_smoothed_m for s in vs.strides]) * 1e3
+            lines.append(
+                f"| {sc.name} | {v} | {len(sm)} | {np.median(sm):.1f} / {sm.max():.1f} "
+                f"| {np.median(on):.1f} / {on.max():.1f} "
+                f"| {np.median(ends):.1f} / {ends.max():.1f} |"
+            )
+    return "\n".join(lines)
+
+
 def header_line() -> str:
     return f"pipelines benchmark ({len(os.sched_getaffinity(0))} CPUs visible)"

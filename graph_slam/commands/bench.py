@@ -160,6 +160,7 @@ def pipelines_bench(
             "icp+imu+kin:realtime (accurate, thesis, realtime, realtime-gicp; docs/pipelines.md)."
         ),
     ] = "icp,icp+imu,imu+kin,icp+imu+kin,bridge",
+    markdown: options.Markdown = False,
 ) -> None:
     """Accuracy figures: every variant on simulated sessions (RMSE, swing, counts, timing),
     and the bridging experiment (no ICP in swing). Prints each variant as it finishes."""
@@ -195,6 +196,10 @@ def pipelines_bench(
     scores = bp.run_pipelines_bench({p.name: p for p in sessions}, names, on_variant=show)
     for line in bp.summary_lines(scores):
         typer.echo(line)
+    if markdown:
+        from graph_slam.bench.caption import invoked_command
+
+        typer.echo("\n" + bp.markdown_table(scores, invoked_command()))
 
 
 @bench_app.command("realtime")
