@@ -121,8 +121,7 @@ class EventEmission:
         on a thigh whose swing and stance differ from it (a prosthesis side: 0.1-0.2 cycle at
         the lock), while the time since the strike over the EKF's cadence lags (the cadence is
         still settling from its prior, low). The phase reported is then their circular mean
-        (phase RMSE over that stride 10-11 % -> 4-5 % on the synthetic prosthetic set, 9 -> 5 %
-        on the Xsens walk; docs/kinematics.md)."""
+        (docs/kinematics.md, "The first strikes and the first stride's phase")."""
         ekf = self._ekf
         last = self._last_event_t["foot_strike"]
         own = float((ekf.x[0] - self.timing.bias_s * max(float(ekf.x[1]), 1e-3)) % 1.0)
