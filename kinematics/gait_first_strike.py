@@ -51,10 +51,15 @@ class FirstStrikeConfig:
     """A sample with a smaller gyro norm is quiet (standing)."""
     standing_s: float = 0.5
     """Quiet this long: a standing posture (the tilt's zero)."""
+    posture_s: float = 1.0
+    """The posture is the running mean of the quiet samples' specific force over about this
+    long (the last posture before walking, not that of a long stand's start); the gyro bias
+    is their mean over the whole quiet run (standing sway, ~0.05 rad/s, averages out)."""
     walk_on_rms_rad_s: float = 0.5
     rms_window_s: float = 0.25
     min_walk_s: float = 0.3
-    """The envelope's median is taken over at least this much walking before a shock counts."""
+    """The envelope's median (over the walking so far, at most its last 2000 samples) is
+    taken over at least this much walking before a shock counts."""
     min_strength: float = 50.0
     """A shock rises this many times above the envelope's median since walking started."""
     min_tilt_rad: float = math.radians(10.0)
@@ -88,14 +93,15 @@ class FirstStrikes:
         self.strikes_s: list[float] = []
         self._t: float | None = None
         self._quiet_s = 0.0
-        self._quiet_sum = np.zeros(6)
+        self._gyro_sum = np.zeros(3)  # over the quiet run: the sway averages out
         self._quiet_n = 0
+        self._up_mean = np.zeros(3)  # accel over the last ~posture_s of quiet
         self._up0: np.ndarray | None = None
         self._bias = np.zeros(3)
         self._R = np.eye(3)  # standing sensor frame <- current sensor frame
         self._ms = 0.0
         self._walk_s = 0.0
-        self._envs: list[float] = []
+        self._envs: deque[float] = deque(maxlen=2000)
         self._hist: deque[tuple[float, float, np.ndarray]] = deque(maxlen=4000)
         self._burst: _Burst | None = None
 
@@ -124,20 +130,21 @@ class FirstStrikes:
     def _posture(self, dt: float, gyro: np.ndarray, accel: np.ndarray) -> None:
         """Standing: collect the quiet samples; the sensor's rotation since the last one."""
         if float(np.linalg.norm(gyro)) < self.cfg.quiet_rad_s:
-            self._quiet_s += dt
-            self._quiet_sum += np.concatenate([gyro, accel])
+            w = 1.0 if self._quiet_n == 0 else min(1.0, dt / self.cfg.posture_s)
+            self._up_mean += w * (np.asarray(accel, dtype=float) - self._up_mean)
+            self._gyro_sum += gyro
             self._quiet_n += 1
+            self._quiet_s += dt
             if self._quiet_s >= self.cfg.standing_s:
-                mean = self._quiet_sum / self._quiet_n
-                self._bias = mean[:3]
-                self._up0 = mean[3:] / max(float(np.linalg.norm(mean[3:])), 1e-9)
+                self._bias = self._gyro_sum / self._quiet_n
+                self._up0 = self._up_mean / max(float(np.linalg.norm(self._up_mean)), 1e-9)
                 self._R = np.eye(3)
                 self._hist.clear()
                 self.strikes_s.clear()
                 return
         else:
             self._quiet_s = 0.0
-            self._quiet_sum[:] = 0.0
+            self._gyro_sum[:] = 0.0
             self._quiet_n = 0
         if self._up0 is not None and dt > 0:
             self._R = self._R @ _exp(np.asarray(gyro, dtype=float) - self._bias, dt)
@@ -176,7 +183,7 @@ class FirstStrikes:
 
     def _forward_swing(self, onset: tuple[float, np.ndarray]) -> bool:
         """The thigh is tilted at least ``min_tilt_rad`` at the onset, swung into that tilt
-        within ``swing_window_s``, and further than on the opposite side since standing."""
+        within ``swing_window_s``, and further than on the opposite side over ``side_window_s``."""
         cfg = self.cfg
         t_on, v = onset
         tilt = math.asin(min(float(np.linalg.norm(v)), 1.0))
