@@ -70,3 +70,12 @@ def heel_shock_accel(t_s: np.ndarray, strikes_s: np.ndarray, amplitude_m_s2: flo
         if near.any():
             out[near] += _unit_accel(t[near] - ts)
     return out * amplitude_m_s2 / _PEAK_PER_M
+
+
+def heel_shock_in_frame(
+    t_s: np.ndarray, strikes_s: np.ndarray, amplitude_m_s2: float, thigh_T_frame: np.ndarray
+) -> np.ndarray:
+    """(n, 3) the bursts in a thigh-fixed sensor frame: along the thigh's long axis (the thigh
+    frame's z, up the thigh when the leg is straight)."""
+    limb = np.asarray(thigh_T_frame, dtype=float)[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    return np.outer(heel_shock_accel(t_s, strikes_s, amplitude_m_s2), limb)

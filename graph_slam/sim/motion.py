@@ -169,13 +169,10 @@ class ThighMotion:
         acc_world = (after[:, :3, 3] - 2.0 * mid[:, :3, 3] + before[:, :3, 3]) / h_s**2
         specific = acc_world + np.array([0.0, 0.0, GRAVITY_M_S2])
         accel = np.einsum("nji,nj->ni", mid_R, specific)
-        if self.cfg.heel_shock_m_s2 > 0:  # the mount's vibration at heel contact (heel_shock)
-            from graph_slam.sim.heel_shock import heel_shock_accel
+        from graph_slam.sim.heel_shock import heel_shock_in_frame
 
-            limb = np.asarray(thigh_T_imu, dtype=float)[:3, :3].T @ np.array([0.0, 0.0, 1.0])
-            pulse = heel_shock_accel(t, self.foot_strikes_s, self.cfg.heel_shock_m_s2)
-            accel = accel + np.outer(pulse, limb)
-        return gyro, accel
+        shock = heel_shock_in_frame(t, self.foot_strikes_s, self.cfg.heel_shock_m_s2, thigh_T_imu)
+        return gyro, accel + shock
 
     def _model_time(self, t_s: np.ndarray) -> np.ndarray:
         """Session time → model time (a subclass sets ``u0`` and ``duration_s``)."""
