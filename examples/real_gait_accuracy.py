@@ -12,7 +12,8 @@ arrangement of the sensor), prints per data set and detector (offline
 * events (strikes and toe-offs) while standing (before the walk starts: the gyro norm, low-passed
   at 2 Hz, first above 0.5 rad/s);
 * online: detection latency p95 (detection − reference strike), over all strikes and without
-  the first of each walk (emitted once the sensor's axis is learned from a whole cycle);
+  the first of each walk (emitted at its shock when the walk starts from standing and the shock
+  identifies it, else once the sensor's axis is learned from a whole cycle);
 * phase RMSE against the phase linear between reference strikes (offline: linear between the
   detected strikes);
 * the femur walks, which have no contact reference: the left and right strikes found, and

@@ -8,7 +8,9 @@ Per sample (:meth:`OnlineGaitEstimator.update`):
    :attr:`OnlineGaitEstimator.counts`; time going backwards is a :class:`GaitInputError`;
 2. the thigh's sagittal angle and rate (:mod:`kinematics.thigh_attitude`; the samples buffered
    while the sagittal axis is learned are replayed once it is fixed, and the events found in
-   them are emitted then, with that sample's time as their detection time);
+   them are emitted then, with that sample's time as their detection time; the strikes among
+   them that :mod:`kinematics.gait_first_strike` found from the shock and the thigh's tilt,
+   which need no axis, were emitted as they happened);
 3. walking or standing, from the running RMS of the thigh rate (hysteresis) and a stop test in
    stance (the thigh rate below a quarter of the model's for 60 ms); standing freezes the phase
    (no prediction, no events) and the next walk re-acquires it;
@@ -42,6 +44,7 @@ from collections import deque
 import numpy as np
 
 from kinematics.errors import GaitInputError
+from kinematics.gait_first_strike import FirstStrikes
 from kinematics.gait_phase_config import (
     COUNT_NAMES,
     GaitPhaseConfig,
@@ -102,6 +105,7 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
         self._next_toe_off = 0
         self._last_event_t = {"foot_strike": -math.inf, "toe_off": -math.inf}
         self.timing = StrikeTiming(self.cfg.strike_timing)
+        self.first = FirstStrikes(self.cfg.first_strike, self.cfg.strike_timing.impact)
         self.load_cell = LoadCellEvents(self.cfg.prosthesis)
         self.prosthesis_sign = ProsthesisSign(self.cfg.prosthesis)
         self._knee_rad: float | None = None
@@ -160,7 +164,7 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
             self.counts["saturated"] += 1
             flags |= 2
         if self.thigh is None:
-            return self._learn(t_s, gyro, accel, flags)
+            return self._first_strike(t_s, gyro, accel) + self._learn(t_s, gyro, accel, flags)
         self._knee_rad = knee_rad
         out = self._step(t_s, gyro, accel, saturated, flags, detected_t_s=t_s)
         if self._shadow is not None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from kinematics.gait_first_strike import FirstStrikeConfig
 from kinematics.gait_phase_impact import StrikeTimingConfig
 from kinematics.gait_prosthesis import ProsthesisConfig
 from kinematics.thigh_attitude import ThighAttitudeConfig
@@ -21,6 +22,8 @@ COUNT_NAMES = (
     "impact_strikes",
     "sign_disagreement",
     "load_cell_strikes",
+    "first_strikes",
+    "first_strikes_unconfirmed",
 )
 
 
@@ -80,6 +83,9 @@ class GaitPhaseConfig:
     flexes in stance and extends in swing), the axis is flipped (counted as ``axis_flipped``
     and ``sign_disagreement``; 0 turns the impact check off)."""
     strike_timing: StrikeTimingConfig = field(default_factory=StrikeTimingConfig)
+    first_strike: FirstStrikeConfig = field(default_factory=FirstStrikeConfig)
+    """The first strikes of a walk, emitted before the axis is learned
+    (:mod:`kinematics.gait_first_strike`)."""
     prosthesis: ProsthesisConfig = field(default_factory=ProsthesisConfig)
     attitude: ThighAttitudeConfig = field(default_factory=ThighAttitudeConfig)
 

@@ -111,22 +111,32 @@ class EventEmission:
 
     def _phase_out(self, t_s: float) -> float:
         """The phase reported: with impacts, linear in time from the last strike over the
-        median of the last three strides (the latest before three are known, the EKF's cadence
-        before one is) (the phase's definition; the reference curve's shape
-        does not bend it); else the EKF's, shifted by the learned strike bias."""
+        median of the last three strides (the latest before three are known, the cycle seen
+        while learning the axis before one is) (the phase's definition; the reference curve's
+        shape does not bend it); else the EKF's, shifted by the learned strike bias.
+
+        With impacts but no stride measured yet (the first stride after a start, when the
+        learning buffer held no whole cycle) the two estimates at hand err in opposite senses:
+        the EKF's own phase follows the reference thigh curve's shape and runs ahead in stance
+        on a thigh whose swing and stance differ from it (a prosthesis side: 0.1-0.2 cycle at
+        the lock), while the time since the strike over the EKF's cadence lags (the cadence is
+        still settling from its prior, low). The phase reported is then their circular mean
+        (docs/kinematics.md, "The first strikes and the first stride's phase")."""
         ekf = self._ekf
         last = self._last_event_t["foot_strike"]
-        if self.timing.impact_mode and t_s - last < 2.5:
-            if len(self._strides) >= 3:
-                stride = float(np.median(self._strides))
-            elif self._strides:  # the first strides after a start shorten: the latest
-                stride = self._strides[-1]
-            elif self._buffer_stride_s is not None:  # the cycle seen while learning the axis
-                stride = self._buffer_stride_s
-            else:
-                stride = 1.0 / max(float(ekf.x[1]), 0.3)
-            return float(min((t_s - last) / stride, 0.999))
-        return float((ekf.x[0] - self.timing.bias_s * max(float(ekf.x[1]), 1e-3)) % 1.0)
+        own = float((ekf.x[0] - self.timing.bias_s * max(float(ekf.x[1]), 1e-3)) % 1.0)
+        if not (self.timing.impact_mode and t_s - last < 2.5):
+            return own
+        if len(self._strides) >= 3:
+            stride = float(np.median(self._strides))
+        elif self._strides:  # the first strides after a start shorten: the latest
+            stride = self._strides[-1]
+        elif self._buffer_stride_s is not None:  # the cycle seen while learning the axis
+            stride = self._buffer_stride_s
+        else:
+            linear = min((t_s - last) * max(float(ekf.x[1]), 0.3), 0.999)
+            return float(min((linear + 0.5 * (math.remainder(own - linear, 1.0))) % 1.0, 0.999))
+        return float(min((t_s - last) / stride, 0.999))
 
     def _set_state(self, t_s: float, thigh: ThighState | None, flags: int) -> None:
         ekf = self._ekf if self._walking else None

@@ -57,32 +57,68 @@ class MountingCheck:
         for name in ("reacquired", "phase_jumps", "saturated"):
             self.counts[name] += best.counts[name]
         self.counts["axis_flipped"] += int(best is trials[1])
-        # events found in the buffer are emitted now: they carry this sample's time, and the
-        # strikes among them are placed on their impacts (the whole buffer is past by now)
-        strikes = impact_strikes_in_buffer(
-            t_b, a_b, np.array([e.t_s for e in best.events if e.kind == "foot_strike"]),
-            self.cfg.strike_timing,
-        )  # fmt: skip
-        it = iter(strikes)
-        self.events = [
-            OnlineEvent(
-                e.kind, next(it) if e.kind == "foot_strike" else e.t_s, t_s, e.phase_sigma_cyc
-            )
-            for e in best.events
-        ]
-        missed = self._strike_before_lock(t_b, g_b, a_b, t_s)
-        if missed is not None:
-            self.events = sorted(
-                [*self.events, OnlineEvent("foot_strike", missed, t_s, math.nan)],
-                key=lambda e: e.t_s,
-            )
+        new = self._buffer_events(best, t_b, g_b, a_b, t_s)
         fs = [e.t_s for e in self.events if e.kind == "foot_strike"]
         if fs:
             self._last_event_t["foot_strike"] = fs[-1]
             self._learn_bursts(t_b, a_b, fs)
         self._buffer_stride_s = _last_cycle_s(t_b, g_b @ self.thigh.axis.axis)
         self.state = GaitState(**{**self.state.__dict__, "flags": self.state.flags | flags})
-        return list(self.events)
+        return new
+
+    def _buffer_events(self, best, t_b, g_b, a_b, t_s: float) -> list[OnlineEvent]:
+        """The events the replay found in the learning buffer, emitted now (they carry this
+        sample's time), its strikes placed on their impacts (the whole buffer is past by now),
+        less those already emitted as first strikes; ``self.events`` then holds all."""
+        strikes = impact_strikes_in_buffer(
+            t_b, a_b, np.array([e.t_s for e in best.events if e.kind == "foot_strike"]),
+            self.cfg.strike_timing,
+        )  # fmt: skip
+        it = iter(strikes)
+        first = list(self.events)  # the first strikes, emitted before the axis was learned
+        replay = [
+            OnlineEvent(
+                e.kind, next(it) if e.kind == "foot_strike" else e.t_s, t_s, e.phase_sigma_cyc
+            )
+            for e in best.events
+        ]
+        self.events = first + replay
+        missed = self._strike_before_lock(t_b, g_b, a_b, t_s)
+        if missed is not None:
+            replay.append(OnlineEvent("foot_strike", missed, t_s, math.nan))
+        new = self._merge_first(first, replay, t_b, g_b)
+        self.events = sorted(first + new, key=lambda e: e.t_s)
+        return new
+
+    def _first_strike(self, t_s, gyro, accel) -> list[OnlineEvent]:
+        """Before the axis is learned: a strike from the shock and the thigh's tilt
+        (:mod:`kinematics.gait_first_strike`), emitted at once."""
+        found = self.first.update(t_s, gyro, accel)
+        if found is None:
+            return []
+        self.counts["first_strikes"] += 1
+        event = OnlineEvent("foot_strike", found[0], found[1], math.nan)
+        self.events.append(event)
+        return [event]
+
+    def _merge_first(self, first, replay, t_b, g_b) -> list[OnlineEvent]:
+        """The replay's events less its strikes within ``merge_s`` of a first strike (the same
+        strike, already emitted); a first strike the replay does not confirm is counted."""
+        merge = self.cfg.first_strike.merge_s
+        known = [e.t_s for e in first if e.kind == "foot_strike"]
+        found = [e.t_s for e in replay if e.kind == "foot_strike"]
+        self.counts["first_strikes_unconfirmed"] += sum(
+            all(abs(k - f) > merge for f in found) and not self._flexed_at(t_b, g_b, k)
+            for k in known
+        )
+        return sorted(
+            (
+                e
+                for e in replay
+                if e.kind != "foot_strike" or all(abs(e.t_s - k) > merge for k in known)
+            ),
+            key=lambda e: e.t_s,
+        )
 
     def _strike_before_lock(self, t_b, g_b, a_b, t_s: float) -> float | None:
         """A strike in the learning buffer that the replay did not emit (the phase locks a
@@ -109,12 +145,16 @@ class MountingCheck:
         )
         if not math.isfinite(onset):
             return None
+        return onset - cfg.lag_s if self._flexed_at(t_b, g_b, onset) else None
+
+    def _flexed_at(self, t_b, g_b, t_s: float) -> bool:
+        """The thigh is flexed at ``t_s`` (ahead of its mean angle over the buffer's motion:
+        at contact the foot is in front of the body; at toe-off, behind)."""
+        axis = self.thigh.axis
         rate = g_b @ axis.axis - axis.gyro_bias_rad_s
         angle = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t_b))])
         moving = np.abs(rate) > 0.5
-        if moving.sum() < 10 or np.interp(onset, t_b, angle) <= angle[moving].mean():
-            return None
-        return onset - cfg.lag_s
+        return bool(moving.sum() >= 10 and np.interp(t_s, t_b, angle) > angle[moving].mean())
 
     def _learn_bursts(self, t_b, a_b, strikes_s) -> None:
         """The bursts of the strikes found in the learning buffer start the typical peak."""
@@ -130,7 +170,7 @@ class MountingCheck:
 
     def _adopt(self, other: MountingCheck) -> None:
         keep = {"cfg", "learner", "counts", "events", "_shadow", "_shadow_until_s", "_sum_mark"}
-        keep |= {"load_cell", "prosthesis_sign"}
+        keep |= {"load_cell", "prosthesis_sign", "first"}
         self.__dict__.update({k: v for k, v in other.__dict__.items() if k not in keep})
 
     def _check_sign(self, t_s, gyro, accel) -> None:

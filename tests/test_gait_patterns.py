@@ -95,8 +95,8 @@ def test_online_on_prosthetic_gait(prosthetic_walk):
     res = estimate_online(sc.imu)
     _check(res.times("foot_strike"), sc.foot_strikes_s, sc.walking_intervals_s)
     score = score_online(res, sc.foot_strikes_s, sc.toe_offs_s)
-    assert np.max(score.foot_strike.latencies_s[1:]) <= 0.100
-    assert score.phase_rmse_cyc <= 0.08  # 6 strides: the first, before a stride is measured
+    assert np.max(score.foot_strike.latencies_s) <= 0.100  # the first too (its shock)
+    assert score.phase_rmse_cyc <= 0.05  # 6 strides (2.5-3.0 %): the first one after the lock too
     assert res.counts["impact_strikes"] >= 3 and res.counts["axis_flipped"] == 0
 
 

@@ -48,6 +48,9 @@ class MotionConfig(ConfigModel):
     swing_dorsiflexion_deg: float = Field(
         10.0, ge=0, le=25, description="extra ankle dorsiflexion in swing (toe clearance)"
     )
+    heel_shock_m_s2: float = Field(
+        15.0, ge=0, le=60, description="peak of the thigh IMU's heel-contact burst (0: none)"
+    )
     lead_in_s: float = Field(0.25, ge=0, le=0.3, description="recording before the first strike")
     lead_out_s: float = Field(0.1, ge=0, le=2, description="recording after the last strike")
     grid_hz: float = Field(2000.0, ge=500, le=20000, description="event-search grid rate")

@@ -137,7 +137,8 @@ def _rot_z(a: np.ndarray) -> np.ndarray:
 class ThighMotion:
     """What every walking motion derives from its thigh pose: sensor frames, IMU, velocity.
 
-    A subclass provides ``world_T_thigh(t_s)`` ((n, 4, 4), C2 in time).
+    A subclass provides ``world_T_thigh(t_s)`` ((n, 4, 4), C2 in time), ``cfg`` (its
+    :class:`~graph_slam.sim.config.MotionConfig`) and ``foot_strikes_s`` (the heel contacts).
     """
 
     def world_T_thigh(self, t_s: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
@@ -153,7 +154,9 @@ class ThighMotion:
         """Noise-free gyro (rad/s) and specific force (m/s²) in the IMU frame at ``t_s``.
 
         Central differences of the exact pose (step ``h_s``): the motion is C2, so the error
-        is O(h²) (about 1e-6 m/s² here).
+        is O(h²) (about 1e-6 m/s² here). Plus, at each heel contact, the sensor mount's
+        vibration along the thigh (:mod:`graph_slam.sim.heel_shock`, ``heel_shock_m_s2``; it
+        integrates to zero velocity and displacement, so it is not in :meth:`world_T`).
         """
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
         stacked = self.world_T(np.concatenate([t - h_s, t, t + h_s]), thigh_T_imu)
@@ -166,7 +169,10 @@ class ThighMotion:
         acc_world = (after[:, :3, 3] - 2.0 * mid[:, :3, 3] + before[:, :3, 3]) / h_s**2
         specific = acc_world + np.array([0.0, 0.0, GRAVITY_M_S2])
         accel = np.einsum("nji,nj->ni", mid_R, specific)
-        return gyro, accel
+        from graph_slam.sim.heel_shock import heel_shock_in_frame
+
+        shock = heel_shock_in_frame(t, self.foot_strikes_s, self.cfg.heel_shock_m_s2, thigh_T_imu)
+        return gyro, accel + shock
 
     def _model_time(self, t_s: np.ndarray) -> np.ndarray:
         """Session time → model time (a subclass sets ``u0`` and ``duration_s``)."""
