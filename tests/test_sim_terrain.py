@@ -169,3 +169,39 @@ def _peaks(scene):
     from graph_slam.bench.terrain_walk import joint_peaks
 
     return joint_peaks(scene, "normal", 4)
+
+
+#: Published ankle ranges (deg, plantarflexion −, dorsiflexion +) of a stride that stays in
+#: one activity: level walking (Winter 2009: −20 ± 5° at toe-off, ≤ 15° in stance), stair
+#: ascent and descent (Riener et al. 2002; Protopapadaki et al. 2007: up to ~20–25°), ramps
+#: (McIntosh et al. 2006: up to ~20–25° going up). The URDF's limit (20°) is the tighter.
+ANKLE_RANGES_DEG = {
+    "level": (-25.0, 15.0), "stairs_up": (-25.0, 25.0), "stairs_down": (-25.0, 25.0),
+    "ramp_up": (-25.0, 25.0), "ramp_down": (-25.0, 25.0),
+}  # fmt: skip
+ANKLE_SCENES = (
+    "stairs-ascent", "stairs-descent", "ramp-up-5", "ramp-up-8", "ramp-up-10", "ramp-down-5",
+    "ramp-down-8", "ramp-down-10", "curb-up", "curb-down", "step-over", "step-onto",
+    "terrain-course",
+)  # fmt: skip
+
+
+@pytest.mark.parametrize("speed_m_s", [0.8, 1.4])
+def test_ankle_stays_within_the_urdf_limits_and_published_ranges(leg_model, speed_m_s) -> None:
+    lower, upper = (math.degrees(lim[1]) for lim in
+                    (leg_model.lower_limits_rad, leg_model.upper_limits_rad))  # fmt: skip
+    assert upper == pytest.approx(20.0) and lower == pytest.approx(-30.0)
+    checked = set()
+    for name in ANKLE_SCENES:
+        m = TerrainMotion(speed_m_s, 4, seed=3, surfaces=load_scene(name).surfaces, leg=LEG)
+        for k, label in enumerate(m.stride_labels):
+            t = np.linspace(m.foot_strikes_s[k], m.foot_strikes_s[k + 1], 300)[:-1]
+            ankle = np.degrees(m.joint_angles(t)[1])
+            assert lower <= ankle.min() and ankle.max() <= upper, (name, k, label)
+            arrived = "level" if k == 0 else m.stride_labels[k - 1]
+            if arrived == label and label in ANKLE_RANGES_DEG:
+                lo, hi = ANKLE_RANGES_DEG[label]
+                assert lo <= ankle.min() and ankle.max() <= hi + 1e-6, (name, k, label, ankle.min(),
+                                                                 ankle.max())  # fmt: skip
+                checked.add(label)
+    assert checked == set(ANKLE_RANGES_DEG)

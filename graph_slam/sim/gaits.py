@@ -35,16 +35,20 @@ class Gait:
     """> 0: the hip is this fraction of the arriving stride behind the ankle at the strike."""
     hip_back_m: float = 0.0
     """With ``back_per_stride`` 0: the hip's x − the ankle's at the strike (m)."""
+    ankle_max_deg: float = 18.0
+    """Stance dorsiflexion cap: past it the heel rises (the foot rolls over the toe).
+    Below the URDF's 20° limit; level walking stays under ~15° (Winter 2009), stairs and
+    ramps reach 20–25° (Riener et al. 2002, Protopapadaki et al. 2007, McIntosh et al. 2006)."""
 
 
-_LEVEL = dict(heel_rocker_deg=12.0, toe_rocker_deg=30.0, flat_from=0.20, toe_from=0.55)
-_STEP = dict(heel_rocker_deg=6.0, toe_rocker_deg=25.0, flat_from=0.15, toe_from=0.55)
+_LEVEL = dict(heel_rocker_deg=12.0, toe_rocker_deg=36.0, flat_from=0.20, toe_from=0.55)
+_STEP = dict(heel_rocker_deg=6.0, toe_rocker_deg=30.0, flat_from=0.15, toe_from=0.55)
 
 GAIT: dict[str, Gait] = {
-    "level": Gait(1.0, **_LEVEL, lift_m=0.03, back_per_stride=0.25),
-    "ramp_up": Gait(1.05, 14.0, 28.0, 0.20, 0.55, lift_m=0.04, back_per_stride=0.25,
+    "level": Gait(1.0, **_LEVEL, lift_m=0.03, back_per_stride=0.25, ankle_max_deg=13.5),
+    "ramp_up": Gait(1.05, 14.0, 34.0, 0.20, 0.55, lift_m=0.04, back_per_stride=0.25,
                     knee_extra_deg=(10.0, 0.0)),
-    "ramp_down": Gait(1.05, 10.0, 28.0, 0.20, 0.55, lift_m=0.03, back_per_stride=0.25,
+    "ramp_down": Gait(1.05, 10.0, 34.0, 0.20, 0.55, lift_m=0.03, back_per_stride=0.25,
                       knee_extra_deg=(0.0, 12.0)),
     "stairs_up": Gait(1.25, 0.0, 18.0, 0.05, 0.60, lift_m=0.20, hip_back_m=-0.25,
                       knee_deg=((0.0, 58.0), (0.35, 30.0), (0.7, 10.0), (1.0, 22.0))),

@@ -57,6 +57,15 @@ KNEE_MAX_RAD = math.radians(125.0)
 THIGH_RANGE_RAD = (math.radians(-45.0), math.radians(95.0))
 #: The share of the hip's rise in our swing (the other leg's mid-stance) the foot does not follow.
 HIP_RISE_SHARE = 0.7
+#: The stance ankle saturates at its cap over this width (rad); the swing's cap is this
+#: much above the stance's, so the ends of the swing lie where its soft cap is the identity.
+ANKLE_CAP_SOFT_RAD = math.radians(4.0)
+ANKLE_SWING_SOFT_RAD = math.radians(1.5)
+#: Swing plantarflexion floor (rad): about the toe-off plantarflexion of level walking
+#: (Winter 2009); the stance never goes below it.
+ANKLE_SWING_FLOOR_RAD = math.radians(-22.0)
+#: Fixed-point iterations of the heel rise that holds the stance ankle at its cap.
+ANKLE_CAP_ITERATIONS = 12
 #: Edges this close to the foothold left or landed on are not held to the clearance margin.
 EDGE_KEEPOUT_M = 0.03
 
@@ -148,10 +157,37 @@ class TerrainMotion(ThighMotion):
         return heel + toe
 
     def _stance_foot(self, k: int, tau: np.ndarray):
-        """Ankle (n, 2), foot pitch γ (n,) and pivot-is-toe flag in stance ``k``."""
+        """Ankle (n, 2), foot pitch γ (n,) and pivot-is-toe flag in stance ``k``.
+
+        Where the shank leans so far that the ankle would pass the activity's dorsiflexion
+        cap (``ankle_max_deg``), the heel rises: γ is lowered by a C2 soft ramp so the ankle
+        angle saturates at the cap (a fixed point, as the ankle's place depends on γ)."""
+        delta0 = self._stance_pitch(k, tau)
+        cap = self._ankle_cap(k)
+        u = self._strike_u[k] + tau * (self._toe_off_u[k] - self._strike_u[k])
+        hip_x = self._hip_x(u)
+        d2 = self._leg_span2(k, tau)
+        delta = delta0
+        for _ in range(ANKLE_CAP_ITERATIONS):
+            ankle, gamma, _ = self._pivot_foot(k, delta)
+            dx = hip_x - ankle[:, 0]
+            hip = np.column_stack([hip_x, ankle[:, 1] + np.sqrt(np.maximum(d2 - dx * dx, 0.0))])
+            thigh, knee = _ik(hip, ankle, self.leg)
+            raw = gamma - delta + delta0 - thigh + knee  # the ankle with the planned pitch
+            delta = delta0 - soft_ramp(raw - cap, ANKLE_CAP_SOFT_RAD)
+        ankle, gamma, on_toe = self._pivot_foot(k, delta)
+        return ankle, gamma, on_toe
+
+    def _ankle_cap(self, k: int) -> float:
+        """Dorsiflexion cap (rad) of stance ``k`` and the swing after it: the larger of the
+        activities it arrives from and leaves to."""
+        return math.radians(max(self._arrive[k].ankle_max_deg, self._leave[k].ankle_max_deg))
+
+    def _pivot_foot(self, k: int, delta: np.ndarray):
+        """Ankle (n, 2), foot pitch and pivot-is-toe flag for pitch ``delta`` relative to the
+        surface of foothold ``k`` (heel pivot toe up, toe pivot heel up)."""
         f = self.footholds[k]
         leg = self.leg
-        delta = self._stance_pitch(k, tau)
         gamma = f.slope_rad + delta
         hx, hz = _rotate(gamma, leg.heel_behind_ankle_m, leg.ankle_height_m)
         heel_ankle = np.column_stack([f.heel_x_m + hx, f.heel_z_m + hz])
@@ -190,13 +226,16 @@ class TerrainMotion(ThighMotion):
         a, b, eps = knee + np.radians(extra), math.radians(6.0), math.radians(3.0)
         return 0.5 * (a + b + np.sqrt((a - b) ** 2 + eps * eps))  # a smooth max(a, 6°)
 
+    def _leg_span2(self, k: int, tau: np.ndarray) -> np.ndarray:
+        """Squared hip–ankle distance at the target knee flexion of stance ``k``."""
+        T, S = self.leg.thigh_length_m, self.leg.shank_length_m
+        return T * T + S * S + 2 * T * S * np.cos(self._knee_target(k, tau))
+
     def _stance_hip_z(self, k: int, u: np.ndarray) -> np.ndarray:
         """Stance hip height: the leg's length at the target knee flexion over the ankle."""
         tau = (u - self._strike_u[k]) / (self._toe_off_u[k] - self._strike_u[k])
         ankle = self._stance_foot(k, tau)[0]
-        T, S = self.leg.thigh_length_m, self.leg.shank_length_m
-        knee = self._knee_target(k, tau)
-        d2 = T * T + S * S + 2 * T * S * np.cos(knee)
+        d2 = self._leg_span2(k, tau)
         dx = self._hip_x(u) - ankle[:, 0]
         if np.any(dx * dx >= d2):
             raise SimulationError(f"stance {k}: the hip is out of the leg's reach")
@@ -258,10 +297,11 @@ class TerrainMotion(ThighMotion):
         a0 = self._stance_foot(k, np.array([1.0]))[0][0]
         a1 = self._stance_foot(k + 1, np.array([0.0]))[0][0]
         ends = []
-        for t, a in ((t0, a0), (t1, a1)):
+        for kk, t, a, side in ((k, t0, a0, -1), (k + 1, t1, a1, +1)):
             h = self._hip(np.array([t]))[0]
             hv, ha = self._hip_derivatives(t)
-            ends.append((a - h, -hv * T, -ha * T * T))
+            av, aa = self._stance_ankle_derivatives(kk, t, side)
+            ends.append((a - h, (av - hv) * T, (aa - ha) * T * T))
         (p0, v0, c0), (p1, v1, c1) = ends
         sc = np.clip(s, 0.0, 1.0)[:, None]
         s2, s3, s4, s5 = sc * sc, sc**3, sc**4, sc**5
@@ -278,6 +318,15 @@ class TerrainMotion(ThighMotion):
         hip_rise = self._swing_ends[k][2]  # the hip's rise in our swing does not lift the foot
         out[:, 1] += (lift - HIP_RISE_SHARE * hip_rise) * bump(sc[:, 0])
         return out
+
+    def _stance_ankle_derivatives(self, k: int, t: float, side: int, h: float = 2e-4):
+        """Stance ankle velocity and acceleration (2,) at the end ``t`` of stance ``k``
+        (one-sided, ``side`` −1 at toe-off, +1 at the strike): zero where the pitch is at
+        rest, not where the heel rises to hold the ankle at its cap."""
+        u = t + side * h * np.arange(3)
+        tau = (u - self._strike_u[k]) / (self._toe_off_u[k] - self._strike_u[k])
+        p = self._stance_foot(k, tau)[0]
+        return side * (-3 * p[0] + 4 * p[1] - p[2]) / (2 * h), (p[0] - 2 * p[1] + p[2]) / h**2
 
     def _swing_clearance(
         self, k: int, lift: float, every_edge: bool = False
@@ -367,6 +416,9 @@ class TerrainMotion(ThighMotion):
             (-4 * s3 + 7 * s4 - 3 * s5) * T, 0.5 * (s3 - 2 * s4 + s5) * T**2,
         ])  # fmt: skip
         ankle = basis @ np.concatenate([end0, end1])
+        cap = self._ankle_cap(k) + ANKLE_SWING_SOFT_RAD
+        ankle = ankle - soft_ramp(ankle - cap, ANKLE_SWING_SOFT_RAD)
+        ankle = ankle + soft_ramp(ANKLE_SWING_FLOOR_RAD - ankle, ANKLE_SWING_SOFT_RAD)
         return thigh - knee + ankle
 
     def _ankle_derivatives(self, k: int, u: np.ndarray, h: float) -> np.ndarray:
@@ -529,6 +581,13 @@ def _quintic(s: np.ndarray, T: float, start, end) -> np.ndarray:
         + 0.5 * (s2 - 3 * s3 + 3 * s4 - s5) * T * T * c0 + (10 * s3 - 15 * s4 + 6 * s5) * p1
         + (-4 * s3 + 7 * s4 - 3 * s5) * T * v1 + 0.5 * (s3 - 2 * s4 + s5) * T * T * c1
     )  # fmt: skip
+
+
+def soft_ramp(x: np.ndarray, w: float) -> np.ndarray:
+    """C2 ramp: 0 below −w, x above w, a quartic between; ``x − soft_ramp(x − c, w)`` caps x at
+    c smoothly and is x itself below c − w."""
+    t = np.clip((np.asarray(x) + w) / (2 * w), 0.0, 1.0)
+    return np.where(x >= w, x, w * (2 * t**3 - t**4))
 
 
 def _ik(hip: np.ndarray, ankle: np.ndarray, leg: LegParams) -> tuple[np.ndarray, np.ndarray]:
