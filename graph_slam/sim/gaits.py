@@ -39,16 +39,19 @@ class Gait:
     """Stance dorsiflexion cap: past it the heel rises (the foot rolls over the toe).
     Below the URDF's 20° limit; level walking stays under ~15° (Winter 2009), stairs and
     ramps reach 20–25° (Riener et al. 2002, Protopapadaki et al. 2007, McIntosh et al. 2006)."""
+    ankle_min_deg: float = -22.0
+    """Plantarflexion floor: the heel rises no further at toe-off once the ankle reaches it
+    (level walking: −20 ± 5° at toe-off, Winter 2009; above the URDF's −30° limit)."""
 
 
-_LEVEL = dict(heel_rocker_deg=12.0, toe_rocker_deg=36.0, flat_from=0.20, toe_from=0.55)
+_LEVEL = dict(heel_rocker_deg=12.0, toe_rocker_deg=50.0, flat_from=0.20, toe_from=0.55)
 _STEP = dict(heel_rocker_deg=6.0, toe_rocker_deg=30.0, flat_from=0.15, toe_from=0.55)
 
 GAIT: dict[str, Gait] = {
     "level": Gait(1.0, **_LEVEL, lift_m=0.03, back_per_stride=0.25, ankle_max_deg=13.5),
-    "ramp_up": Gait(1.05, 14.0, 34.0, 0.20, 0.55, lift_m=0.04, back_per_stride=0.25,
+    "ramp_up": Gait(1.05, 14.0, 48.0, 0.20, 0.55, lift_m=0.04, back_per_stride=0.25,
                     knee_extra_deg=(10.0, 0.0)),
-    "ramp_down": Gait(1.05, 10.0, 34.0, 0.20, 0.55, lift_m=0.03, back_per_stride=0.25,
+    "ramp_down": Gait(1.05, 10.0, 48.0, 0.20, 0.55, lift_m=0.03, back_per_stride=0.25,
                       knee_extra_deg=(0.0, 12.0)),
     "stairs_up": Gait(1.25, 0.0, 18.0, 0.05, 0.60, lift_m=0.20, hip_back_m=-0.25,
                       knee_deg=((0.0, 58.0), (0.35, 30.0), (0.7, 10.0), (1.0, 22.0))),

@@ -65,9 +65,6 @@ HIP_RISE_SHARE = 0.7
 #: much above the stance's, so the ends of the swing lie where its soft cap is the identity.
 ANKLE_CAP_SOFT_RAD = math.radians(4.0)
 ANKLE_SWING_SOFT_RAD = math.radians(1.5)
-#: Swing plantarflexion floor (rad): about the toe-off plantarflexion of level walking
-#: (Winter 2009); the stance never goes below it.
-ANKLE_SWING_FLOOR_RAD = math.radians(-22.0)
 #: Fixed-point iterations of the heel rise that holds the stance ankle at its cap.
 ANKLE_CAP_ITERATIONS = 12
 #: Edges this close to the foothold left or landed on are not held to the clearance margin.
@@ -167,7 +164,7 @@ class TerrainMotion(ThighMotion):
         cap (``ankle_max_deg``), the heel rises: γ is lowered by a C2 soft ramp so the ankle
         angle saturates at the cap (a fixed point, as the ankle's place depends on γ)."""
         delta0 = self._stance_pitch(k, tau)
-        cap = self._ankle_cap(k)
+        cap, floor = self._ankle_cap(k), self._ankle_floor(k)
         u = self._strike_u[k] + tau * (self._toe_off_u[k] - self._strike_u[k])
         hip_x = self._hip_x(u)
         d2 = self._leg_span2(k, tau)
@@ -178,7 +175,8 @@ class TerrainMotion(ThighMotion):
             hip = np.column_stack([hip_x, ankle[:, 1] + np.sqrt(np.maximum(d2 - dx * dx, 0.0))])
             thigh, knee = _ik(hip, ankle, self.leg)
             raw = gamma - delta + delta0 - thigh + knee  # the ankle with the planned pitch
-            delta = delta0 - soft_ramp(raw - cap, ANKLE_CAP_SOFT_RAD)
+            lower = np.minimum(soft_ramp(floor - raw, ANKLE_CAP_SOFT_RAD), np.maximum(-delta0, 0))
+            delta = delta0 - soft_ramp(raw - cap, ANKLE_CAP_SOFT_RAD) + lower
         ankle, gamma, on_toe = self._pivot_foot(k, delta)
         return ankle, gamma, on_toe
 
@@ -186,6 +184,11 @@ class TerrainMotion(ThighMotion):
         """Dorsiflexion cap (rad) of stance ``k`` and the swing after it: the larger of the
         activities it arrives from and leaves to."""
         return math.radians(max(self._arrive[k].ankle_max_deg, self._leave[k].ankle_max_deg))
+
+    def _ankle_floor(self, k: int) -> float:
+        """Plantarflexion floor (rad) of stance ``k`` and the swing after it: the lower of
+        the activities it arrives from and leaves to."""
+        return math.radians(min(self._arrive[k].ankle_min_deg, self._leave[k].ankle_min_deg))
 
     def _pivot_foot(self, k: int, delta: np.ndarray):
         """Ankle (n, 2), foot pitch and pivot-is-toe flag for pitch ``delta`` relative to the
@@ -422,7 +425,8 @@ class TerrainMotion(ThighMotion):
         ankle = basis @ np.concatenate([end0, end1])
         cap = self._ankle_cap(k) + ANKLE_SWING_SOFT_RAD
         ankle = ankle - soft_ramp(ankle - cap, ANKLE_SWING_SOFT_RAD)
-        ankle = ankle + soft_ramp(ANKLE_SWING_FLOOR_RAD - ankle, ANKLE_SWING_SOFT_RAD)
+        floor = self._ankle_floor(k) - ANKLE_SWING_SOFT_RAD
+        ankle = ankle + soft_ramp(floor - ankle, ANKLE_SWING_SOFT_RAD)
         return thigh - knee + ankle
 
     def _ankle_derivatives(self, k: int, u: np.ndarray, h: float) -> np.ndarray:
