@@ -48,16 +48,16 @@ _LEVEL = dict(heel_rocker_deg=12.0, toe_rocker_deg=50.0, flat_from=0.20, toe_fro
 _STEP = dict(heel_rocker_deg=6.0, toe_rocker_deg=30.0, flat_from=0.15, toe_from=0.55)
 
 GAIT: dict[str, Gait] = {
-    "level": Gait(1.0, **_LEVEL, lift_m=0.03, back_per_stride=0.25, ankle_max_deg=13.5),
-    "ramp_up": Gait(1.05, 14.0, 48.0, 0.20, 0.55, lift_m=0.04, back_per_stride=0.25,
+    "level": Gait(1.0, **_LEVEL, lift_m=0.05, back_per_stride=0.25, ankle_max_deg=13.5),
+    "ramp_up": Gait(1.05, 14.0, 48.0, 0.20, 0.55, lift_m=0.06, back_per_stride=0.25,
                     knee_extra_deg=(10.0, 0.0)),
-    "ramp_down": Gait(1.05, 10.0, 48.0, 0.20, 0.55, lift_m=0.03, back_per_stride=0.25,
+    "ramp_down": Gait(1.05, 10.0, 48.0, 0.20, 0.55, lift_m=0.05, back_per_stride=0.25,
                       knee_extra_deg=(0.0, 12.0)),
     "stairs_up": Gait(1.25, 0.0, 18.0, 0.05, 0.60, lift_m=0.20, hip_back_m=-0.25,
                       knee_deg=((0.0, 58.0), (0.35, 30.0), (0.7, 10.0), (1.0, 22.0))),
     # the toe overhangs the nosing: the foot stays flat and leaves flat
     "stairs_down": Gait(1.15, 0.0, 0.0, 0.05, 0.60, lift_m=0.12, hip_back_m=-0.12,
-                        knee_deg=((0.0, 12.0), (0.25, 20.0), (0.6, 38.0), (1.0, 55.0))),
+                        knee_deg=((0.0, 12.0), (0.25, 28.0), (0.6, 55.0), (1.0, 85.0))),
     "curb_up": Gait(1.1, **_STEP, lift_m=0.06, back_per_stride=0.22, knee_extra_deg=(25.0, 0.0)),
     "curb_down": Gait(1.1, **_STEP, lift_m=0.03, back_per_stride=0.22, knee_extra_deg=(0.0, 15.0)),
     "step_over": Gait(1.1, **_LEVEL, lift_m=0.06, back_per_stride=0.25),
