@@ -257,7 +257,7 @@ class TerrainMotion(FootAndAnkle, ThighMotion):
     ) -> tuple[float, float]:
         """(least clearance over the crossed edges − margin, least sole height above the
         surface) of swing ``k`` with lift amplitude ``lift``."""
-        u = np.linspace(self._toe_off_u[k], self._strike_u[k + 1], 241)[1:-1]
+        u = np.linspace(self._toe_off_u[k], self._strike_u[k + 1], 481)[1:-1]
         s = (u - self._toe_off_u[k]) / (self._strike_u[k + 1] - self._toe_off_u[k])
         ankle = self._swing_ankle(k, s, lift)
         hip = self._hip(u)
