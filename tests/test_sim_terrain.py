@@ -132,7 +132,7 @@ def test_features_truth_lists_steps_and_ramp() -> None:
 
 #: Bands (deg) around published means: level walking (Schwartz et al. 2008, the curves the
 #: level walker plays), stair ascent (Riener et al. 2002; Protopapadaki et al. 2007), ramps
-#: (McIntosh et al. 2006). docs/simulator.md has the table and what is not met (the ankle).
+#: (McIntosh et al. 2006). docs/simulator.md has the table and what is not met.
 BANDS = {
     "level": {"knee_swing": (50, 80), "thigh_max": (20, 50), "knee_stance": (10, 45)},
     "ramp_up": {"knee_swing": (50, 85), "thigh_max": (25, 55), "knee_strike": (5, 25)},

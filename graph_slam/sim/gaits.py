@@ -3,7 +3,10 @@
 Values are chosen so the walker's joint angles land near the published means of each
 activity (docs/simulator.md has the table): level walking plays the stance knee of the
 level curves (Schwartz et al. 2008), a ramp adds knee flexion at the strike (up) or in
-mid-stance (down) as in McIntosh et al. 2006, stairs follow Riener et al. 2002.
+mid-stance (down) as in McIntosh et al. 2006, stairs follow Riener et al. 2002. The toe
+rocker of level walking and ramps (48-50° of heel rise at toe-off) puts the ankle near the
+−20° of push-off (Winter 2009), which leaves it room to dorsiflex in swing; the least swing
+lift (5-6 cm) gives the swing knee peaks of Schwartz et al. 2008 from slow to fast walking.
 """
 
 from __future__ import annotations
