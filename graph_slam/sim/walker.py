@@ -10,19 +10,19 @@ the level-walking curves:
   toe-off (quintic smoothsteps: the ankle point is C2 and at rest at the strike and at
   toe-off); the pivot (heel, then toe) does not move at all. The ankle stays between the
   activity's dorsiflexion cap and plantarflexion floor (the heel rises earlier, or less;
-  :mod:`graph_slam.sim.walker_ankle`). The hip's height is the leg's length at a target knee flexion over the ankle (the level curve, Schwartz 2008, or the
-  activity's knots, :mod:`graph_slam.sim.gaits`); its x a C2 spline through one posture per
-  strike.
+  :mod:`graph_slam.sim.walker_ankle`). The hip's height is the leg's length at a target knee
+  flexion over the ankle (the level curve, Schwartz 2008, or the activity's knots,
+  :mod:`graph_slam.sim.gaits`); its x a C2 spline through one posture per strike.
 * **Swing (toe-off → strike)**: the hip's height bridges the two stances (quintic Hermite,
   C2) and rises to the mean of their apexes (the other leg's mid-stance); the ankle moves
   relative to the hip on a quintic Hermite from the stance's ankle motion at toe-off to rest
-  at the strike (in the world), follows 30 % of
-  that rise, and is lifted by ``c · 64 s³(1-s)³``; ``c`` is raised until every convex edge
+  at the strike (in the world), follows 30 % of that rise, and is lifted by
+  ``c · 64 s³(1-s)³``; ``c`` is raised until every convex edge
   the swing passes over (nosings, box and curb edges, a ramp's top) is cleared by the sole by
   ``clearance_m`` and the foot touches no surface. Going down stairs the forward motion ends
   at 75 % of the swing (over the nosing, then straight down). The ankle angle blends between
-  its toe-off and strike values within the cap and the floor (:mod:`graph_slam.sim.walker_ankle`);
-  the foot's pitch follows from it.
+  its toe-off and strike values within the cap and the floor
+  (:mod:`graph_slam.sim.walker_ankle`); the foot's pitch follows from it.
 * **Joint angles** by two-link IK of thigh and shank from the hip to the ankle; the ankle
   angle follows from the foot's pitch. The encoders report these angles, so the leg model's
   forward kinematics from the pinned foot reproduces the camera pose exactly.
