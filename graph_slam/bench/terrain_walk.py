@@ -208,8 +208,8 @@ def joint_peaks(scene: str, speed: str, strides: int = 6, seed: int = 3) -> list
         thigh = np.degrees(m.thigh_angle(t))
         st = m.stance_mask(t)
         out.append({
-            "label": label, "arrived": m.labels[k], "knee_strike": knee[0], "knee_stance": knee[st].max(),
-            "knee_swing": knee[~st].max(), "thigh_max": thigh.max(), "thigh_min": thigh.min(),
+            "label": label, "arrived": m.labels[k], "knee_strike": knee[0],
+            "knee_stance": knee[st].max(), "knee_swing": knee[~st].max(), "thigh_max": thigh.max(), "thigh_min": thigh.min(),
             "ankle_max": ankle.max(), "ankle_min": ankle.min(),
         })  # fmt: skip
     return out
