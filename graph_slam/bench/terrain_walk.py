@@ -192,9 +192,10 @@ def summary_lines(runs: list[TerrainRun], skip_first: bool = True) -> list[str]:
 
 
 def joint_peaks(scene: str, speed: str, strides: int = 6, seed: int = 3) -> list[dict]:
-    """Per recorded stride of the terrain walker (no rendering): its terrain label and the
-    peaks of the prosthetic leg's angles (deg): knee flexion at the strike, in stance and in
-    swing, thigh flexion (from the vertical), ankle dorsiflexion and plantarflexion."""
+    """Per recorded stride of the terrain walker (no rendering): its terrain label, the label
+    of the stride before it (``arrived``) and the peaks of the prosthetic leg's angles (deg):
+    knee flexion at the strike, in stance and in swing, thigh flexion (from the vertical),
+    ankle dorsiflexion and plantarflexion."""
     from graph_slam.sim import SPEEDS_M_S
     from graph_slam.sim.scene import load_scene
     from graph_slam.sim.walker import TerrainMotion
@@ -207,23 +208,25 @@ def joint_peaks(scene: str, speed: str, strides: int = 6, seed: int = 3) -> list
         thigh = np.degrees(m.thigh_angle(t))
         st = m.stance_mask(t)
         out.append({
-            "label": label, "knee_strike": knee[0], "knee_stance": knee[st].max(),
-            "knee_swing": knee[~st].max(), "thigh_max": thigh.max(), "thigh_min": thigh.min(),
+            "label": label, "arrived": m.labels[k], "knee_strike": knee[0],
+            "knee_stance": knee[st].max(), "knee_swing": knee[~st].max(), "thigh_max": thigh.max(), "thigh_min": thigh.min(),
             "ankle_max": ankle.max(), "ankle_min": ankle.min(),
         })  # fmt: skip
     return out
 
 
 def angle_lines(scenes: list[str], speeds: list[str], strides: int, seed: int) -> list[str]:
-    """Per terrain label: the range over strides (scenes × speeds) of each joint peak."""
+    """Per terrain label: the range over strides (scenes × speeds) of each joint peak; a
+    stride that arrived from another terrain is grouped as ``before>label``."""
     keys = ("knee_strike", "knee_stance", "knee_swing", "thigh_max", "ankle_max", "ankle_min")
     groups: dict[str, list[dict]] = {}
     for scene in scenes:
         for speed in speeds:
             for row in joint_peaks(scene, speed, strides, seed):
-                groups.setdefault(row["label"], []).append(row)
-    lines = [f"{'terrain':11s} {'n':>3s} " + " ".join(f"{k:>13s}" for k in keys)]
+                label, before = row["label"], row["arrived"]
+                groups.setdefault(label if before == label else f"{before}>{label}", []).append(row)
+    lines = [f"{'terrain':23s} {'n':>3s} " + " ".join(f"{k:>13s}" for k in keys)]
     for label, rows in sorted(groups.items()):
         cells = [f"{min(r[k] for r in rows):6.0f}..{max(r[k] for r in rows):<5.0f}" for k in keys]
-        lines.append(f"{label:11s} {len(rows):3d} " + " ".join(cells))
+        lines.append(f"{label:23s} {len(rows):3d} " + " ".join(cells))
     return lines

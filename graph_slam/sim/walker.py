@@ -8,18 +8,21 @@ the level-walking curves:
 * **Stance (strike → toe-off): the foot is pinned on its foothold.** Its pitch relative to the
   surface rolls over the heel, lies flat on the tread or slope, then rolls over the toe up to
   toe-off (quintic smoothsteps: the ankle point is C2 and at rest at the strike and at
-  toe-off); the pivot (heel, then toe) does not move at all. The hip's height is the leg's
-  length at a target knee flexion over the ankle (the level curve, Schwartz 2008, or the
-  activity's knots, :mod:`graph_slam.sim.gaits`); its x a C2 spline through one posture per
-  strike.
+  toe-off); the pivot (heel, then toe) does not move at all. The ankle stays between the
+  activity's dorsiflexion cap and plantarflexion floor (the heel rises earlier, or less;
+  :mod:`graph_slam.sim.walker_ankle`). The hip's height is the leg's length at a target knee
+  flexion over the ankle (the level curve, Schwartz 2008, or the activity's knots,
+  :mod:`graph_slam.sim.gaits`); its x a C2 spline through one posture per strike.
 * **Swing (toe-off → strike)**: the hip's height bridges the two stances (quintic Hermite,
   C2) and rises to the mean of their apexes (the other leg's mid-stance); the ankle moves
-  relative to the hip on a quintic Hermite from rest to rest in the world, follows 30 % of
-  that rise, and is lifted by ``c · 64 s³(1-s)³``; ``c`` is raised until every convex edge
+  relative to the hip on a quintic Hermite from the stance's ankle motion at toe-off to rest
+  at the strike (in the world), follows 30 % of that rise, and is lifted by
+  ``c · 64 s³(1-s)³``; ``c`` is raised until every convex edge
   the swing passes over (nosings, box and curb edges, a ramp's top) is cleared by the sole by
   ``clearance_m`` and the foot touches no surface. Going down stairs the forward motion ends
   at 75 % of the swing (over the nosing, then straight down). The ankle angle blends between
-  its toe-off and strike values (quintic Hermite on angle, rate and acceleration).
+  its toe-off and strike values within the cap and the floor
+  (:mod:`graph_slam.sim.walker_ankle`); the foot's pitch follows from it.
 * **Joint angles** by two-link IK of thigh and shank from the hip to the ankle; the ankle
   angle follows from the foot's pitch. The encoders report these angles, so the leg model's
   forward kinematics from the pinned foot reproduces the camera pose exactly.
@@ -47,6 +50,9 @@ from graph_slam.sim.footholds import (
 from graph_slam.sim.gaits import GAIT
 from graph_slam.sim.motion import ThighMotion, _rot_x, _rot_y, _rot_z, bump, smoothstep
 from graph_slam.sim.surface import Surfaces
+from graph_slam.sim.walker_ankle import FootAndAnkle
+from graph_slam.sim.walker_ankle import leg_ik as _ik
+from graph_slam.sim.walker_ankle import rotate_sagittal as _rotate
 from kinematics import gait_curves
 from kinematics.leg_params import LegParams
 
@@ -61,18 +67,7 @@ HIP_RISE_SHARE = 0.7
 EDGE_KEEPOUT_M = 0.03
 
 
-def _rot2(a):
-    c, s = np.cos(a), np.sin(a)
-    return c, s
-
-
-def _rotate(a, x, z):
-    """(x, z) rotated by ``a`` (toe up +) in the sagittal plane; arrays broadcast."""
-    c, s = _rot2(a)
-    return x * c - z * s, x * s + z * c
-
-
-class TerrainMotion(ThighMotion):
+class TerrainMotion(FootAndAnkle, ThighMotion):
     """The prosthetic leg walking over a scene's surfaces (see the module text).
 
     Session time 0 is ``lead_in_s`` before the first recorded strike (at world x = 0; its
@@ -135,32 +130,6 @@ class TerrainMotion(ThighMotion):
         self._check_reach()
 
     # ------------------------------------------------------------ stance foot
-    def _flat_ankle(self, k: int) -> np.ndarray:
-        f = self.footholds[k]
-        dx, dz = _rotate(f.slope_rad, self.leg.heel_behind_ankle_m, self.leg.ankle_height_m)
-        return np.array([f.heel_x_m + dx, f.heel_z_m + dz])
-
-    def _stance_pitch(self, k: int, tau: np.ndarray) -> np.ndarray:
-        """Foot pitch relative to the surface (toe up +) over stance fraction ``tau``."""
-        a, b = self._arrive[k], self._leave[k]
-        heel = math.radians(a.heel_rocker_deg) * (1.0 - smoothstep(tau / a.flat_from))
-        toe = -math.radians(b.toe_rocker_deg) * smoothstep((tau - b.toe_from) / (1 - b.toe_from))
-        return heel + toe
-
-    def _stance_foot(self, k: int, tau: np.ndarray):
-        """Ankle (n, 2), foot pitch γ (n,) and pivot-is-toe flag in stance ``k``."""
-        f = self.footholds[k]
-        leg = self.leg
-        delta = self._stance_pitch(k, tau)
-        gamma = f.slope_rad + delta
-        hx, hz = _rotate(gamma, leg.heel_behind_ankle_m, leg.ankle_height_m)
-        heel_ankle = np.column_stack([f.heel_x_m + hx, f.heel_z_m + hz])
-        tx, tz = _rotate(f.slope_rad, leg.foot_length_m, 0.0)
-        ax, az = _rotate(gamma, leg.heel_behind_ankle_m - leg.foot_length_m, leg.ankle_height_m)
-        toe_ankle = np.column_stack([f.heel_x_m + tx + ax, f.heel_z_m + tz + az])
-        on_toe = delta < 0.0
-        return np.where(on_toe[:, None], toe_ankle, heel_ankle), gamma, on_toe
-
     # ------------------------------------------------------------ hip
     def _hip_x_spline(self) -> CubicSpline:
         """Hip x: a C2 spline through one posture per strike (behind the landing ankle)."""
@@ -190,13 +159,16 @@ class TerrainMotion(ThighMotion):
         a, b, eps = knee + np.radians(extra), math.radians(6.0), math.radians(3.0)
         return 0.5 * (a + b + np.sqrt((a - b) ** 2 + eps * eps))  # a smooth max(a, 6°)
 
+    def _leg_span2(self, k: int, tau: np.ndarray) -> np.ndarray:
+        """Squared hip–ankle distance at the target knee flexion of stance ``k``."""
+        T, S = self.leg.thigh_length_m, self.leg.shank_length_m
+        return T * T + S * S + 2 * T * S * np.cos(self._knee_target(k, tau))
+
     def _stance_hip_z(self, k: int, u: np.ndarray) -> np.ndarray:
         """Stance hip height: the leg's length at the target knee flexion over the ankle."""
         tau = (u - self._strike_u[k]) / (self._toe_off_u[k] - self._strike_u[k])
         ankle = self._stance_foot(k, tau)[0]
-        T, S = self.leg.thigh_length_m, self.leg.shank_length_m
-        knee = self._knee_target(k, tau)
-        d2 = T * T + S * S + 2 * T * S * np.cos(knee)
+        d2 = self._leg_span2(k, tau)
         dx = self._hip_x(u) - ankle[:, 0]
         if np.any(dx * dx >= d2):
             raise SimulationError(f"stance {k}: the hip is out of the leg's reach")
@@ -258,10 +230,11 @@ class TerrainMotion(ThighMotion):
         a0 = self._stance_foot(k, np.array([1.0]))[0][0]
         a1 = self._stance_foot(k + 1, np.array([0.0]))[0][0]
         ends = []
-        for t, a in ((t0, a0), (t1, a1)):
+        for kk, t, a, side in ((k, t0, a0, -1), (k + 1, t1, a1, +1)):
             h = self._hip(np.array([t]))[0]
             hv, ha = self._hip_derivatives(t)
-            ends.append((a - h, -hv * T, -ha * T * T))
+            av, aa = self._stance_ankle_derivatives(kk, t, side)
+            ends.append((a - h, (av - hv) * T, (aa - ha) * T * T))
         (p0, v0, c0), (p1, v1, c1) = ends
         sc = np.clip(s, 0.0, 1.0)[:, None]
         s2, s3, s4, s5 = sc * sc, sc**3, sc**4, sc**5
@@ -284,7 +257,7 @@ class TerrainMotion(ThighMotion):
     ) -> tuple[float, float]:
         """(least clearance over the crossed edges − margin, least sole height above the
         surface) of swing ``k`` with lift amplitude ``lift``."""
-        u = np.linspace(self._toe_off_u[k], self._strike_u[k + 1], 241)[1:-1]
+        u = np.linspace(self._toe_off_u[k], self._strike_u[k + 1], 481)[1:-1]
         s = (u - self._toe_off_u[k]) / (self._strike_u[k + 1] - self._toe_off_u[k])
         ankle = self._swing_ankle(k, s, lift)
         hip = self._hip(u)
@@ -350,35 +323,6 @@ class TerrainMotion(ThighMotion):
         fx = np.linspace(-leg.heel_behind_ankle_m, leg.foot_length_m - leg.heel_behind_ankle_m, m)
         px, pz = _rotate(gamma[:, None], fx[None, :], -leg.ankle_height_m)
         return np.stack([ankle[:, 0:1] + px, ankle[:, 1:2] + pz], axis=-1)
-
-    def _swing_pitch(self, k, u, thigh, knee) -> np.ndarray:
-        """Foot pitch in swing: the ankle angle blends (quintic Hermite: angle, rate and
-        acceleration) between its toe-off and strike values."""
-        t0, t1 = self._toe_off_u[k], self._strike_u[k + 1]
-        h = 2e-4
-        end0 = self._ankle_derivatives(k, t0 - np.array([0.0, h, 2 * h]), -h)
-        end1 = self._ankle_derivatives(k + 1, t1 + np.array([0.0, h, 2 * h]), h)
-        T = t1 - t0
-        s = np.clip((u - t0) / T, 0.0, 1.0)[:, None]
-        s2, s3, s4, s5 = s * s, s**3, s**4, s**5
-        basis = np.hstack([
-            1 - 10 * s3 + 15 * s4 - 6 * s5, (s - 6 * s3 + 8 * s4 - 3 * s5) * T,
-            0.5 * (s2 - 3 * s3 + 3 * s4 - s5) * T**2, 10 * s3 - 15 * s4 + 6 * s5,
-            (-4 * s3 + 7 * s4 - 3 * s5) * T, 0.5 * (s3 - 2 * s4 + s5) * T**2,
-        ])  # fmt: skip
-        ankle = basis @ np.concatenate([end0, end1])
-        return thigh - knee + ankle
-
-    def _ankle_derivatives(self, k: int, u: np.ndarray, h: float) -> np.ndarray:
-        """Ankle angle, rate and acceleration at the end ``u[0]`` of stance ``k`` (one-sided
-        differences over ``u``, spaced by ``h`` with its sign)."""
-        tau = (u - self._strike_u[k]) / (self._toe_off_u[k] - self._strike_u[k])
-        ankle_pt, gamma, _ = self._stance_foot(k, tau)
-        thigh, knee = _ik(self._hip(u), ankle_pt, self.leg)
-        a = gamma - thigh + knee
-        return np.array(
-            [a[0], (-3 * a[0] + 4 * a[1] - a[2]) / (2 * h), (a[0] - 2 * a[1] + a[2]) / h**2]
-        )
 
     # ------------------------------------------------------------ evaluation
     def _index(self, u: np.ndarray) -> np.ndarray:
@@ -529,15 +473,3 @@ def _quintic(s: np.ndarray, T: float, start, end) -> np.ndarray:
         + 0.5 * (s2 - 3 * s3 + 3 * s4 - s5) * T * T * c0 + (10 * s3 - 15 * s4 + 6 * s5) * p1
         + (-4 * s3 + 7 * s4 - 3 * s5) * T * v1 + 0.5 * (s3 - 2 * s4 + s5) * T * T * c1
     )  # fmt: skip
-
-
-def _ik(hip: np.ndarray, ankle: np.ndarray, leg: LegParams) -> tuple[np.ndarray, np.ndarray]:
-    """Thigh angle from the vertical and knee flexion (rad) putting the ankle at ``ankle``."""
-    T, S = leg.thigh_length_m, leg.shank_length_m
-    d = ankle - hip
-    dist2 = (d**2).sum(axis=1)
-    cos_k = np.clip((dist2 - T * T - S * S) / (2 * T * S), -1.0, 1.0)
-    knee = np.arccos(cos_k)
-    beta = np.arctan2(d[:, 0], -d[:, 1])
-    eps = np.arctan2(S * np.sin(knee), T + S * np.cos(knee))
-    return beta + eps, knee
