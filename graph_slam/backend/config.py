@@ -148,6 +148,15 @@ class PriorConfig(ConfigModel):
         "over-confident, its velocity and bias pulled the next stride's anchor by 9 mm / 0.44° "
         "(full resolution, 1.4 m/s)",
     )
+    loose_tilt_bias_inflation: float = Field(
+        10.0,
+        ge=1,
+        description="multiplies the bias covariance carried out of a stride whose anchor had "
+        "no known up σ (the session's first strike: its up 10-50° off): its lateral "
+        "accelerometer bias, which only the anchors' roll tells from a tilt, came out "
+        "0.4 m/s² (1.8σ) off on the terrain walker and held the next strides' roll 0.5-0.7° "
+        "off",
+    )
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"
     )

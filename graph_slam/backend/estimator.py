@@ -26,6 +26,7 @@ import numpy as np
 from graph_slam.backend.config import BackendConfig
 from graph_slam.backend.gating import GateDecision, make_registration_gate
 from graph_slam.backend.imu import ImuCheck
+from graph_slam.backend.keys import X
 from graph_slam.backend.measurements import IcpMeasurement, KinematicMeasurement
 from graph_slam.backend.prediction import StrikeUp, make_imu_predictor
 from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
@@ -33,6 +34,7 @@ from graph_slam.backend.stance import make_stance_model
 from graph_slam.backend.stride_chain import make_stride_chain
 from graph_slam.errors import EstimationError
 from graph_slam.strides.kinematics import make_leg_kinematics
+from graph_slam.strides.up_fusion import GraphUp
 
 log = logging.getLogger(__name__)
 
@@ -118,6 +120,28 @@ class StrideSLAM:
         last_T_new_imu = np.linalg.inv(last.stride_T_imu.matrix()) @ nav.pose().matrix()
         return self.camera_T_imu @ last_T_new_imu @ np.linalg.inv(self.camera_T_imu)
 
+    def up_estimate(self, t_s: float) -> GraphUp | None:
+        """Up in the IMU frame at ``t_s`` from the open stride's online attitude (its latest
+        state, carried by the gyro with the estimated bias), with that attitude's marginal
+        covariance plus the carry's (causal: only what was added). None: no open stride, a
+        pending strike, ``t_s`` not after its last state, an IMU gap, or no marginal."""
+        g = self.strides.graph
+        if g is None or self.strides.pending is not None or not t_s > g.t_s[-1]:
+            return None
+        last = g.nav(g.n_states - 1)
+        seg = self.imu.buffer.integrate(g.t_s[-1], t_s, last.bias)
+        if not seg.ok:
+            return None
+        try:
+            cov_last = g.marginal_covariance(X(g.n_states - 1))[:3, :3]
+        except RuntimeError as err:
+            log.info("t=%.3f s: no attitude marginal for the up vector (%s)", t_s, err)
+            return None
+        last_R_now = np.asarray(seg.pim.deltaRij().matrix())
+        now_R_stride = (last.stride_T_imu.rotation().matrix() @ last_R_now).T
+        cov = last_R_now.T @ cov_last @ last_R_now + np.asarray(seg.pim.preintMeasCov())[:3, :3]
+        return GraphUp(float(t_s), now_R_stride[:, 2], cov, now_R_stride[:, 1])
+
     def smooth_deferred(self, keep: int = 0) -> list[StrideSummary]:
         """Batch-smooth the strides closed with ``defer_smoothing`` (off the real-time path:
         at the end of a run, or when the host is idle), oldest first, until ``keep`` wait;
@@ -163,7 +187,10 @@ class StrideSLAM:
     def _stride_start(self, index, t_s, t_start, icp, foot_loaded, kinematics) -> FrameEstimate:
         """A stride's first frame: its anchor and priors; no ICP across the strike."""
         anchor = kinematics if kinematics is not None else self._anchor(t_s)
-        flags = self.strides.start(t_s, anchor, foot_loaded)
+        known = kinematics is not None or (
+            self._strike_up is not None and self._strike_up.sigma_rad is not None
+        )
+        flags = self.strides.start(t_s, anchor, foot_loaded, known)
         self.stance.start_stride(self._contact_slope_rad)
         self.registration.start_stride()
         self._strike_up = None

@@ -88,12 +88,17 @@ def carried_priors(
     cov_b: np.ndarray,
     anchor: KinematicMeasurement | None,
     out_of_unloaded_first: bool = False,
+    out_of_loose_tilt: bool = False,
 ) -> StartPriors:
     """The previous stride's end state ``pred`` (propagated to this frame, covariances incl.
-    preintegration) as the new stride's priors; see the module docstring for the inflation."""
+    preintegration) as the new stride's priors; see the module docstring for the inflation.
+    ``out_of_loose_tilt``: that stride's anchor had no known up σ (the session's first
+    strike): its bias covariance is also × ``loose_tilt_bias_inflation``."""
     infl = pc.carry_inflation if reason == "foot_strike" else pc.missed_strike_inflation
     if out_of_unloaded_first:
         infl *= pc.first_carry_inflation
+    if out_of_loose_tilt:
+        cov_b = cov_b * pc.loose_tilt_bias_inflation
     if anchor is not None and reason == "foot_strike":
         pose, cov_pose = factors.camera_pose_to_imu(
             anchor.stride_T_camera, anchor.covariance, camera_T_imu
