@@ -124,3 +124,13 @@ def test_the_anchor_fuses_the_graphs_up_and_says_so():
     alone = StrideAnchor(StaticGravity(), FloorConfig(enabled=False), np.eye(4), SIGMA_ACCEL,
                          0.8, 0.2).at_strike(0.0, 0.05, None)  # fmt: skip
     assert alone.graph == "" and components_deg(alone.up_in_imu)[0] > 0.25
+
+
+def test_the_terrain_bench_puts_overrides_under_its_own_settings():
+    from graph_slam.bench.terrain_walk import _config
+
+    over = {"gravity_from_graph": True, "variant": "icp+imu", "graph": {"floor": {"enabled": False}}}
+    cfg = _config("realtime", True, over)
+    assert cfg.gravity_from_graph and not cfg.graph.floor.enabled
+    assert cfg.variant.value == "icp+imu+kin" and cfg.graph.floor.assume_level  # the bench's
+    assert not _config("realtime", False).gravity_from_graph  # the default: accelerometer only

@@ -149,13 +149,14 @@ class PriorConfig(ConfigModel):
         "(full resolution, 1.4 m/s)",
     )
     loose_tilt_bias_inflation: float = Field(
-        10.0,
+        1.0,
         ge=1,
-        description="multiplies the bias covariance carried out of a stride whose anchor had "
-        "no known up σ (the session's first strike: its up 10-50° off): its lateral "
-        "accelerometer bias, which only the anchors' roll tells from a tilt, came out "
-        "0.4 m/s² (1.8σ) off on the terrain walker and held the next strides' roll 0.5-0.7° "
-        "off",
+        description="multiplies the bias covariance carried out of a stride whose "
+        "anchor had no known up σ (the session's first strike, its up 10-50° off) into one "
+        "whose anchor has: that stride's lateral accel bias came out 0.3-0.4 m/s² off on the "
+        "terrain walker. 10 helped the stairs and hurt the mixed course (docs/benchmarks.md, "
+        "'Terrain-following walker'; the accelerometer's block alone: the same on the course, "
+        "less on the stairs): off by default",
     )
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"
