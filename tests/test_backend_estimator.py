@@ -388,9 +388,12 @@ def test_deferred_smoothing_drains_oldest_first_down_to_keep():
     )
 
 
-def test_the_bias_is_loosened_only_out_of_a_stride_without_a_known_up_sigma(monkeypatch):
-    """A first strike's up without σ, then strikes with σ: only the carry out of the first
-    anchored stride into the next is marked (``out_of_loose_tilt``)."""
+@pytest.mark.parametrize(
+    "first", [{"up_sigma_rad": None}, {"up_sigma_rad": 0.01, "up_assumed": True}]
+)
+def test_the_bias_is_loosened_only_out_of_a_stride_without_a_known_up_sigma(monkeypatch, first):
+    """A first strike's up without σ (or resting on an assumption), then strikes with σ: only
+    the carry out of the first anchored stride into the next is marked (``out_of_loose_tilt``)."""
     import graph_slam.backend.stride_chain as chain
     from kinematics.leg_model import LegModel
 
@@ -410,8 +413,12 @@ def test_the_bias_is_loosened_only_out_of_a_stride_without_a_known_up_sigma(monk
     slam.add_imu(t, np.zeros((t.size, 3)), np.tile(up, (t.size, 1)))
     slam.add_joints(t, np.full(t.size, 0.1), np.zeros(t.size))
     slam.add_frame(0.05)
-    for t_strike, sigma in ((0.2, None), (0.5, 0.01), (0.8, 0.01)):
-        slam.foot_strike(t_strike, up_in_imu=up, up_sigma_rad=sigma)
+    for t_strike, kw in (
+        (0.2, first),
+        (0.5, {"up_sigma_rad": 0.01}),
+        (0.8, {"up_sigma_rad": 0.01}),
+    ):
+        slam.foot_strike(t_strike, up_in_imu=up, **kw)
         for k in range(5):
             slam.add_frame(t_strike + 0.02 + 0.04 * k, foot_loaded=True)
     assert marks == [False, True, False]

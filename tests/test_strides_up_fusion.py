@@ -129,7 +129,11 @@ def test_the_anchor_fuses_the_graphs_up_and_says_so():
 def test_the_terrain_bench_puts_overrides_under_its_own_settings():
     from graph_slam.bench.terrain_walk import _config
 
-    over = {"gravity_from_graph": True, "variant": "icp+imu", "graph": {"floor": {"enabled": False}}}
+    over = {
+        "gravity_from_graph": True,
+        "variant": "icp+imu",
+        "graph": {"floor": {"enabled": False}},
+    }
     cfg = _config("realtime", True, over)
     assert cfg.gravity_from_graph and not cfg.graph.floor.enabled
     assert cfg.variant.value == "icp+imu+kin" and cfg.graph.floor.assume_level  # the bench's

@@ -158,6 +158,12 @@ class PriorConfig(ConfigModel):
         "'Terrain-following walker'; the accelerometer's block alone: the same on the course, "
         "less on the stairs): off by default",
     )
+    loose_tilt_bias_reset: bool = Field(
+        False,
+        description="out of such a stride (or one whose anchor took a plane as level at the "
+        "session's first strike, an assumption) the accelerometer bias restarts from the "
+        "session's first prior (zero, first_accel_bias_sigma_m_s2) instead of being carried",
+    )
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"
     )

@@ -80,6 +80,7 @@ class StrideSLAM:
         up_sigma_rad: float | None = None,
         up_t_s: float | None = None,
         contact_slope_rad: float = 0.0,
+        up_assumed: bool = False,
     ) -> StrideSummary | None:
         """A foot strike: close the current stride (smoothing); the next frame starts a new one.
 
@@ -90,8 +91,11 @@ class StrideSLAM:
         :func:`graph_slam.strides.kinematics.anchor_covariance` (docs/backend.md).
         ``contact_slope_rad``: the ground's pitch along the heading under the new foot (+
         rising ahead; 0: level), where the stance contact factors put the toe.
+        ``up_assumed``: the up vector rests on an assumption (a plane taken as level at a
+        session's first strike): like one without σ, its stride's bias is not trusted by the
+        next (``priors.loose_tilt_bias_*``).
         """
-        self._strike_up = StrikeUp.checked(t_s, up_in_imu, up_sigma_rad, up_t_s)
+        self._strike_up = StrikeUp.checked(t_s, up_in_imu, up_sigma_rad, up_t_s, up_assumed)
         self._contact_slope_rad = float(contact_slope_rad) if np.isfinite(contact_slope_rad) else 0.0
         return self.strides.foot_strike()
 
@@ -187,8 +191,9 @@ class StrideSLAM:
     def _stride_start(self, index, t_s, t_start, icp, foot_loaded, kinematics) -> FrameEstimate:
         """A stride's first frame: its anchor and priors; no ICP across the strike."""
         anchor = kinematics if kinematics is not None else self._anchor(t_s)
+        up = self._strike_up
         known = kinematics is not None or (
-            self._strike_up is not None and self._strike_up.sigma_rad is not None
+            up is not None and up.sigma_rad is not None and not up.assumed
         )
         flags = self.strides.start(t_s, anchor, foot_loaded, known)
         self.stance.start_stride(self._contact_slope_rad)

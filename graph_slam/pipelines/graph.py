@@ -149,6 +149,7 @@ class GraphPipeline(PipelineBase):
             up_sigma_rad=anchor.sigma_rad,
             up_t_s=t_frame_s,
             contact_slope_rad=anchor.contact_slope_rad,
+            up_assumed=anchor.assumed,
         )
         stages["stride_close"] = time.perf_counter() - t_close  # smoothing of the last stride
         return anchor

@@ -54,10 +54,17 @@ class AnchorUp:
     tilt_rad: float = float("nan")
     """The plane's normal against the IMU's up (NaN: no plane)."""
     fit: FloorFit | None = None
+    imu_sigma_unknown: bool = False
+    """The IMU's up had no σ (its window was short: a session's first strike)."""
     graph: str = ""
     """How the graph's own up entered (:mod:`graph_slam.strides.up_fusion`): ``fused``,
     ``gated`` (disagreed with the accelerometer's: not used) or empty (none asked or none
     available)."""
+
+    @property
+    def assumed(self) -> bool:
+        """A plane taken as level without an IMU σ to test it (a session's first strike)."""
+        return self.case == "floor" and self.imu_sigma_unknown
 
     @property
     def contact_slope_rad(self) -> float:
@@ -158,7 +165,7 @@ class StrideAnchor:
         if not consistent:
             return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit)
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
-        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit)
+        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None)
 
     def signed_slope(self, up_imu: np.ndarray, normal_imu: np.ndarray) -> float:
         """The plane's pitch along the camera's heading (+ rising ahead), radians."""
