@@ -386,3 +386,39 @@ def test_deferred_smoothing_drains_oldest_first_down_to_keep():
     np.testing.assert_allclose(
         res_now.smoothed_stride_T_camera, res_end.smoothed_stride_T_camera, atol=1e-9
     )
+
+
+@pytest.mark.parametrize(
+    "first", [{"up_sigma_rad": None}, {"up_sigma_rad": 0.01, "up_assumed": True}]
+)
+def test_the_bias_is_loosened_only_out_of_a_stride_without_a_known_up_sigma(monkeypatch, first):
+    """A first strike's up without σ (or resting on an assumption), then strikes with σ: only
+    the carry out of the first anchored stride into the next is marked (``out_of_loose_tilt``)."""
+    import graph_slam.backend.stride_chain as chain
+    from kinematics.leg_model import LegModel
+
+    marks = []
+    real = chain.carried_priors
+
+    def spy(*args):
+        marks.append(args[-1])
+        return real(*args)
+
+    monkeypatch.setattr(chain, "carried_priors", spy)
+    model = LegModel()
+    camera_T_imu = np.linalg.inv(model.thigh_T_frame("camera_optical")) @ model.thigh_T_frame("imu")
+    t = np.arange(0.0, 1.2, 0.005)
+    up = np.array([0.0, 0.0, 9.81])
+    slam = StrideSLAM(camera_T_imu=camera_T_imu, leg_model=model)
+    slam.add_imu(t, np.zeros((t.size, 3)), np.tile(up, (t.size, 1)))
+    slam.add_joints(t, np.full(t.size, 0.1), np.zeros(t.size))
+    slam.add_frame(0.05)
+    for t_strike, kw in (
+        (0.2, first),
+        (0.5, {"up_sigma_rad": 0.01}),
+        (0.8, {"up_sigma_rad": 0.01}),
+    ):
+        slam.foot_strike(t_strike, up_in_imu=up, **kw)
+        for k in range(5):
+            slam.add_frame(t_strike + 0.02 + 0.04 * k, foot_loaded=True)
+    assert marks == [False, True, False]

@@ -68,3 +68,30 @@ def test_first_stride_priors_gravity_aligned_or_anchor():
     assert first_stride_priors(pc, np.eye(4), None, None).flags == ["no_anchor_no_gravity"]
     p = first_stride_priors(pc, np.eye(4), ANCHOR, None)
     assert p.flags == [] and np.allclose(p.cov_pose, ANCHOR.covariance)
+
+
+def test_out_of_a_loose_tilt_stride_only_the_bias_is_loosened():
+    """Out of a stride anchored without a known up σ (a session's first strike) the carried
+    bias covariance is × ``loose_tilt_bias_inflation``; pose and velocity are not."""
+    pc = PriorConfig(carry_inflation=2.0, loose_tilt_bias_inflation=10.0)
+    args = (pc, np.eye(4), "foot_strike", PRED, COV_X, COV_V, BIAS, COV_B, ANCHOR, False)
+    plain, loose = carried_priors(*args), carried_priors(*args, True)
+    np.testing.assert_allclose(loose.cov_bias, COV_B * 20.0)
+    np.testing.assert_allclose(loose.cov_velocity, plain.cov_velocity)
+    np.testing.assert_allclose(loose.cov_pose, plain.cov_pose)
+    np.testing.assert_allclose(loose.bias.vector(), BIAS.vector())
+
+
+def test_out_of_a_loose_tilt_stride_the_accel_bias_can_restart_from_the_first_prior():
+    pc = PriorConfig(loose_tilt_bias_reset=True, first_accel_bias_sigma_m_s2=0.2)
+    bias = gtsam.imuBias.ConstantBias(np.array([4.0, 0.5, 0.8]), np.array([0.01, 0.02, 0.03]))
+    cov_b = np.full((6, 6), 1e-6) + np.eye(6) * 1e-5
+    args = (pc, np.eye(4), "foot_strike", PRED, COV_X, COV_V, bias, cov_b, ANCHOR, False)
+    p = carried_priors(*args, True)
+    np.testing.assert_allclose(p.bias.accelerometer(), 0.0)
+    np.testing.assert_allclose(p.bias.gyroscope(), [0.01, 0.02, 0.03])
+    np.testing.assert_allclose(p.cov_bias[:3, :3], np.eye(3) * 0.04)
+    np.testing.assert_allclose(p.cov_bias[:3, 3:], 0.0)
+    np.testing.assert_allclose(p.cov_bias[3:, 3:], cov_b[3:, 3:])
+    kept = carried_priors(*args)  # out of a stride with a known up: carried as it is
+    np.testing.assert_allclose(kept.bias.vector(), bias.vector())

@@ -100,3 +100,18 @@ def test_a_first_strike_takes_the_ground_as_level():
     a = anchor.at_strike(0.0, 0.05, ramp_points(8.0))
     assert a.case == "floor" and a.sigma_rad < 0.01
     assert tilt_deg(a.up_in_imu) == pytest.approx(8.0, abs=0.2)
+
+
+class FirstStrikeGravity(FakeGravity):
+    """A session's first strike: under a second of IMU history (no σ for its up)."""
+
+    def history_s(self, t_s: float) -> float:
+        return 0.3
+
+
+def test_a_plane_taken_as_level_at_the_first_strike_is_an_assumption():
+    a = StrideAnchor(FirstStrikeGravity(np.array([0.0, 0.0, 1.0])), FloorConfig(), np.eye(4),
+                     0.01, 0.8, 0.2).at_strike(0.0, 0.05, ramp_points(0.0))  # fmt: skip
+    assert a.case == "floor" and a.assumed
+    b = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, ramp_points(0.0))
+    assert b.case == "floor" and not b.assumed  # tested against the IMU's σ: not assumed

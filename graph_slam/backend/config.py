@@ -148,6 +148,22 @@ class PriorConfig(ConfigModel):
         "over-confident, its velocity and bias pulled the next stride's anchor by 9 mm / 0.44° "
         "(full resolution, 1.4 m/s)",
     )
+    loose_tilt_bias_inflation: float = Field(
+        1.0,
+        ge=1,
+        description="multiplies the bias covariance carried out of a stride whose "
+        "anchor had no known up σ (the session's first strike, its up 10-50° off) into one "
+        "whose anchor has: that stride's lateral accel bias came out 0.3-0.4 m/s² off on the "
+        "terrain walker. 10 helped the stairs and hurt the mixed course (docs/benchmarks.md, "
+        "'Terrain-following walker'; the accelerometer's block alone: the same on the course, "
+        "less on the stairs): off by default",
+    )
+    loose_tilt_bias_reset: bool = Field(
+        False,
+        description="out of such a stride (or one whose anchor took a plane as level at the "
+        "session's first strike, an assumption) the accelerometer bias restarts from the "
+        "session's first prior (zero, first_accel_bias_sigma_m_s2) instead of being carried",
+    )
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"
     )

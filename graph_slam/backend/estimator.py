@@ -26,6 +26,7 @@ import numpy as np
 from graph_slam.backend.config import BackendConfig
 from graph_slam.backend.gating import GateDecision, make_registration_gate
 from graph_slam.backend.imu import ImuCheck
+from graph_slam.backend.keys import X
 from graph_slam.backend.measurements import IcpMeasurement, KinematicMeasurement
 from graph_slam.backend.prediction import StrikeUp, make_imu_predictor
 from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
@@ -33,6 +34,7 @@ from graph_slam.backend.stance import make_stance_model
 from graph_slam.backend.stride_chain import make_stride_chain
 from graph_slam.errors import EstimationError
 from graph_slam.strides.kinematics import make_leg_kinematics
+from graph_slam.strides.up_fusion import GraphUp
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +80,7 @@ class StrideSLAM:
         up_sigma_rad: float | None = None,
         up_t_s: float | None = None,
         contact_slope_rad: float = 0.0,
+        up_assumed: bool = False,
     ) -> StrideSummary | None:
         """A foot strike: close the current stride (smoothing); the next frame starts a new one.
 
@@ -88,8 +91,11 @@ class StrideSLAM:
         :func:`graph_slam.strides.kinematics.anchor_covariance` (docs/backend.md).
         ``contact_slope_rad``: the ground's pitch along the heading under the new foot (+
         rising ahead; 0: level), where the stance contact factors put the toe.
+        ``up_assumed``: the up vector rests on an assumption (a plane taken as level at a
+        session's first strike): like one without σ, its stride's bias is not trusted by the
+        next (``priors.loose_tilt_bias_*``).
         """
-        self._strike_up = StrikeUp.checked(t_s, up_in_imu, up_sigma_rad, up_t_s)
+        self._strike_up = StrikeUp.checked(t_s, up_in_imu, up_sigma_rad, up_t_s, up_assumed)
         self._contact_slope_rad = float(contact_slope_rad) if np.isfinite(contact_slope_rad) else 0.0
         return self.strides.foot_strike()
 
@@ -117,6 +123,28 @@ class StrideSLAM:
         nav = seg.pim.predict(gtsam.NavState(last.stride_T_imu, last.velocity_m_s), last.bias)
         last_T_new_imu = np.linalg.inv(last.stride_T_imu.matrix()) @ nav.pose().matrix()
         return self.camera_T_imu @ last_T_new_imu @ np.linalg.inv(self.camera_T_imu)
+
+    def up_estimate(self, t_s: float) -> GraphUp | None:
+        """Up in the IMU frame at ``t_s`` from the open stride's online attitude (its latest
+        state, carried by the gyro with the estimated bias), with that attitude's marginal
+        covariance plus the carry's (causal: only what was added). None: no open stride, a
+        pending strike, ``t_s`` not after its last state, an IMU gap, or no marginal."""
+        g = self.strides.graph
+        if g is None or self.strides.pending is not None or not t_s > g.t_s[-1]:
+            return None
+        last = g.nav(g.n_states - 1)
+        seg = self.imu.buffer.integrate(g.t_s[-1], t_s, last.bias)
+        if not seg.ok:
+            return None
+        try:
+            cov_last = g.marginal_covariance(X(g.n_states - 1))[:3, :3]
+        except RuntimeError as err:
+            log.info("t=%.3f s: no attitude marginal for the up vector (%s)", t_s, err)
+            return None
+        last_R_now = np.asarray(seg.pim.deltaRij().matrix())
+        now_R_stride = (last.stride_T_imu.rotation().matrix() @ last_R_now).T
+        cov = last_R_now.T @ cov_last @ last_R_now + np.asarray(seg.pim.preintMeasCov())[:3, :3]
+        return GraphUp(float(t_s), now_R_stride[:, 2], cov, now_R_stride[:, 1])
 
     def smooth_deferred(self, keep: int = 0) -> list[StrideSummary]:
         """Batch-smooth the strides closed with ``defer_smoothing`` (off the real-time path:
@@ -163,7 +191,11 @@ class StrideSLAM:
     def _stride_start(self, index, t_s, t_start, icp, foot_loaded, kinematics) -> FrameEstimate:
         """A stride's first frame: its anchor and priors; no ICP across the strike."""
         anchor = kinematics if kinematics is not None else self._anchor(t_s)
-        flags = self.strides.start(t_s, anchor, foot_loaded)
+        up = self._strike_up
+        known = kinematics is not None or (
+            up is not None and up.sigma_rad is not None and not up.assumed
+        )
+        flags = self.strides.start(t_s, anchor, foot_loaded, known)
         self.stance.start_stride(self._contact_slope_rad)
         self.registration.start_stride()
         self._strike_up = None

@@ -41,9 +41,14 @@ class StrikeUp:
     t_s: float
     up_in_imu: np.ndarray
     sigma_rad: float | None = None
+    assumed: bool = False
+    """The up vector rests on an assumption (a plane taken as level at a session's first
+    strike): the stride's bias is not trusted (``priors.loose_tilt_bias_*``)."""
 
     @classmethod
-    def checked(cls, t_s, up_in_imu, up_sigma_rad=None, up_t_s=None) -> StrikeUp | None:
+    def checked(
+        cls, t_s, up_in_imu, up_sigma_rad=None, up_t_s=None, assumed=False
+    ) -> StrikeUp | None:
         """Validate ``foot_strike``'s arguments (:class:`EstimationError` stating the rule)."""
         if up_sigma_rad is not None and not (np.isfinite(up_sigma_rad) and up_sigma_rad > 0):
             raise EstimationError(
@@ -56,7 +61,7 @@ class StrikeUp:
             raise EstimationError(
                 f"foot_strike: up_in_imu must be a finite non-zero 3-vector, got {up_in_imu!r}"
             )
-        return cls(float(t_s if up_t_s is None else up_t_s), up, up_sigma_rad)
+        return cls(float(t_s if up_t_s is None else up_t_s), up, up_sigma_rad, bool(assumed))
 
 
 @dataclass(eq=False)

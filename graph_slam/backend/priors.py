@@ -77,6 +77,16 @@ def first_stride_priors(
     return StartPriors(pose, cov_pose, np.zeros(3), cov_vel, bias, cov_bias, flags)
 
 
+def _accel_bias_reset(pc: PriorConfig, bias, cov_b: np.ndarray):
+    """The accelerometer's bias back to the session's first prior (zero, its σ), uncorrelated
+    with the gyroscope's, which is kept."""
+    cov = np.array(cov_b, float)
+    cov[:3, :] = 0.0
+    cov[:, :3] = 0.0
+    cov[:3, :3] = np.eye(3) * pc.first_accel_bias_sigma_m_s2**2
+    return gtsam.imuBias.ConstantBias(np.zeros(3), np.asarray(bias.gyroscope())), cov
+
+
 def carried_priors(
     pc: PriorConfig,
     camera_T_imu: np.ndarray,
@@ -88,12 +98,20 @@ def carried_priors(
     cov_b: np.ndarray,
     anchor: KinematicMeasurement | None,
     out_of_unloaded_first: bool = False,
+    out_of_loose_tilt: bool = False,
 ) -> StartPriors:
     """The previous stride's end state ``pred`` (propagated to this frame, covariances incl.
-    preintegration) as the new stride's priors; see the module docstring for the inflation."""
+    preintegration) as the new stride's priors; see the module docstring for the inflation.
+    ``out_of_loose_tilt``: that stride's anchor had no known up σ (the session's first
+    strike): its bias covariance is also × ``loose_tilt_bias_inflation`` (and with
+    ``loose_tilt_bias_reset`` the accelerometer's bias restarts from the first prior)."""
     infl = pc.carry_inflation if reason == "foot_strike" else pc.missed_strike_inflation
     if out_of_unloaded_first:
         infl *= pc.first_carry_inflation
+    if out_of_loose_tilt:
+        cov_b = cov_b * pc.loose_tilt_bias_inflation
+        if pc.loose_tilt_bias_reset:
+            bias, cov_b = _accel_bias_reset(pc, bias, cov_b)
     if anchor is not None and reason == "foot_strike":
         pose, cov_pose = factors.camera_pose_to_imu(
             anchor.stride_T_camera, anchor.covariance, camera_T_imu

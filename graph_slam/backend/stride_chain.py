@@ -60,6 +60,8 @@ class _StartInputs:
     reason: str
     unloaded_first: bool
     world_T_old: np.ndarray
+    loose_tilt_before: bool = False
+    """The stride carried from had an anchor without a known up σ, this one has one."""
 
 
 @dataclass(eq=False)
@@ -108,6 +110,7 @@ class StrideChain:
         self._counts = {"icp_ok": 0, "icp_rej": 0, "kin": 0, "gap": 0}
         self._last_nav = None  # (t_s, NavEstimate, cov_pose, cov_vel, cov_bias) at stride end
         self._started_loaded = True  # the open stride's first frame had the foot loaded
+        self._tilt_known = True  # the open stride's anchor had a known up σ
         self.deferred: list[tuple[StrideSummary, StrideGraph]] = []
         self._unsettled: _Unsettled | None = None  # end_state: next_frame
         self._retired: _Unsettled | None = None
@@ -133,14 +136,22 @@ class StrideChain:
             self.pending = "missed_foot_strike"
 
     def start(
-        self, t_s: float, anchor: KinematicMeasurement | None, foot_loaded: bool
+        self,
+        t_s: float,
+        anchor: KinematicMeasurement | None,
+        foot_loaded: bool,
+        tilt_known: bool = True,
     ) -> list[str]:
-        """A new stride graph at ``t_s`` with its first state's priors; returns frame flags."""
+        """A new stride graph at ``t_s`` with its first state's priors; returns frame flags.
+        ``tilt_known``: the anchor's up vector came with its σ."""
         reason = self.pending or "first_stride"
         if self._last_nav is None:
             reason = "first_stride"
         unloaded_first = self.start_reason == "first_stride" and not self._started_loaded
         inputs = _StartInputs(t_s, anchor, reason, unloaded_first, self.world_T_stride.copy())
+        # out of a stride anchored without a known up σ into one with: its bias is loosened
+        inputs.loose_tilt_before = not self._tilt_known and tilt_known and anchor is not None
+        self._tilt_known = bool(tilt_known)
         priors, flags = self._priors(inputs)
         self._new_graph(t_s, priors, flags)
         self.world_T_stride = _chained(inputs.world_T_old, priors)
@@ -173,6 +184,7 @@ class StrideChain:
                 cov_b,
                 s.anchor,
                 s.unloaded_first,
+                s.loose_tilt_before,
             )
         return priors, flags + priors.flags
 

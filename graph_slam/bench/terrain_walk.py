@@ -48,13 +48,18 @@ class TerrainRun:
     strides: list[TerrainStrideScore]
 
 
-def _config(preset: str | None, assume_level: bool):
+def _config(preset: str | None, assume_level: bool, overrides: dict | None = None):
+    """The full graph's config: the preset, then ``overrides`` (a partial PipelineConfig
+    dict, e.g. ``--config``'s YAML), then the bench's own settings."""
+    from graph_slam.config import merge_dicts
     from graph_slam.pipelines import PipelineConfig
     from graph_slam.pipelines.config import with_preset
 
     data = PipelineConfig().model_dump(mode="json")
     if preset:
         data = with_preset(data, preset)
+    if overrides:
+        data = merge_dicts(data, overrides)
     data["variant"] = "icp+imu+kin"
     data["terrain"] = {**data["terrain"], "enabled": False}
     data["graph"]["floor"] = {**data["graph"]["floor"], "assume_level": assume_level}
@@ -65,7 +70,14 @@ def _flag(flags, prefix: str) -> str:
     return next((f.split(":", 1)[1] for f in flags if f.startswith(prefix)), "")
 
 
-def score_terrain_run(scene: str, speed: str, path: Path, preset: str | None, assume_level: bool):
+def score_terrain_run(
+    scene: str,
+    speed: str,
+    path: Path,
+    preset: str | None,
+    assume_level: bool,
+    overrides: dict | None = None,
+):
     """One run of the full graph on a simulated session, scored per stride."""
     from graph_slam.bench.accuracy import score
     from graph_slam.pipelines import run_session
@@ -78,7 +90,7 @@ def score_terrain_run(scene: str, speed: str, path: Path, preset: str | None, as
     session = open_session(path)
     leg, _ = session_leg_model(session)
     truth = read_stride_terrain(path) if (path / "strides_truth.csv").exists() else []
-    res = run_session(session, _config(preset, assume_level))
+    res = run_session(session, _config(preset, assume_level, overrides))
     scores = score(session, res, leg)
     refs = stride_references(
         session, res.t_s, res.strides, session_streams(session, "load_cell").events, leg
@@ -120,9 +132,11 @@ def run_terrain_bench(
     seed: int = 3,
     level_scene: str = "flat-floor",
     progress=None,
+    overrides: dict | None = None,
 ) -> list[TerrainRun]:
     """Simulate and score every scene at every speed (module text); the level reference
-    first. ``progress(line)`` gets each run's lines as they finish."""
+    first. ``progress(line)`` gets each run's lines as they finish; ``overrides``: a partial
+    PipelineConfig dict for every run (the level reference's too)."""
     from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
     out: list[TerrainRun] = []
@@ -137,7 +151,7 @@ def run_terrain_bench(
                 simulate(cfg, path, overwrite=True)
                 anchors = (False,) if scene == level_scene else (False, True)
                 for assume_level in anchors:
-                    run = score_terrain_run(scene, speed, path, preset, assume_level)
+                    run = score_terrain_run(scene, speed, path, preset, assume_level, overrides)
                     out.append(run)
                     if progress is not None:
                         for line in run_lines(run):

@@ -432,13 +432,21 @@ def terrain_walk_bench(
             "--angles", help="Only the walker's joint-angle peaks per terrain (no rendering)."
         ),
     ] = False,
+    config: Annotated[
+        Path | None,
+        typer.Option("--config", help="YAML of PipelineConfig overrides for every run."),
+    ] = None,
 ) -> None:
     """The full graph on the terrain walker's scenes (stairs, ramps, curbs, boxes): per-stride
     RMSE beside level walking, the anchor's tilt error with the level-ground anchor beside it,
     the anchor's case and slope, every frame posed (docs/benchmarks.md)."""
     from graph_slam.bench import terrain_walk as tw
+    from graph_slam.config import load_config, read_yaml
+    from graph_slam.pipelines import PipelineConfig
     from graph_slam.sim import SPEEDS_M_S
 
+    load_config(PipelineConfig, config)  # a bad file fails before any simulation
+    overrides = None if config is None else read_yaml(config)
     names = [s.strip() for s in scenes.split(",") if s.strip()]
     chosen = [v.strip() for v in speeds.split(",") if v.strip()]
     if unknown := [v for v in chosen if v not in SPEEDS_M_S]:
@@ -448,8 +456,9 @@ def terrain_walk_bench(
             typer.echo(line)
         return
     runs = tw.run_terrain_bench(
-        names, chosen, strides, resolution, preset or None, seed, progress=typer.echo
-    )
+        names, chosen, strides, resolution, preset or None, seed, progress=typer.echo,
+        overrides=overrides,
+    )  # fmt: skip
     typer.echo(
         "== summary (median per stride, each session's first stride left out; × level: over "
         "flat-floor at the same speed)"

@@ -258,6 +258,14 @@ class PipelineConfig(ConfigModel):
         description="σ assumed for an up vector from a window shorter than "
         "gravity_min_window_s when fusing it with the floor (widens the floor's angle gate)",
     )
+    gravity_from_graph: bool = Field(
+        False,
+        description="fuse the accelerometer's up at a foot strike with the open stride's "
+        "online attitude (carried by the gyro; its tilt along the heading weighed by its "
+        "marginal covariance, gated at 3σ): graph_slam.strides.up_fusion. The anchor's up "
+        "came within 0.2° on the terrain walker but the poses did not follow "
+        "(docs/benchmarks.md). False: the accelerometer's alone",
+    )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
     deterministic: bool = Field(
         True,

@@ -115,7 +115,7 @@ class GraphPipeline(PipelineBase):
         self._uncoloured: set[int] = set()
         self.imu_guess = imu_guess_on(config, self.registration)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
-        self.anchor = make_anchor(config, self.camera_T_imu, self.gravity)
+        self.anchor = make_anchor(config, self.camera_T_imu, self.gravity, self.slam.up_estimate)
         self.keys = Keyframes(config.graph.keyframe)
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
@@ -149,6 +149,7 @@ class GraphPipeline(PipelineBase):
             up_sigma_rad=anchor.sigma_rad,
             up_t_s=t_frame_s,
             contact_slope_rad=anchor.contact_slope_rad,
+            up_assumed=anchor.assumed,
         )
         stages["stride_close"] = time.perf_counter() - t_close  # smoothing of the last stride
         return anchor

@@ -28,11 +28,13 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from graph_slam.frontend.floor import FloorConfig, FloorFit, fit_floor, fuse_up
+from graph_slam.strides.up_fusion import GraphUp, fuse_with_graph
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +54,17 @@ class AnchorUp:
     tilt_rad: float = float("nan")
     """The plane's normal against the IMU's up (NaN: no plane)."""
     fit: FloorFit | None = None
+    imu_sigma_unknown: bool = False
+    """The IMU's up had no σ (its window was short: a session's first strike)."""
+    graph: str = ""
+    """How the graph's own up entered (:mod:`graph_slam.strides.up_fusion`): ``fused``,
+    ``gated`` (disagreed with the accelerometer's: not used) or empty (none asked or none
+    available)."""
+
+    @property
+    def assumed(self) -> bool:
+        """A plane taken as level without an IMU σ to test it (a session's first strike)."""
+        return self.case == "floor" and self.imu_sigma_unknown
 
     @property
     def contact_slope_rad(self) -> float:
@@ -65,6 +78,8 @@ class AnchorUp:
             out.insert(0, f"floor:{self.fit.reason}")
         if math.isfinite(self.slope_rad):
             out.append(f"slope_deg:{math.degrees(self.slope_rad):.2f}")
+        if self.graph:
+            out.append(f"up_graph:{self.graph}")
         return tuple(out)
 
 
@@ -79,6 +94,7 @@ class StrideAnchor:
         sigma_rad: float | None,
         min_window_s: float,
         short_sigma_rad: float,
+        graph_up: Callable[[float], GraphUp | None] | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -86,6 +102,7 @@ class StrideAnchor:
         self.sigma_rad = sigma_rad
         self.min_window_s = float(min_window_s)
         self.short_sigma_rad = float(short_sigma_rad)
+        self.graph_up = graph_up
 
     def imu_up(self, t_strike_s: float, t_s: float) -> tuple[np.ndarray | None, float | None]:
         """The IMU's up at ``t_s`` over about the last stride, and its σ (None: the first
@@ -98,15 +115,31 @@ class StrideAnchor:
             sigma = self.sigma_rad
         return up, sigma
 
+    def with_graph(self, t_s: float, up: np.ndarray, sigma: float | None):
+        """The accelerometer's up fused with the estimator's (``graph_up``; module text of
+        :mod:`graph_slam.strides.up_fusion`) when both are known; returns ``(up, σ, how)``."""
+        if sigma is None or self.graph_up is None:
+            return up, sigma, ""
+        estimate = self.graph_up(t_s)
+        if estimate is None:
+            return up, sigma, ""
+        f = fuse_with_graph(up, sigma, estimate)
+        if not f.fused:
+            log.info("t=%.3f s: the graph's up is %.1fσ from the IMU's: not used", t_s,
+                     math.sqrt(f.mahalanobis2))  # fmt: skip
+            return up, sigma, "gated"
+        return f.up_in_imu, f.sigma_rad, "fused"
+
     def at_strike(self, t_strike_s: float, t_s: float, points_m: np.ndarray | None) -> AnchorUp:
         """The anchor for the stride struck at ``t_strike_s``, at its first frame ``t_s``
         (``points_m``: that frame's cloud, camera frame; None: no depth)."""
         up, sigma = self.imu_up(t_strike_s, t_s)
         if up is None:
             return AnchorUp(t_s, None, None, "none")
+        up, sigma, how = self.with_graph(t_s, up, sigma)
         if points_m is None or not self.floor.enabled:
-            return AnchorUp(t_s, up, sigma, "imu")
-        return self.with_plane(t_s, up, sigma, points_m)
+            return AnchorUp(t_s, up, sigma, "imu", graph=how)
+        return replace(self.with_plane(t_s, up, sigma, points_m), graph=how)
 
     def with_plane(self, t_s: float, up: np.ndarray, sigma: float | None, points_m) -> AnchorUp:
         """Fit the plane near ``up`` and decide the case (module text)."""
@@ -132,7 +165,7 @@ class StrideAnchor:
         if not consistent:
             return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit)
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
-        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit)
+        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None)
 
     def signed_slope(self, up_imu: np.ndarray, normal_imu: np.ndarray) -> float:
         """The plane's pitch along the camera's heading (+ rising ahead), radians."""
@@ -146,8 +179,10 @@ class StrideAnchor:
         return float(math.atan2(-(n @ ahead), n @ u))
 
 
-def make_anchor(config, camera_T_imu: np.ndarray, gravity) -> StrideAnchor:
-    """The stride anchor of a graph pipeline from its :class:`PipelineConfig`."""
+def make_anchor(config, camera_T_imu: np.ndarray, gravity, graph_up=None) -> StrideAnchor:
+    """The stride anchor of a graph pipeline from its :class:`PipelineConfig`; ``graph_up``
+    (e.g. :meth:`graph_slam.backend.StrideSLAM.up_estimate`) is used when
+    ``gravity_from_graph`` is on."""
     return StrideAnchor(
         gravity,
         config.graph.floor,
@@ -155,4 +190,5 @@ def make_anchor(config, camera_T_imu: np.ndarray, gravity) -> StrideAnchor:
         config.gravity_sigma_rad,
         config.gravity_min_window_s,
         config.gravity_short_sigma_rad,
+        graph_up if config.gravity_from_graph else None,
     )
