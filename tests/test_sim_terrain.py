@@ -244,3 +244,31 @@ def test_joint_angles_stay_within_the_urdf_limits_and_published_ranges(
             assert lo <= ankle.min() and ankle.max() <= hi + 1e-6, where  # the cap, not above
             checked.add(label)
     assert checked == set(ACTIVITY_RANGES_DEG)
+
+
+def test_terrain_walk_summary_and_markdown_agree_on_hand_made_runs() -> None:
+    from graph_slam.bench.terrain_walk import (
+        TerrainRun,
+        TerrainStrideScore,
+        markdown_table,
+        summary_rows,
+    )
+
+    def run(scene, anchor, smoothed, tilts, label="level"):
+        strides = [
+            TerrainStrideScore(scene, "normal", anchor, k + 1, label, sm, sm + 1.0, t, "imu", 0.0)
+            for k, (sm, t) in enumerate(zip(smoothed, tilts, strict=True))
+        ]
+        return TerrainRun(scene, "normal", anchor, 30, 30, 30, strides)
+
+    runs = [
+        run("flat-floor", "new", [9.0, 2.0, 4.0], [0.1, 0.1, 0.1]),
+        run("ramp-up-8", "new", [50.0, 6.0, 8.0], [2.0, 0.4, 0.5], "ramp_up"),
+        run("ramp-up-8", "level", [50.0, 12.0, 14.0], [2.0, 0.7, 0.8], "ramp_up"),
+    ]
+    flat, ramp = summary_rows(runs)  # the first stride of each session left out
+    assert flat["smoothed_mm"] == 3.0 and flat["smoothed_x_level"] == 1.0
+    assert ramp["smoothed_mm"] == 7.0 and abs(ramp["smoothed_x_level"] - 7.0 / 3.0) < 1e-12
+    assert ramp["online_mm"] == 8.0 and ramp["ramp_tilt"] == "0.50/0.80"
+    text = markdown_table(runs, "graph-slam bench terrain-walk")
+    assert text.splitlines()[-1] == "| ramp-up-8 | normal | 7.0 | 2.33 | 8.0 | 2.00 | 0.50/0.80 | 30/30 |"

@@ -174,35 +174,73 @@ def run_lines(run: TerrainRun) -> list[str]:
     return lines
 
 
-def summary_lines(runs: list[TerrainRun], skip_first: bool = True) -> list[str]:
-    """Per scene and speed: median smoothed/online RMSE over the level reference's, the worst
-    tilt error of each anchor on ramp strides. ``skip_first``: leave out each session's first
-    stride (its anchor has under a second of IMU history: 10-40° off, on every scene)."""
+def summary_rows(runs: list[TerrainRun], skip_first: bool = True) -> list[dict]:
+    """Per scene and speed (the new anchor): median smoothed/online RMSE (mm) and their ratio
+    to the level reference's, the worst tilt error of each anchor on ramp strides (deg), the
+    frames posed. ``skip_first``: leave out each session's first stride (its anchor has under
+    a second of IMU history: 10-40° off, on every scene)."""
     if skip_first:
         runs = [replace(r, strides=[s for s in r.strides if s.stride > 1]) for r in runs]
     level = {r.speed: r for r in runs if r.anchor == "new" and r.scene == runs[0].scene}
-    lines = [
-        f"{'scene':16s} {'speed':6s} {'smoothed mm':>11s} {'×level':>6s} {'online mm':>9s} "
-        f"{'×level':>6s} {'ramp tilt new/level deg':>24s} {'posed':>9s}"
-    ]
+
+    def median(run: TerrainRun | None, key: str) -> float:
+        values = [getattr(s, key) for s in run.strides] if run else []
+        return float(np.median(values)) if values else math.nan
+
+    rows = []
     for r in runs:
         if r.anchor != "new":
             continue
         ref = level.get(r.speed)
-        sm = np.median([s.smoothed_mm for s in r.strides]) if r.strides else math.nan
-        on = np.median([s.online_mm for s in r.strides]) if r.strides else math.nan
-        ref_sm = np.median([s.smoothed_mm for s in ref.strides]) if ref else math.nan
-        ref_on = np.median([s.online_mm for s in ref.strides]) if ref else math.nan
         old = next((o for o in runs if o.anchor == "level" and o.scene == r.scene
                     and o.speed == r.speed), None)  # fmt: skip
         ramp = [s.tilt_deg for s in r.strides if s.label.startswith("ramp")]
         ramp_old = [s.tilt_deg for s in (old.strides if old else []) if s.label.startswith("ramp")]
-        tilt = f"{max(ramp):.2f}/{max(ramp_old):.2f}" if ramp and ramp_old else "-"
+        sm, on = median(r, "smoothed_mm"), median(r, "online_mm")
+        rows.append({
+            "scene": r.scene, "speed": r.speed, "smoothed_mm": sm, "online_mm": on,
+            "smoothed_x_level": sm / median(ref, "smoothed_mm"),
+            "online_x_level": on / median(ref, "online_mm"),
+            "ramp_tilt": f"{max(ramp):.2f}/{max(ramp_old):.2f}" if ramp and ramp_old else "-",
+            "posed": f"{r.posed_online}/{r.frames}",
+        })  # fmt: skip
+    return rows
+
+
+def summary_lines(runs: list[TerrainRun], skip_first: bool = True) -> list[str]:
+    """:func:`summary_rows` as aligned text."""
+    lines = [
+        f"{'scene':16s} {'speed':6s} {'smoothed mm':>11s} {'×level':>6s} {'online mm':>9s} "
+        f"{'×level':>6s} {'ramp tilt new/level deg':>24s} {'posed':>9s}"
+    ]
+    for r in summary_rows(runs, skip_first):
         lines.append(
-            f"{r.scene:16s} {r.speed:6s} {sm:11.1f} {sm / ref_sm:6.2f} {on:9.1f} "
-            f"{on / ref_on:6.2f} {tilt:>24s} {r.posed_online:4d}/{r.frames:<4d}"
+            f"{r['scene']:16s} {r['speed']:6s} {r['smoothed_mm']:11.1f} "
+            f"{r['smoothed_x_level']:6.2f} {r['online_mm']:9.1f} {r['online_x_level']:6.2f} "
+            f"{r['ramp_tilt']:>24s} {r['posed']:>9s}"
         )
     return lines
+
+
+def markdown_table(runs: list[TerrainRun], command: str, skip_first: bool = True) -> str:
+    """:func:`summary_rows` as a markdown table with its caption (date, commit, cores,
+    command)."""
+    from graph_slam.bench.caption import caption
+
+    lines = [
+        f"({caption(command)})",
+        "",
+        "| scene | speed | smoothed mm | × level | online mm | × level "
+        "| ramp tilt °, new / level-ground anchor | posed online |",
+        "| :-- | :-- | --: | --: | --: | --: | --: | --: |",
+    ]
+    for r in summary_rows(runs, skip_first):
+        lines.append(
+            f"| {r['scene']} | {r['speed']} | {r['smoothed_mm']:.1f} "
+            f"| {r['smoothed_x_level']:.2f} | {r['online_mm']:.1f} | {r['online_x_level']:.2f} "
+            f"| {r['ramp_tilt']} | {r['posed']} |"
+        )
+    return "\n".join(lines)
 
 
 def joint_peaks(scene: str, speed: str, strides: int = 6, seed: int = 3) -> list[dict]:

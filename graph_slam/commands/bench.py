@@ -436,6 +436,7 @@ def terrain_walk_bench(
         Path | None,
         typer.Option("--config", help="YAML of PipelineConfig overrides for every run."),
     ] = None,
+    markdown: options.Markdown = False,
 ) -> None:
     """The full graph on the terrain walker's scenes (stairs, ramps, curbs, boxes): per-stride
     RMSE beside level walking, the anchor's tilt error with the level-ground anchor beside it,
@@ -465,3 +466,7 @@ def terrain_walk_bench(
     )
     for line in tw.summary_lines(runs):
         typer.echo(line)
+    if markdown:
+        from graph_slam.bench.caption import invoked_command
+
+        typer.echo("\n" + tw.markdown_table(runs, invoked_command()))
