@@ -100,3 +100,36 @@ def test_a_first_strike_takes_the_ground_as_level():
     a = anchor.at_strike(0.0, 0.05, ramp_points(8.0))
     assert a.case == "floor" and a.sigma_rad < 0.01
     assert tilt_deg(a.up_in_imu) == pytest.approx(8.0, abs=0.2)
+
+
+def _first_strike_anchor() -> StrideAnchor:
+    return StrideAnchor(FakeGravity(np.array([0.0, 0.0, 1.0])), FloorConfig(), np.eye(4),
+                        0.01, 100.0, 0.2)  # fmt: skip
+
+
+def _in_camera(p_world) -> np.ndarray:
+    return (np.asarray(p_world, float) - CAMERA_POS) @ WORLD_R_CAMERA
+
+
+def test_a_first_strike_refuses_a_plane_that_does_not_pass_under_the_heel():
+    """Stairs ahead of a first strike on level floor: the plane through the nosings (31° on a
+    0.17/0.28 flight, here its points alone) is no ground the foot stands on; the heel
+    (from the encoders) is 0.38 m below it, so the IMU's up is kept. The floor itself,
+    through the heel, is still taken."""
+    rng = np.random.default_rng(1)
+    x = rng.uniform(0.9, 2.0, 4000)
+    slope = math.atan2(0.17, 0.28)
+    nosings = np.column_stack([x, rng.uniform(-0.6, 0.6, x.size),
+                               math.tan(slope) * (x - 0.9) + 0.17])  # fmt: skip
+    heel = _in_camera([0.0, 0.0, 0.0])
+    refused = _first_strike_anchor().at_strike(0.0, 0.05, _in_camera(nosings), heel)
+    assert refused.case == "imu" and refused.fit is not None and not refused.fit.ok
+    assert refused.fit.reason.startswith("not_under_heel")
+    assert tilt_deg(refused.up_in_imu) < 1e-5
+    # without the heel the old rule took that plane as level: a 31° tilt
+    blind = _first_strike_anchor().at_strike(0.0, 0.05, _in_camera(nosings))
+    assert blind.case == "floor" and tilt_deg(blind.up_in_imu) > 25.0
+    floor = _first_strike_anchor().at_strike(0.0, 0.05, ramp_points(0.0), heel)
+    assert floor.case == "floor" and tilt_deg(floor.up_in_imu) < 0.1
+    off = _first_strike_anchor().at_strike(0.0, 0.05, ramp_points(0.0), _in_camera([0, 0, -0.1]))
+    assert off.case == "imu"

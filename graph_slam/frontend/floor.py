@@ -87,6 +87,13 @@ class FloorConfig(ConfigModel):
         ge=0,
         description="the level gate is never tighter than this (the IMU's σ is a model)",
     )
+    first_strike_heel_m: float = Field(
+        0.05,
+        gt=0,
+        description="at a session's first strike (no IMU up to gate against) a plane is taken "
+        "as the ground only when the stance heel (from the encoders) lies within this of it: "
+        "on stairs ahead a plane through the nosings, 30° off, was fused as the floor",
+    )
 
 
 @dataclass(frozen=True)

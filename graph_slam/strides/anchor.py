@@ -11,8 +11,10 @@ IMU's up. Otherwise (a ramp, a tread seen at an angle) the anchor keeps the IMU'
 records the plane's slope. :class:`StrideAnchor` returns which case applied:
 
 * ``floor``: the plane is level within its σ (at a session's first strike, whose IMU up has
-  under a second of history and is 10-40° off, any plane found is taken as level); fused by
-  inverse variance;
+  under a second of history and is 10-40° off, any plane found is taken as level when the
+  stance heel, from the encoders, lies on it: a plane that does not pass under the foot is
+  not the ground the foot stands on — on stairs ahead, the plane through the nosings, 31°
+  off, was fused as the floor and tilted the whole session); fused by inverse variance;
 * ``slope``: a plane was found but is tilted against the IMU's up: IMU alone, slope recorded;
 * ``imu``: no plane (no depth, too few points, none near up) or the floor is off: IMU alone;
 * ``none``: no IMU up vector either (the back end's own default anchor).
@@ -26,6 +28,7 @@ the contact factors of the stance need (the toe lies on the slope, not on level 
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -98,17 +101,26 @@ class StrideAnchor:
             sigma = self.sigma_rad
         return up, sigma
 
-    def at_strike(self, t_strike_s: float, t_s: float, points_m: np.ndarray | None) -> AnchorUp:
+    def at_strike(
+        self,
+        t_strike_s: float,
+        t_s: float,
+        points_m: np.ndarray | None,
+        heel_in_camera_m: np.ndarray | None = None,
+    ) -> AnchorUp:
         """The anchor for the stride struck at ``t_strike_s``, at its first frame ``t_s``
-        (``points_m``: that frame's cloud, camera frame; None: no depth)."""
+        (``points_m``: that frame's cloud, camera frame; None: no depth; ``heel_in_camera_m``:
+        the stance heel at ``t_s`` in the camera frame, from the encoders, None: unknown)."""
         up, sigma = self.imu_up(t_strike_s, t_s)
         if up is None:
             return AnchorUp(t_s, None, None, "none")
         if points_m is None or not self.floor.enabled:
             return AnchorUp(t_s, up, sigma, "imu")
-        return self.with_plane(t_s, up, sigma, points_m)
+        return self.with_plane(t_s, up, sigma, points_m, heel_in_camera_m)
 
-    def with_plane(self, t_s: float, up: np.ndarray, sigma: float | None, points_m) -> AnchorUp:
+    def with_plane(
+        self, t_s: float, up: np.ndarray, sigma: float | None, points_m, heel_in_camera_m=None
+    ) -> AnchorUp:
         """Fit the plane near ``up`` and decide the case (module text)."""
         cfg = self.floor
         sigma_imu = sigma if sigma is not None else self.short_sigma_rad
@@ -122,9 +134,16 @@ class StrideAnchor:
         n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
         tilt = fit.angle_to_hint_rad
         slope = self.signed_slope(up, n_imu)
+        if not cfg.assume_level and sigma is None and heel_in_camera_m is not None:
+            off = abs(float(fit.normal @ np.asarray(heel_in_camera_m, float)) + fit.offset_m)
+            if off > cfg.first_strike_heel_m:  # not the ground under the foot (module text)
+                reason = f"not_under_heel: the heel {off:.3f} m off the plane"
+                log.info("t=%.3f s: first strike's plane refused (%s)", t_s, reason)
+                fit = dataclasses.replace(fit, ok=False, reason=reason)
+                return AnchorUp(t_s, up, sigma, "imu", fit=fit)
         if cfg.assume_level or sigma is None:
             # a first strike's IMU up (under a second of history) is 10-40° off: nothing
-            # tells a slope from that error, so the ground is taken as level, as before
+            # tells a slope from that error, so the ground (under the heel) is taken as level
             consistent = True
         else:
             gate = cfg.level_gate_sigmas * math.hypot(sigma_imu, fit.sigma_rad)
