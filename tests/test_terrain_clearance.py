@@ -115,3 +115,48 @@ def test_a_flight_beside_the_path_leaves_the_reference_level():
     assert feats.stairs
     assert terrain_type(feats, 0.2, 1.5, 0.0)[0] == "level"
     assert terrain_type(feats, 0.2, 1.5, -0.4)[0] == "stairs_up"
+
+
+def _curb(x_m=0.7, rise=0.15):
+    from graph_slam.terrain.features.model import Curb, EdgeLine, TerrainFeatures
+
+    edge = EdgeLine(x_m, 0.0, 0.0, 0.001, 0.001, (-0.6, 0.6), 20, False)
+    return TerrainFeatures(source="test", curbs=(Curb(rise, 0.001, edge, 0.0),))
+
+
+def test_edge_clearance_is_the_distance_to_the_step_profile():
+    """A toe skimming 12 mm over a 15 cm curb's top, one rising 17 mm in front of its face,
+    one passing through it; sampled every 5 cm or every millimetre: the same (the path is
+    resampled)."""
+    from graph_slam.terrain.features.clearance import edge_clearance
+
+    feats = _curb()
+    x = np.linspace(0.3, 1.1, 17)  # 5 cm apart
+    skim = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.162)])
+    fine = np.column_stack([np.linspace(0.3, 1.1, 801), np.zeros(801), np.full(801, 0.162)])
+    for path in (skim, fine):
+        c = edge_clearance(feats, path)
+        assert c is not None and c.edge == "curbs[0]"
+        assert c.min_m == pytest.approx(0.012, abs=1e-6)
+    # up the face 17 mm before it, then forward 5 cm above the top
+    rise = np.column_stack([np.full(10, 0.683), np.zeros(10), np.linspace(0.01, 0.2, 10)])
+    over = np.column_stack([np.linspace(0.683, 0.9, 10), np.zeros(10), np.full(10, 0.2)])
+    c = edge_clearance(feats, np.vstack([rise, over]))
+    assert c.min_m == pytest.approx(0.017, abs=1e-6)
+    # through the curb 3 cm below its top: negative
+    low = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.12)])
+    assert edge_clearance(feats, low).min_m < -0.02
+
+
+def test_level_floor_has_no_edge_clearance_and_no_warning():
+    """On level floor the toe passes 1 cm over the ground: under the 2 cm margin, but no edge
+    is crossed, so no edge clearance and no warning."""
+    from graph_slam.terrain.features.clearance import edge_clearance
+
+    h, var = grid(lambda x, y: np.zeros_like(x), 0.001, seed=5)
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    x = np.linspace(0.2, 1.5, 60)
+    path = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.01)])
+    assert edge_clearance(feats, path) is None
+    c = predict_clearance(view_of(h, var), feats, (0.2, 0.0), ClearanceConfig(lift_m=0.01))
+    assert c.min_m < 0.02 and not c.warning and math.isnan(c.edge_m)

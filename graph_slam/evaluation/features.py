@@ -224,18 +224,14 @@ def scene_height_at(scene, world_T_stride: np.ndarray, xy_m: np.ndarray) -> np.n
     return (up @ stride_T_world.T)[:, 2]
 
 
-def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
-    """The measured least toe clearance of a scored stride's swing (the variant's smoothed
-    poses and final grid) and the true one (the true poses over the scene's surface), both
-    from the encoders over the same mid-swing frames; None when either cannot be had."""
+def _swing_paths(run_session, ref, stride, leg_model, cfg):
+    """The measured and the true toe paths (N×3 each, stride frame) of a scored stride's
+    mid-swing frames, from the same encoders; None when they cannot be had."""
     from graph_slam.strides.joints import interp_q
-    from graph_slam.terrain.features.clearance import ClearanceConfig, clearance_along, toe_path
-    from graph_slam.terrain.features.extract import features_of_view
+    from graph_slam.terrain.features.clearance import toe_path
 
-    cfg = config or ClearanceConfig()
     session = run_session.session
-    grid = getattr(stride, "smoothed_grid", None)
-    if grid is None or ref.toe_off_s is None or session.joints is None or leg_model is None:
+    if ref.toe_off_s is None or session.joints is None or leg_model is None:
         return None
     t = np.asarray(ref.t_s)
     s = (t - ref.toe_off_s) / max(ref.t_next_strike_s - ref.toe_off_s, 1e-9)
@@ -249,27 +245,73 @@ def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
     if len(keep) < 2:
         return None
     qs = np.array([interp_q(float(t[k]), t_joint, session.joints.q_rad) for k in keep])
-    measured = clearance_along(grid, features_of_view(grid, source="smoothed"),
-                               toe_path(est[keep], qs, leg_model), cfg)  # fmt: skip
-    true_toe = toe_path(np.asarray(ref.stride_T_camera)[keep], qs, leg_model)
-    ground = scene_height_at(session.scene, ref.world_T_stride, true_toe[:, :2])
+    measured = toe_path(est[keep], qs, leg_model)
+    return measured, toe_path(np.asarray(ref.stride_T_camera)[keep], qs, leg_model)
+
+
+def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
+    """The measured least toe clearance of a scored stride's swing (the variant's smoothed
+    poses and final grid) and the true one (the true poses over the scene's surface), both
+    from the encoders over the same mid-swing frames; None when either cannot be had."""
+    from graph_slam.terrain.features.clearance import ClearanceConfig, clearance_along
+    from graph_slam.terrain.features.extract import features_of_view
+
+    cfg = config or ClearanceConfig()
+    grid = getattr(stride, "smoothed_grid", None)
+    paths = None if grid is None else _swing_paths(run_session, ref, stride, leg_model, cfg)
+    if paths is None:
+        return None
+    est_toe, true_toe = paths
+    measured = clearance_along(grid, features_of_view(grid, source="smoothed"), est_toe, cfg)
+    ground = scene_height_at(run_session.session.scene, ref.world_T_stride, true_toe[:, :2])
     true = float(np.min(true_toe[:, 2] - ground))
     if not math.isfinite(measured.min_m):
         return None
     return measured.min_m, true, measured.sigma_m
 
 
+def edge_clearance_pair(run_session, ref, stride, leg_model, config=None):
+    """The swing's clearance over the edges it must clear
+    (:func:`graph_slam.terrain.features.clearance.edge_clearance`): measured (the smoothed
+    poses' toe path over the final grid's features; NaN when it passes no measured edge) and
+    true (the true toe path over the scene's features), with the measured σ; None when the
+    true path passes no edge (level floor) or the paths cannot be had."""
+    from graph_slam.terrain.features.clearance import ClearanceConfig, edge_clearance
+    from graph_slam.terrain.features.extract import features_of_view
+
+    cfg = config or ClearanceConfig()
+    grid = getattr(stride, "smoothed_grid", None)
+    paths = None if grid is None else _swing_paths(run_session, ref, stride, leg_model, cfg)
+    if paths is None:
+        return None
+    est_toe, true_toe = paths
+    true = edge_clearance(
+        feature_truth_from_scene(run_session.session.scene, ref.world_T_stride), true_toe, cfg
+    )
+    if true is None:
+        return None
+    measured = edge_clearance(features_of_view(grid, source="smoothed"), est_toe, cfg)
+    if measured is None:
+        return float("nan"), true.min_m, float("nan")
+    return measured.min_m, true.min_m, measured.sigma_m
+
+
 def summarise_clearances(pairs: Sequence[tuple[float, float, float]]) -> dict:
-    """n, RMSE, bias (measured − true), the fraction within ±5 mm, the std of error/σ."""
-    if not pairs:
-        return {"n": 0, "rmse": None, "bias": None, "within_5mm_fraction": None,
-                "std_error_over_sigma": None}  # fmt: skip
-    a = np.asarray(pairs, dtype=np.float64)
+    """n, RMSE, bias (measured − true), the fraction within ±5 mm, the std of error/σ; pairs
+    whose measured value is NaN (an edge the measured features missed) are counted as
+    ``missed`` and left out of the rest."""
+    a = np.asarray(pairs, dtype=np.float64).reshape(-1, 3)
+    missed = int((~np.isfinite(a[:, 0])).sum())
+    a = a[np.isfinite(a[:, 0])]
+    if not len(a):
+        return {"n": 0, "missed": missed, "rmse": None, "bias": None,
+                "within_5mm_fraction": None, "std_error_over_sigma": None}  # fmt: skip
     e = a[:, 0] - a[:, 1]
     z = e / np.where(a[:, 2] > 0, a[:, 2], np.nan)
     z = z[np.isfinite(z)]
     return {
         "n": int(e.size),
+        "missed": missed,
         "rmse": float(np.sqrt(np.mean(e**2))),
         "bias": float(np.mean(e)),
         "within_5mm_fraction": float(np.mean(np.abs(e) <= 0.005)),

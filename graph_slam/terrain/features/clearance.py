@@ -18,7 +18,15 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
   ``lift_m`` over the ground; stairs or a curb: the lift over the first rise ahead; boxes are
   what the warning is for, the reference does not step over them) from the toe's position now
   over one stride length, against the current grid and features. ``warning`` when the predicted
-  clearance is below ``warn_below_m`` (2 cm).
+  **edge** clearance is below ``warn_below_m`` (2 cm).
+* :func:`edge_clearance` — the clearance over the edges a swing must clear: the least
+  Euclidean distance, in the vertical plane normal to each feature edge (a nosing, a curb, a
+  box's leading or trailing edge), from the toe path to the edge's profile (its vertical face
+  and the higher surface at its top; the lower surface is floor), over the path's points within
+  ``edge_band_m`` of the edge line inside its y range; negative when the toe is below the
+  profile. Level floor has no edge: a swing over it has no edge clearance, and raises no
+  warning however close the toe passes to the floor. The path is resampled every
+  ``resample_m`` first, so the same toe motion sampled at other times gives the same value.
 """
 
 from __future__ import annotations
@@ -44,6 +52,9 @@ class ClearanceConfig(ConfigModel):
         0.05, gt=0, description="the reference swing's peak toe lift over the ground"
     )
     stride_length_m: float = Field(1.3, gt=0, description="the reference swing's length")
+    resample_m: float = Field(
+        0.005, gt=0, description="the edge clearance resamples the toe path this finely"
+    )
     samples: int = Field(60, ge=4, description="points along the reference swing")
     mid_swing: tuple[float, float] = Field(
         (0.1, 0.85),
@@ -73,6 +84,8 @@ class Clearance:
     terrain: str = "level"
     """The reference swing's terrain type (predictions) or ``measured``."""
     warning: bool = False
+    edge_m: float = float("nan")
+    """The edge clearance (:func:`edge_clearance`; NaN: the path crosses no edge)."""
 
     def to_dict(self) -> dict:
         return _plain(self)
@@ -83,8 +96,10 @@ class Clearance:
             k: float("nan") if d[k] is None else float(d[k])
             for k in ("min_m", "sigma_m", "x_m", "y_m")
         }
+        edge_m = d.get("edge_m")
         return Clearance(**num, sample=int(d["sample"]), edge=str(d["edge"]),
-                         terrain=str(d["terrain"]), warning=bool(d["warning"]))  # fmt: skip
+                         terrain=str(d["terrain"]), warning=bool(d["warning"]),
+                         edge_m=float("nan") if edge_m is None else float(edge_m))  # fmt: skip
 
 
 def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, float]]:
@@ -233,9 +248,61 @@ def predict_clearance(
     path, kind = reference_swing(view, feats, toe, cfg)
     mid = np.flatnonzero(cfg.mid_swing_mask(len(path)))
     c = clearance_along(view, feats, path[mid], cfg, terrain=kind)
-    warn = bool(math.isfinite(c.min_m) and c.min_m < cfg.warn_below_m)
+    edge = edge_clearance(feats, path[mid], cfg)
+    edge_m = float("nan") if edge is None else edge.min_m
+    warn = bool(math.isfinite(edge_m) and edge_m < cfg.warn_below_m)
     sample = int(mid[c.sample]) if c.sample >= 0 else -1
-    return Clearance(c.min_m, c.sigma_m, c.x_m, c.y_m, sample, c.edge, kind, warn)
+    return Clearance(c.min_m, c.sigma_m, c.x_m, c.y_m, sample, c.edge, kind, warn, edge_m)
+
+
+def resample_path(toe_xyz_m: np.ndarray, step_m: float) -> np.ndarray:
+    """The path (N×3) linearly resampled so that no two points are over ``step_m`` apart."""
+    p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    if len(p) < 2:
+        return p
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if not math.isfinite(s[-1]) or s[-1] <= 0:
+        return p
+    u = np.unique(np.concatenate([s, np.arange(0.0, s[-1], step_m)]))
+    return np.column_stack([np.interp(u, s, p[:, k]) for k in range(3)])
+
+
+def _profile_distance(d: np.ndarray, z: np.ndarray, near: float, far: float) -> np.ndarray:
+    """Signed distance of points (d along the edge normal, z) to an edge's profile: its
+    vertical face at d = 0 between the two heights and the higher surface on its side (the
+    lower surface is floor, not the edge); negative below the profile."""
+    lo, hi = min(near, far), max(near, far)
+    high_side = d >= 0 if far >= near else d <= 0
+    to_high = np.where(high_side, np.abs(z - hi), np.inf)
+    to_face = np.hypot(d, z - np.clip(z, lo, hi))
+    dist = np.minimum(to_high, to_face)
+    below = np.where(high_side, z < hi, z < lo)
+    return np.where(below, -dist, dist)
+
+
+def edge_clearance(
+    features: TerrainFeatures, toe_xyz_m: np.ndarray, config: ClearanceConfig | None = None
+) -> Clearance | None:
+    """The toe path's least clearance over the features' edges (module docstring); None when
+    no point of the path comes within ``edge_band_m`` of an edge."""
+    cfg = config or ClearanceConfig()
+    p = resample_path(toe_xyz_m, cfg.resample_m)
+    best = None
+    for label, line, near, far, rise_sigma in _edges(features):
+        lo, hi = line.y_range_m
+        c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
+        d = (p[:, 0] - line.x_m) * c + (p[:, 1] - line.y_m) * s
+        band = (np.abs(d) <= cfg.edge_band_m) & (p[:, 1] >= lo - 0.02) & (p[:, 1] <= hi + 0.02)
+        if not band.any() or not (math.isfinite(near) and math.isfinite(far)):
+            continue
+        dist = _profile_distance(d[band], p[band, 2], near, far)
+        k = int(np.argmin(dist))
+        if best is None or dist[k] < best.min_m:
+            i = int(np.flatnonzero(band)[k])
+            best = Clearance(float(dist[k]), float(rise_sigma), float(p[i, 0]), float(p[i, 1]),
+                             i, label, "edge", edge_m=float(dist[k]))  # fmt: skip
+    return best
 
 
 def toe_path(stride_T_camera: np.ndarray, q_rad: np.ndarray, leg_model) -> np.ndarray:
