@@ -133,3 +133,21 @@ def test_a_first_strike_refuses_a_plane_that_does_not_pass_under_the_heel():
     assert floor.case == "floor" and tilt_deg(floor.up_in_imu) < 0.1
     off = _first_strike_anchor().at_strike(0.0, 0.05, ramp_points(0.0), _in_camera([0, 0, -0.1]))
     assert off.case == "imu"
+
+
+def test_a_first_strike_finds_the_floor_under_the_heel_far_from_a_poor_up():
+    """A first strike's IMU up 45° off (under a second of history): with the heel known the
+    floor is searched within 60° of it and fused (the frame level); a wall through the heel
+    and the camera is refused (the camera does not stand above it)."""
+    tilt = math.radians(45.0)
+    gravity = FakeGravity(np.array([math.sin(tilt), 0.0, math.cos(tilt)]))
+    anchor = StrideAnchor(gravity, FloorConfig(), np.eye(4), 0.01, 100.0, 0.2)
+    heel = _in_camera([0.0, 0.0, 0.0])
+    a = anchor.at_strike(0.0, 0.05, ramp_points(0.0), heel)
+    assert a.case == "floor" and tilt_deg(a.up_in_imu) < 0.1
+    assert anchor.at_strike(0.0, 0.05, ramp_points(0.0)).case == "imu"  # no heel: 45° is off
+    rng = np.random.default_rng(2)
+    wall = np.column_stack([np.zeros(4000), rng.uniform(-0.6, 0.6, 4000),
+                            rng.uniform(0.0, 1.2, 4000)])  # fmt: skip
+    w = anchor.at_strike(0.0, 0.05, _in_camera(wall), heel)
+    assert w.case == "imu" and w.fit.reason.startswith("not_under_camera")

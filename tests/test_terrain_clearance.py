@@ -160,3 +160,33 @@ def test_level_floor_has_no_edge_clearance_and_no_warning():
     assert edge_clearance(feats, path) is None
     c = predict_clearance(view_of(h, var), feats, (0.2, 0.0), ClearanceConfig(lift_m=0.01))
     assert c.min_m < 0.02 and not c.warning and math.isnan(c.edge_m)
+
+
+def test_cells_with_a_large_sigma_are_not_the_terrain():
+    """A level floor with a patch of cells 4 cm high but σ 6 cm (garbage points): the toe's
+    clearance is read over the trusted cells only; with the gate opened the patch wins."""
+    h, var = grid(lambda x, y: np.zeros_like(x), 0.001, seed=6)
+    i, j = int((1.1 - X0) / CELL), int((0.0 - Y0) / CELL)
+    h, var = h.copy(), var.copy()
+    h[i - 1 : i + 2, j - 1 : j + 2], var[i - 1 : i + 2, j - 1 : j + 2] = 0.04, 0.06**2
+    x = np.linspace(0.4, 1.4, 50)
+    path = np.column_stack([x, np.full_like(x, 0.005), np.full_like(x, 0.05)])
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    got = clearance_along(view_of(h, var), feats, path)
+    assert got.min_m == pytest.approx(0.05, abs=0.005)
+    loose = clearance_along(view_of(h, var), feats, path, ClearanceConfig(max_cell_sigma_m=1.0))
+    assert loose.min_m == pytest.approx(0.01, abs=0.003)
+
+
+def test_the_true_clearance_reads_the_toe_footprint_like_the_grid():
+    from graph_slam.evaluation.features import true_swing_clearance
+
+    class Step:
+        def height_at(self, x, y):
+            return np.where(np.asarray(x) >= 1.0, 0.1, 0.0)
+
+    scene = SimpleNamespace(surfaces=Step())
+    toe = np.array([[0.995, 0.0, 0.13], [0.5, 0.0, 0.02]])
+    assert true_swing_clearance(scene, np.eye(4), toe[:1], 0.0) == pytest.approx(0.13)
+    assert true_swing_clearance(scene, np.eye(4), toe[:1], 0.01) == pytest.approx(0.03)
+    assert true_swing_clearance(scene, np.eye(4), toe, 0.01) == pytest.approx(0.02)

@@ -252,7 +252,8 @@ def _swing_paths(run_session, ref, stride, leg_model, cfg):
 def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
     """The measured least toe clearance of a scored stride's swing (the variant's smoothed
     poses and final grid) and the true one (the true poses over the scene's surface), both
-    from the encoders over the same mid-swing frames; None when either cannot be had."""
+    from the encoders over the same mid-swing frames and the truth over the points whose
+    terrain the measurement knows; None when either cannot be had."""
     from graph_slam.terrain.features.clearance import ClearanceConfig, clearance_along
     from graph_slam.terrain.features.extract import features_of_view
 
@@ -262,12 +263,33 @@ def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
     if paths is None:
         return None
     est_toe, true_toe = paths
-    measured = clearance_along(grid, features_of_view(grid, source="smoothed"), est_toe, cfg)
-    ground = scene_height_at(run_session.session.scene, ref.world_T_stride, true_toe[:, :2])
-    true = float(np.min(true_toe[:, 2] - ground))
+    feats = features_of_view(grid, source="smoothed")
+    measured = clearance_along(grid, feats, est_toe, cfg)
     if not math.isfinite(measured.min_m):
         return None
+    known = _known_samples(grid, feats, est_toe, cfg)
+    true = true_swing_clearance(run_session.session.scene, ref.world_T_stride,
+                                true_toe[known], cfg.toe_radius_m)  # fmt: skip
     return measured.min_m, true, measured.sigma_m
+
+
+def _known_samples(grid, features, toe_xyz_m, cfg) -> np.ndarray:
+    """The toe path's points whose terrain the measurement knows (the grid or a feature's
+    edge): the truth is taken over the same points."""
+    from graph_slam.terrain.features.clearance import clearance_profile
+
+    clear, _, _ = clearance_profile(grid, features, toe_xyz_m, cfg)
+    return np.isfinite(clear)
+
+
+def true_swing_clearance(scene, world_T_stride, toe_xyz_m: np.ndarray, radius_m: float) -> float:
+    """The true least clearance of a toe path: its height over the highest of the scene's
+    surface within ``radius_m`` of each point (the 3×3 offsets the measured side reads)."""
+    toe = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    offsets = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
+    xy = (toe[:, None, :2] + radius_m * offsets[None]).reshape(-1, 2)
+    ground = scene_height_at(scene, world_T_stride, xy).reshape(len(toe), -1).max(axis=1)
+    return float(np.min(toe[:, 2] - ground))
 
 
 def edge_clearance_pair(run_session, ref, stride, leg_model, config=None):

@@ -7,7 +7,8 @@ where it is the step model of the feature: the far surface's height beyond the e
 near one's before it. A grid cell across an edge holds a mixture of both heights and would
 put the nosing up to a cell late and low; the feature's line is sub-cell.
 
-* :func:`clearance_along`: the minimum over a toe path (N×3) of ``z_toe − terrain``, where it
+* :func:`clearance_along`: the minimum over a toe path (N×3) of ``z_toe − terrain``
+  (:func:`clearance_profile` per point; a cell with σ over ``max_cell_sigma_m`` is unknown), where it
   occurs (the toe's x, y and the edge it passes, named ``stairs[0].step[1]``, ``curbs[0]``,
   ``boxes[0].leading``, or ``ground``), its σ (the terrain's σ there without the pose part,
   which the toe path placed by the same poses shares, and ``toe_sigma_m``).
@@ -46,6 +47,13 @@ class ClearanceConfig(ConfigModel):
     """The clearance's terrain model and the stance-time prediction (metres)."""
 
     toe_radius_m: float = Field(0.01, ge=0, description="grid cells within this of the toe")
+    max_cell_sigma_m: float = Field(
+        0.02,
+        gt=0,
+        description="a grid cell whose height σ (less its pose part) exceeds this is taken as "
+        "unknown: on the first stride of a walk, cells 1 m ahead with σ 5-9 cm read 2-5 cm "
+        "over a level floor and were the swing's least clearance",
+    )
     edge_band_m: float = Field(0.04, gt=0, description="the step model within this of an edge")
     warn_below_m: float = Field(0.02, description="predicted clearance that raises the warning")
     lift_m: float = Field(
@@ -157,18 +165,16 @@ def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.n
     return np.where(found, best, np.nan), np.where(found, sig, np.nan)
 
 
-def clearance_along(
-    view,
-    features: TerrainFeatures,
-    toe_xyz_m: np.ndarray,
-    config: ClearanceConfig | None = None,
-    toe_sigma_m: float = 0.0,
-    terrain: str = "measured",
-) -> Clearance:
-    """The least clearance of the toe path over the grid and the features' edges."""
+def clearance_profile(
+    view, features: TerrainFeatures, toe_xyz_m: np.ndarray, config: ClearanceConfig | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per point of the toe path (N×3): its clearance ``z_toe − terrain`` (NaN: the terrain
+    there unknown, or a cell whose σ exceeds ``max_cell_sigma_m``), the terrain's σ and the
+    edge it passes (``ground`` away from edges)."""
     cfg = config or ClearanceConfig()
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
     ground, sigma = _grid_heights(view, p[:, :2], cfg.toe_radius_m)
+    ground = np.where(sigma <= cfg.max_cell_sigma_m, ground, np.nan)
     name = np.full(len(p), "ground", dtype=object)
     for label, line, near, far, rise_sigma in _edges(features):
         lo, hi = line.y_range_m
@@ -180,7 +186,20 @@ def clearance_along(
         ground = np.where(band, model, ground)
         sigma = np.where(band, rise_sigma, sigma)
         name = np.where(band, label, name)
-    clear = p[:, 2] - ground
+    return p[:, 2] - ground, sigma, name
+
+
+def clearance_along(
+    view,
+    features: TerrainFeatures,
+    toe_xyz_m: np.ndarray,
+    config: ClearanceConfig | None = None,
+    toe_sigma_m: float = 0.0,
+    terrain: str = "measured",
+) -> Clearance:
+    """The least clearance of the toe path over the grid and the features' edges."""
+    p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    clear, sigma, name = clearance_profile(view, features, p, config)
     if not np.isfinite(clear).any():
         return Clearance(float("nan"), float("nan"), float("nan"), float("nan"), -1, "unknown",
                          terrain)  # fmt: skip
