@@ -292,30 +292,33 @@ def true_swing_clearance(scene, world_T_stride, toe_xyz_m: np.ndarray, radius_m:
     return float(np.min(toe[:, 2] - ground))
 
 
-def edge_clearance_pair(run_session, ref, stride, leg_model, config=None):
-    """The swing's clearance over the edges it must clear
-    (:func:`graph_slam.terrain.features.clearance.edge_clearance`): measured (the smoothed
-    poses' toe path over the final grid's features; NaN when it passes no measured edge) and
-    true (the true toe path over the scene's features), with the measured σ; None when the
-    true path passes no edge (level floor) or the paths cannot be had."""
-    from graph_slam.terrain.features.clearance import ClearanceConfig, edge_clearance
+def edge_clearance_pairs(run_session, ref, stride, leg_model, config=None, match_m=0.05):
+    """The swing's clearance over each edge it must clear
+    (:func:`graph_slam.terrain.features.clearance.edge_clearances`): per edge the true toe
+    path passes (the scene's features), (measured, true, σ) — measured over the final grid's
+    edge nearest it (within ``match_m`` along x at its y) from the smoothed poses' toe path,
+    NaN when no such measured edge lies on that path — and the swing's true edge clearance
+    (the least; None: the true path passes no edge, or the paths cannot be had)."""
+    from graph_slam.terrain.features.clearance import ClearanceConfig, edge_clearances
     from graph_slam.terrain.features.extract import features_of_view
 
     cfg = config or ClearanceConfig()
     grid = getattr(stride, "smoothed_grid", None)
     paths = None if grid is None else _swing_paths(run_session, ref, stride, leg_model, cfg)
     if paths is None:
-        return None
+        return [], None
     est_toe, true_toe = paths
-    true = edge_clearance(
-        feature_truth_from_scene(run_session.session.scene, ref.world_T_stride), true_toe, cfg
-    )
-    if true is None:
-        return None
-    measured = edge_clearance(features_of_view(grid, source="smoothed"), est_toe, cfg)
-    if measured is None:
-        return float("nan"), true.min_m, float("nan")
-    return measured.min_m, true.min_m, measured.sigma_m
+    truth = feature_truth_from_scene(run_session.session.scene, ref.world_T_stride)
+    true_edges = edge_clearances(truth, true_toe, cfg)
+    if not true_edges:
+        return [], None
+    measured = edge_clearances(features_of_view(grid, source="smoothed"), est_toe, cfg)
+    pairs = []
+    for line, true in true_edges:
+        hit = _nearest_edge(line, measured, match_m)
+        got = (float("nan"), float("nan")) if hit is None else (hit[1].min_m, hit[1].sigma_m)
+        pairs.append((got[0], true.min_m, got[1]))
+    return pairs, min(t.min_m for _, t in true_edges)
 
 
 def summarise_clearances(pairs: Sequence[tuple[float, float, float]]) -> dict:

@@ -204,8 +204,8 @@ class _Study:
     clearances: dict[Variant, list] = field(default_factory=dict)
     """Per variant: (measured, true, σ) least swing clearance per stride."""
     edge_clearances: dict[Variant, list] = field(default_factory=dict)
-    """Per variant: (measured, true, σ) clearance over the edges each swing crossed (measured
-    NaN: no measured edge on its path)."""
+    """Per variant: (measured, true, σ) clearance over each edge a swing passed (measured NaN:
+    no measured edge matched it on the measured path)."""
     feature_deadlines: dict[Variant, list] = field(default_factory=dict)
     """Per variant: when its online grid knew each feature of a stride's final grid."""
     clearance_flags: dict[Variant, list] = field(default_factory=dict)
@@ -375,7 +375,7 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
     clearance against the true one (graph_slam.evaluation.features)."""
     from graph_slam.errors import GraphSlamError
     from graph_slam.evaluation.features import (
-        edge_clearance_pair,
+        edge_clearance_pairs,
         feature_deadlines,
         feature_truth_from_scene,
         score_features,
@@ -405,9 +405,8 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
             pair = swing_clearance_pair(run, ref, stride, leg)
             if pair is not None:
                 study.clearances.setdefault(variant, []).append(pair)
-            edge = edge_clearance_pair(run, ref, stride, leg)
-            if edge is not None:
-                study.edge_clearances.setdefault(variant, []).append(edge)
+            edges, true_edge = edge_clearance_pairs(run, ref, stride, leg)
+            study.edge_clearances.setdefault(variant, []).extend(edges)
             trace = run.traces.get(variant)
             if pair is not None and trace is not None and len(trace.predictions) == len(trace.t_s):
                 warned = any(
@@ -415,8 +414,10 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
                     for i in ref.frame_indices
                     if ref.toe_off_s is not None and trace.t_s[int(i)] < ref.toe_off_s
                 )
-                true_edge = float("nan") if edge is None else edge[1]  # NaN: no edge crossed
-                study.clearance_flags.setdefault(variant, []).append((warned, true_edge))
+                no_edge = true_edge is None  # level floor: no edge to clear
+                study.clearance_flags.setdefault(variant, []).append(
+                    (warned, float("nan") if no_edge else true_edge)
+                )
             if trace is not None and trace.every_frame and len(trace.features) == len(trace.t_s):
                 idx = [int(i) for i in ref.frame_indices]
                 rows = feature_deadlines([trace.t_s[i] for i in idx],

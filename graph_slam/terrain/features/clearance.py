@@ -300,14 +300,14 @@ def _profile_distance(d: np.ndarray, z: np.ndarray, near: float, far: float) -> 
     return np.where(below, -dist, dist)
 
 
-def edge_clearance(
+def edge_clearances(
     features: TerrainFeatures, toe_xyz_m: np.ndarray, config: ClearanceConfig | None = None
-) -> Clearance | None:
-    """The toe path's least clearance over the features' edges (module docstring); None when
-    no point of the path comes within ``edge_band_m`` of an edge."""
+) -> list[tuple[object, Clearance]]:
+    """Per feature edge the path comes within ``edge_band_m`` of: (its EdgeLine, the toe's
+    clearance over it) (module docstring)."""
     cfg = config or ClearanceConfig()
     p = resample_path(toe_xyz_m, cfg.resample_m)
-    best = None
+    out = []
     for label, line, near, far, rise_sigma in _edges(features):
         lo, hi = line.y_range_m
         c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
@@ -317,11 +317,19 @@ def edge_clearance(
             continue
         dist = _profile_distance(d[band], p[band, 2], near, far)
         k = int(np.argmin(dist))
-        if best is None or dist[k] < best.min_m:
-            i = int(np.flatnonzero(band)[k])
-            best = Clearance(float(dist[k]), float(rise_sigma), float(p[i, 0]), float(p[i, 1]),
-                             i, label, "edge", edge_m=float(dist[k]))  # fmt: skip
-    return best
+        i = int(np.flatnonzero(band)[k])
+        out.append((line, Clearance(float(dist[k]), float(rise_sigma), float(p[i, 0]),
+                                    float(p[i, 1]), i, label, "edge", edge_m=float(dist[k]))))  # fmt: skip
+    return out
+
+
+def edge_clearance(
+    features: TerrainFeatures, toe_xyz_m: np.ndarray, config: ClearanceConfig | None = None
+) -> Clearance | None:
+    """The toe path's least clearance over the features' edges (module docstring); None when
+    no point of the path comes within ``edge_band_m`` of an edge."""
+    found = [c for _, c in edge_clearances(features, toe_xyz_m, config)]
+    return min(found, key=lambda c: c.min_m) if found else None
 
 
 def toe_path(stride_T_camera: np.ndarray, q_rad: np.ndarray, leg_model) -> np.ndarray:
