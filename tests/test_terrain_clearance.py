@@ -178,7 +178,7 @@ def test_cells_with_a_large_sigma_are_not_the_terrain():
     assert loose.min_m == pytest.approx(0.01, abs=0.003)
 
 
-def test_the_true_clearance_reads_the_toe_footprint_like_the_grid():
+def test_the_true_clearance_is_over_the_surface_under_the_toe():
     from graph_slam.evaluation.features import true_swing_clearance
 
     class Step:
@@ -186,7 +186,22 @@ def test_the_true_clearance_reads_the_toe_footprint_like_the_grid():
             return np.where(np.asarray(x) >= 1.0, 0.1, 0.0)
 
     scene = SimpleNamespace(surfaces=Step())
-    toe = np.array([[0.995, 0.0, 0.13], [0.5, 0.0, 0.02]])
-    assert true_swing_clearance(scene, np.eye(4), toe[:1], 0.0) == pytest.approx(0.13)
-    assert true_swing_clearance(scene, np.eye(4), toe[:1], 0.01) == pytest.approx(0.03)
-    assert true_swing_clearance(scene, np.eye(4), toe, 0.01) == pytest.approx(0.02)
+    toe = np.array([[0.995, 0.0, 0.05], [1.005, 0.0, 0.13], [0.5, 0.0, 0.06]])
+    assert true_swing_clearance(scene, np.eye(4), toe) == pytest.approx(0.03)
+    lifted = np.eye(4)
+    lifted[2, 3] = 0.01  # the stride frame 1 cm above the world: the surface 1 cm lower in it
+    assert true_swing_clearance(scene, lifted, toe) == pytest.approx(0.04)
+
+
+def test_poses_between_frames_follow_the_arc():
+    from graph_slam.terrain.features.clearance import interpolate_poses
+
+    def rot_y(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+    a, b = np.eye(4), np.eye(4)
+    b[:3, :3], b[:3, 3] = rot_y(0.8), [0.2, 0.0, 0.1]
+    got = interpolate_poses(np.array([0.0, 0.04]), np.stack([a, b]), np.array([0.0, 0.01, 0.04]))
+    assert np.allclose(got[0], a) and np.allclose(got[2], b)
+    assert np.allclose(got[1][:3, :3], rot_y(0.2)) and np.allclose(got[1][:3, 3], [0.05, 0, 0.025])

@@ -224,29 +224,34 @@ def scene_height_at(scene, world_T_stride: np.ndarray, xy_m: np.ndarray) -> np.n
     return (up @ stride_T_world.T)[:, 2]
 
 
-def _swing_paths(run_session, ref, stride, leg_model, cfg):
-    """The measured and the true toe paths (N×3 each, stride frame) of a scored stride's
-    mid-swing frames, from the same encoders; None when they cannot be had."""
+def _swing_paths(run_session, ref, stride, leg_model, cfg, rate_hz: float = 200.0):
+    """The measured and the true toe paths (N×3 each, stride frame) over a scored stride's
+    mid-swing, sampled at ``rate_hz`` between its first and last frames there: the camera
+    poses interpolated between frames (the smoothed ones, the true ones), the encoders at the
+    same times; None when they cannot be had."""
     from graph_slam.strides.joints import interp_q
-    from graph_slam.terrain.features.clearance import toe_path
+    from graph_slam.terrain.features.clearance import interpolate_poses, toe_path
 
     session = run_session.session
     if ref.toe_off_s is None or session.joints is None or leg_model is None:
         return None
     t = np.asarray(ref.t_s)
     s = (t - ref.toe_off_s) / max(ref.t_next_strike_s - ref.toe_off_s, 1e-9)
-    rows = np.flatnonzero((s >= cfg.mid_swing[0]) & (s <= cfg.mid_swing[1]))
-    t_joint = np.asarray(session.joints.t_s) + session.calibration.joints_time_offset_s
-    q = [interp_q(float(t[k]), t_joint, session.joints.q_rad) for k in rows]
     est = np.asarray(stride.smoothed_stride_T_camera)
-    keep = [
-        k for k, qk in zip(rows, q, strict=True) if qk is not None and np.isfinite(est[k]).all()
-    ]
-    if len(keep) < 2:
+    rows = np.flatnonzero((s >= cfg.mid_swing[0]) & (s <= cfg.mid_swing[1]))
+    rows = [k for k in rows if np.isfinite(est[k]).all()]
+    if len(rows) < 2:
         return None
-    qs = np.array([interp_q(float(t[k]), t_joint, session.joints.q_rad) for k in keep])
-    measured = toe_path(est[keep], qs, leg_model)
-    return measured, toe_path(np.asarray(ref.stride_T_camera)[keep], qs, leg_model)
+    t_joint = np.asarray(session.joints.t_s) + session.calibration.joints_time_offset_s
+    tq = np.arange(t[rows[0]], t[rows[-1]], 1.0 / rate_hz)
+    q = [interp_q(float(tk), t_joint, session.joints.q_rad) for tk in tq]
+    keep = np.array([qk is not None for qk in q])
+    if keep.sum() < 2:
+        return None
+    qs, tq = np.array([qk for qk in q if qk is not None]), tq[keep]
+    measured = toe_path(interpolate_poses(t[rows], est[rows], tq), qs, leg_model)
+    true_poses = interpolate_poses(t[rows], np.asarray(ref.stride_T_camera)[rows], tq)
+    return measured, toe_path(true_poses, qs, leg_model)
 
 
 def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
@@ -268,8 +273,7 @@ def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
     if not math.isfinite(measured.min_m):
         return None
     known = _known_samples(grid, feats, est_toe, cfg)
-    true = true_swing_clearance(run_session.session.scene, ref.world_T_stride,
-                                true_toe[known], cfg.toe_radius_m)  # fmt: skip
+    true = true_swing_clearance(run_session.session.scene, ref.world_T_stride, true_toe[known])
     return measured.min_m, true, measured.sigma_m
 
 
@@ -282,13 +286,11 @@ def _known_samples(grid, features, toe_xyz_m, cfg) -> np.ndarray:
     return np.isfinite(clear)
 
 
-def true_swing_clearance(scene, world_T_stride, toe_xyz_m: np.ndarray, radius_m: float) -> float:
-    """The true least clearance of a toe path: its height over the highest of the scene's
-    surface within ``radius_m`` of each point (the 3×3 offsets the measured side reads)."""
+def true_swing_clearance(scene, world_T_stride, toe_xyz_m: np.ndarray) -> float:
+    """The true least clearance of a toe path: its height over the scene's surface under each
+    point (a footprint's highest point would sink the toe into a riser it rises 8 mm before)."""
     toe = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
-    offsets = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
-    xy = (toe[:, None, :2] + radius_m * offsets[None]).reshape(-1, 2)
-    ground = scene_height_at(scene, world_T_stride, xy).reshape(len(toe), -1).max(axis=1)
+    ground = scene_height_at(scene, world_T_stride, toe[:, :2])
     return float(np.min(toe[:, 2] - ground))
 
 

@@ -342,3 +342,20 @@ def toe_path(stride_T_camera: np.ndarray, q_rad: np.ndarray, leg_model) -> np.nd
         camera_T_toe = leg_model.frame_T_frame("camera_optical", "toe", qk, check_limits=False)
         out[k] = (pose @ camera_T_toe)[:3, 3]
     return out
+
+
+def interpolate_poses(t_s: np.ndarray, poses: np.ndarray, t_query: np.ndarray) -> np.ndarray:
+    """Poses (M×4×4) at ``t_query`` (inside ``t_s``, increasing) from frames' poses (N×4×4):
+    the position linear and the rotation along the shortest arc between the two frames around
+    each time. Sampling the toe this way (the encoders at the same times) follows the knee's
+    arc between frames where a straight line between the frames' toe points cut corners."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    t = np.asarray(t_s, dtype=np.float64)
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
+    tq = np.clip(np.asarray(t_query, dtype=np.float64), t[0], t[-1])
+    out = np.tile(np.eye(4), (len(tq), 1, 1))
+    out[:, :3, :3] = Slerp(t, Rotation.from_matrix(p[:, :3, :3]))(tq).as_matrix()
+    for k in range(3):
+        out[:, k, 3] = np.interp(tq, t, p[:, k, 3])
+    return out
