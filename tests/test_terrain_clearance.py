@@ -205,3 +205,16 @@ def test_poses_between_frames_follow_the_arc():
     got = interpolate_poses(np.array([0.0, 0.04]), np.stack([a, b]), np.array([0.0, 0.01, 0.04]))
     assert np.allclose(got[0], a) and np.allclose(got[2], b)
     assert np.allclose(got[1][:3, :3], rot_y(0.2)) and np.allclose(got[1][:3, 3], [0.05, 0, 0.025])
+
+
+def test_the_reference_descent_clears_the_nosing_it_leaves():
+    """Stairs down 34 cm ahead of the toe: the reference toe stays at the lift over the tread
+    it leaves until past that nosing (no warning), and lands a step lower."""
+    h, var = grid(lambda x, y: np.where(x >= 0.55, -0.17 * (1 + np.floor((x - 0.55) / 0.28)), 0.0),
+                  0.001, seed=7)  # fmt: skip
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    path, kind = reference_swing(view_of(h, var), feats, (0.21, 0.0))
+    assert kind == "stairs_down"
+    assert path[-1, 2] == pytest.approx(-0.17, abs=0.01)
+    c = predict_clearance(view_of(h, var), feats, (0.21, 0.0))
+    assert c.edge_m > 0.02 and not c.warning

@@ -246,9 +246,10 @@ def reference_swing(
     z0 = float(np.nan_to_num(ground[0]))
     z1 = z0 + rise if kind != "ramp" else float(np.nan_to_num(ground[1], nan=z0))
     lift = cfg.lift_m * np.sqrt(np.sin(np.pi * s))  # a plateau: the toe stays up mid-swing
-    # up (or down) to the landing level by mid-swing when stepping up, over the whole swing
-    # otherwise
-    u = np.minimum(2 * s, 1.0) if rise > 0 else s
+    # up to the landing level by mid-swing when stepping up; down from mid-swing when stepping
+    # down (the toe clears the nosing of the tread it leaves first: lowered over the whole
+    # swing it passed that nosing a centimetre up); over the whole swing otherwise
+    u = np.minimum(2 * s, 1.0) if rise > 0 else np.clip(2 * s - 1, 0.0, 1.0) if rise < 0 else s
     z = z0 + (z1 - z0) * u * u * (3 - 2 * u) + lift
     return np.column_stack([xy, z]), kind
 
