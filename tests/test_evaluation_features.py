@@ -79,6 +79,11 @@ def test_feature_deadline_known_answer():
     summary = summarise_feature_deadlines(rows)
     assert summary["n"] == 4 and summary["n_known"] == 4 and summary["n_before_toe_off"] == 2
     assert math.isclose(summary["lead_s_min"], -0.05, abs_tol=1e-9)
+    assert summary["swing"]["n"] == 0  # none marked as the swing's own
+    for r in rows:  # the swing clears the two near steps only
+        r["in_swing"] = r["known_t_s"] < 0.3
+    own = summarise_feature_deadlines(rows)["swing"]
+    assert own["n"] == 2 and own["n_before_toe_off"] == 2 and own["n_at_least_0_5_s"] == 0
 
 
 def _spec(scene, name):

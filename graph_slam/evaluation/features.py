@@ -386,8 +386,28 @@ def feature_deadlines(t_s: Sequence[float], online: Sequence, final: TerrainFeat
     return out
 
 
+def swing_toe_x_range(run_session, ref, stride, leg_model, config=None):
+    """(least, greatest) x of the measured toe over a scored stride's mid-swing: the features
+    whose edge lies in it are those the swing must clear; None when the path cannot be had."""
+    from graph_slam.terrain.features.clearance import ClearanceConfig
+
+    cfg = config or ClearanceConfig()
+    paths = _swing_paths(run_session, ref, stride, leg_model, cfg)
+    if paths is None:
+        return None
+    x = paths[0][:, 0]
+    return float(np.min(x)), float(np.max(x))
+
+
 def summarise_feature_deadlines(rows: Sequence[dict]) -> dict:
-    """n, known, known before toe-off, known ≥ 0.5 s before it, median and least lead."""
+    """n, known, known before toe-off, known ≥ 0.5 s before it, median and least lead; under
+    ``swing`` the same for the rows marked ``in_swing`` (the features the swing must clear)."""
+    out = _deadline_counts(rows)
+    out["swing"] = _deadline_counts([r for r in rows if r.get("in_swing")])
+    return out
+
+
+def _deadline_counts(rows: Sequence[dict]) -> dict:
     lead = np.array([r["lead_s"] for r in rows], dtype=np.float64)
     known = np.isfinite(lead)
     return {

@@ -69,7 +69,9 @@ Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN
                               "std_error_over_sigma"},
           "edge_clearance": {...as swing_clearance: over the edges each swing crossed},
           "deadlines": {"n", "n_known", "n_before_toe_off", "n_at_least_0_5_s",
-                        "lead_s_median", "lead_s_min", "by_kind": {"step"|"curb"|"box"|"ramp": int}},
+                        "lead_s_median", "lead_s_min", "by_kind": {"step"|"curb"|"box"|"ramp": int},
+                        "swing": {...the same over the features whose edge lies within the
+                                  measured toe's x range in mid-swing: those it must clear}},
           "warnings": {"swings", "true_below_margin", "flagged_below_margin", "false_warnings"}
         }
       }

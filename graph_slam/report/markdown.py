@@ -132,14 +132,17 @@ def features_section(features: dict) -> list[str]:
         "",
         "Features known before toe-off: each feature of a stride's final grid is known at the "
         "first searched frame whose online grid had one of its kind with its edge within 2 cm "
-        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then. "
+        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then; "
+        "the swing's own: those whose edge lies within the measured toe's x range in "
+        "mid-swing (the features that swing must clear). "
         "Warnings: a swing is flagged when a stance frame's predicted edge clearance (the "
         "reference swing over the online grid's edges) was under 2 cm before its toe-off; "
         "truly < 2 cm: its true edge clearance was (a swing over level floor has none).",
         "",
         "| variant | features | known | before toe-off | ≥ 0.5 s before | median lead (s) | "
-        "swings | truly < 2 cm | flagged | false warnings |",
-        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
+        "the swing's own: features, ≥ 0.5 s before | swings | truly < 2 cm | flagged | false "
+        "warnings |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
     ]
     for name, f in features.items():
         d = f.get("deadlines") or {}
@@ -149,8 +152,10 @@ def features_section(features: dict) -> list[str]:
         w = f.get("warnings") or {}
         warn = " | ".join(str(w.get(k, "–")) for k in
                           ("swings", "true_below_margin", "flagged_below_margin", "false_warnings"))  # fmt: skip
+        own = d.get("swing") or {}
+        own_cell = f"{own.get('n', 0)}, {own.get('n_at_least_0_5_s', 0)}"
         lines.append(f"| {name} | {d['n']} | {d['n_known']} | {d['n_before_toe_off']} | "
-                     f"{d['n_at_least_0_5_s']} | {med} | {warn} |")  # fmt: skip
+                     f"{d['n_at_least_0_5_s']} | {med} | {own_cell} | {warn} |")  # fmt: skip
     return [*lines, ""]
 
 
