@@ -364,12 +364,23 @@ def feature_marks(features: TerrainFeatures) -> list[tuple[str, float, float, fl
     return out
 
 
+def _mark_y_ranges(features: TerrainFeatures) -> list:
+    """The y range of each :func:`feature_marks` entry's edge line (None: a ramp without a
+    start line), in the same order."""
+    out = [s.nosing.y_range_m for st in features.stairs for s in st.steps]
+    out += [c.edge.y_range_m for c in features.curbs]
+    out += [None if r.start is None else r.start.y_range_m for r in features.ramps]
+    out += [b.leading.y_range_m for b in features.boxes]
+    return out
+
+
 def feature_deadlines(t_s: Sequence[float], online: Sequence, final: TerrainFeatures,
                       toe_off_s: float | None) -> list[dict]:  # fmt: skip
     """Per feature of the stride's final grid: the first time an online grid (``online[k]``
     at ``t_s[k]``, None: not searched) had the same kind within ``DEADLINE_EDGE_M`` of its edge
     and ``DEADLINE_TOLERANCE`` of its value; ``lead_s`` = toe-off − that time."""
     out = []
+    y_ranges = _mark_y_ranges(final)
     for kind, x, y, value in feature_marks(final):
         known = float("nan")
         for t, feats in zip(t_s, online, strict=True):
@@ -382,13 +393,14 @@ def feature_deadlines(t_s: Sequence[float], online: Sequence, final: TerrainFeat
                 break
         lead = (toe_off_s - known) if toe_off_s is not None and math.isfinite(known) else math.nan
         out.append({"kind": kind, "edge_x_m": x, "value": value, "known_t_s": known,
-                    "lead_s": lead})  # fmt: skip
+                    "lead_s": lead, "edge_y_range_m": y_ranges[len(out)]})  # fmt: skip
     return out
 
 
-def swing_toe_x_range(run_session, ref, stride, leg_model, config=None):
-    """(least, greatest) x of the measured toe over a scored stride's mid-swing: the features
-    whose edge lies in it are those the swing must clear; None when the path cannot be had."""
+def swing_toe_extent(run_session, ref, stride, leg_model, config=None):
+    """(least x, greatest x, mean y) of the measured toe over a scored stride's mid-swing: the
+    features whose edge lies in that x range at that y are those the swing must clear; None
+    when the path cannot be had."""
     from graph_slam.terrain.features.clearance import ClearanceConfig
 
     cfg = config or ClearanceConfig()
@@ -396,7 +408,17 @@ def swing_toe_x_range(run_session, ref, stride, leg_model, config=None):
     if paths is None:
         return None
     x = paths[0][:, 0]
-    return float(np.min(x)), float(np.max(x))
+    return float(np.min(x)), float(np.max(x)), float(np.mean(paths[0][:, 1]))
+
+
+def in_swing(row: dict, extent) -> bool:
+    """Whether a deadline row's feature is one the swing of ``extent``
+    (:func:`swing_toe_extent`) must clear: its edge within the toe's x range and, for an edge
+    line, the toe's y within the line's y range (5 cm margin)."""
+    if extent is None or not extent[0] <= row["edge_x_m"] <= extent[1]:
+        return False
+    lo, hi = row.get("edge_y_range_m") or (-math.inf, math.inf)
+    return lo - 0.05 <= extent[2] <= hi + 0.05
 
 
 def summarise_feature_deadlines(rows: Sequence[dict]) -> dict:

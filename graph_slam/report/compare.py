@@ -378,9 +378,10 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
         edge_clearance_pairs,
         feature_deadlines,
         feature_truth_from_scene,
+        in_swing,
         score_features,
         swing_clearance_pair,
-        swing_toe_x_range,
+        swing_toe_extent,
     )
     from graph_slam.strides.kinematics import session_leg_model
     from graph_slam.terrain.features.extract import features_of_view
@@ -423,9 +424,9 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
                 idx = [int(i) for i in ref.frame_indices]
                 rows = feature_deadlines([trace.t_s[i] for i in idx],
                                          [trace.features[i] for i in idx], measured, ref.toe_off_s)  # fmt: skip
-                swing = swing_toe_x_range(run, ref, stride, leg)  # the features it must clear
+                swing = swing_toe_extent(run, ref, stride, leg)  # the features it must clear
                 for r in rows:
-                    r["in_swing"] = swing is not None and swing[0] <= r["edge_x_m"] <= swing[1]
+                    r["in_swing"] = in_swing(r, swing)
                 study.feature_deadlines.setdefault(variant, []).extend(rows)
 
 
