@@ -80,7 +80,7 @@ def test_feature_deadline_known_answer():
     assert summary["n"] == 4 and summary["n_known"] == 4 and summary["n_before_toe_off"] == 2
     assert math.isclose(summary["lead_s_min"], -0.05, abs_tol=1e-9)
     assert summary["swing"]["n"] == 0  # none marked as the swing's own
-    from graph_slam.evaluation.features import in_swing
+    from graph_slam.evaluation.clearance import in_swing
 
     near = (rows[0]["edge_x_m"] - 0.01, rows[1]["edge_x_m"] + 0.01)
     for r in rows:  # a swing over the two near steps only

@@ -179,7 +179,7 @@ def test_cells_with_a_large_sigma_are_not_the_terrain():
 
 
 def test_the_true_clearance_is_over_the_surface_under_the_toe():
-    from graph_slam.evaluation.features import true_swing_clearance
+    from graph_slam.evaluation.clearance import true_swing_clearance
 
     class Step:
         def height_at(self, x, y):

@@ -372,16 +372,18 @@ def _score(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
 
 def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
     """Each scored stride's final grid: its features against the scene's, its measured swing
-    clearance against the true one (graph_slam.evaluation.features)."""
+    clearance against the true one (graph_slam.evaluation.features, .clearance)."""
     from graph_slam.errors import GraphSlamError
-    from graph_slam.evaluation.features import (
+    from graph_slam.evaluation.clearance import (
         edge_clearance_pairs,
-        feature_deadlines,
-        feature_truth_from_scene,
         in_swing,
-        score_features,
         swing_clearance_pair,
         swing_toe_extent,
+    )
+    from graph_slam.evaluation.features import (
+        feature_deadlines,
+        feature_truth_from_scene,
+        score_features,
     )
     from graph_slam.strides.kinematics import session_leg_model
     from graph_slam.terrain.features.extract import features_of_view
@@ -448,11 +450,8 @@ def _warning_summary(rows) -> dict:
 
 
 def _feature_summaries(study: _Study) -> dict[str, dict]:
-    from graph_slam.evaluation.features import (
-        summarise_clearances,
-        summarise_feature_deadlines,
-        summarise_scores,
-    )
+    from graph_slam.evaluation.clearance import summarise_clearances
+    from graph_slam.evaluation.features import summarise_feature_deadlines, summarise_scores
 
     return {
         str(v): {
