@@ -79,6 +79,15 @@ def test_feature_deadline_known_answer():
     summary = summarise_feature_deadlines(rows)
     assert summary["n"] == 4 and summary["n_known"] == 4 and summary["n_before_toe_off"] == 2
     assert math.isclose(summary["lead_s_min"], -0.05, abs_tol=1e-9)
+    assert summary["swing"]["n"] == 0  # none marked as the swing's own
+    from graph_slam.evaluation.clearance import in_swing
+
+    near = (rows[0]["edge_x_m"] - 0.01, rows[1]["edge_x_m"] + 0.01)
+    for r in rows:  # a swing over the two near steps only
+        r["in_swing"] = in_swing(r, (*near, 0.0))
+    own = summarise_feature_deadlines(rows)["swing"]
+    assert own["n"] == 2 and own["n_before_toe_off"] == 2 and own["n_at_least_0_5_s"] == 0
+    assert not any(in_swing(r, (-9.0, 9.0, 5.0)) for r in rows)  # a swing beside the flight
 
 
 def _spec(scene, name):

@@ -115,3 +115,54 @@ def test_a_plane_taken_as_level_at_the_first_strike_is_an_assumption():
     assert a.case == "floor" and a.assumed
     b = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, ramp_points(0.0))
     assert b.case == "floor" and not b.assumed  # tested against the IMU's σ: not assumed
+
+
+def _first_strike_anchor() -> StrideAnchor:
+    return StrideAnchor(FakeGravity(np.array([0.0, 0.0, 1.0])), FloorConfig(), np.eye(4),
+                        0.01, 100.0, 0.2)  # fmt: skip
+
+
+def _in_camera(p_world) -> np.ndarray:
+    return (np.asarray(p_world, float) - CAMERA_POS) @ WORLD_R_CAMERA
+
+
+def test_a_first_strike_refuses_a_plane_that_does_not_pass_under_the_heel():
+    """Stairs ahead of a first strike on level floor: the plane through the nosings (31° on a
+    0.17/0.28 flight, here its points alone) is no ground the foot stands on; the heel
+    (from the encoders) is 0.38 m below it, so the IMU's up is kept. The floor itself,
+    through the heel, is still taken."""
+    rng = np.random.default_rng(1)
+    x = rng.uniform(0.9, 2.0, 4000)
+    slope = math.atan2(0.17, 0.28)
+    nosings = np.column_stack([x, rng.uniform(-0.6, 0.6, x.size),
+                               math.tan(slope) * (x - 0.9) + 0.17])  # fmt: skip
+    heel = _in_camera([0.0, 0.0, 0.0])
+    refused = _first_strike_anchor().at_strike(0.0, 0.05, _in_camera(nosings), heel)
+    assert refused.case == "imu" and refused.fit is not None and not refused.fit.ok
+    assert refused.fit.reason.startswith("not_under_heel")
+    assert tilt_deg(refused.up_in_imu) < 1e-5
+    # without the heel the old rule took that plane as level: a 31° tilt
+    blind = _first_strike_anchor().at_strike(0.0, 0.05, _in_camera(nosings))
+    assert blind.case == "floor" and tilt_deg(blind.up_in_imu) > 25.0
+    floor = _first_strike_anchor().at_strike(0.0, 0.05, ramp_points(0.0), heel)
+    assert floor.case == "floor" and tilt_deg(floor.up_in_imu) < 0.1
+    off = _first_strike_anchor().at_strike(0.0, 0.05, ramp_points(0.0), _in_camera([0, 0, -0.1]))
+    assert off.case == "imu"
+
+
+def test_a_first_strike_finds_the_floor_under_the_heel_far_from_a_poor_up():
+    """A first strike's IMU up 45° off (under a second of history): with the heel known the
+    floor is searched within 60° of it and fused (the frame level); a wall through the heel
+    and the camera is refused (the camera does not stand above it)."""
+    tilt = math.radians(45.0)
+    gravity = FakeGravity(np.array([math.sin(tilt), 0.0, math.cos(tilt)]))
+    anchor = StrideAnchor(gravity, FloorConfig(), np.eye(4), 0.01, 100.0, 0.2)
+    heel = _in_camera([0.0, 0.0, 0.0])
+    a = anchor.at_strike(0.0, 0.05, ramp_points(0.0), heel)
+    assert a.case == "floor" and tilt_deg(a.up_in_imu) < 0.1
+    assert anchor.at_strike(0.0, 0.05, ramp_points(0.0)).case == "imu"  # no heel: 45° is off
+    rng = np.random.default_rng(2)
+    wall = np.column_stack([np.zeros(4000), rng.uniform(-0.6, 0.6, 4000),
+                            rng.uniform(0.0, 1.2, 4000)])  # fmt: skip
+    w = anchor.at_strike(0.0, 0.05, _in_camera(wall), heel)
+    assert w.case == "imu" and w.fit.reason.startswith("not_under_camera")

@@ -115,3 +115,106 @@ def test_a_flight_beside_the_path_leaves_the_reference_level():
     assert feats.stairs
     assert terrain_type(feats, 0.2, 1.5, 0.0)[0] == "level"
     assert terrain_type(feats, 0.2, 1.5, -0.4)[0] == "stairs_up"
+
+
+def _curb(x_m=0.7, rise=0.15):
+    from graph_slam.terrain.features.model import Curb, EdgeLine, TerrainFeatures
+
+    edge = EdgeLine(x_m, 0.0, 0.0, 0.001, 0.001, (-0.6, 0.6), 20, False)
+    return TerrainFeatures(source="test", curbs=(Curb(rise, 0.001, edge, 0.0),))
+
+
+def test_edge_clearance_is_the_distance_to_the_step_profile():
+    """A toe skimming 12 mm over a 15 cm curb's top, one rising 17 mm in front of its face,
+    one passing through it; sampled every 5 cm or every millimetre: the same (the path is
+    resampled)."""
+    from graph_slam.terrain.features.clearance import edge_clearance
+
+    feats = _curb()
+    x = np.linspace(0.3, 1.1, 17)  # 5 cm apart
+    skim = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.162)])
+    fine = np.column_stack([np.linspace(0.3, 1.1, 801), np.zeros(801), np.full(801, 0.162)])
+    for path in (skim, fine):
+        c = edge_clearance(feats, path)
+        assert c is not None and c.edge == "curbs[0]"
+        assert c.min_m == pytest.approx(0.012, abs=1e-6)
+    # up the face 17 mm before it, then forward 5 cm above the top
+    rise = np.column_stack([np.full(10, 0.683), np.zeros(10), np.linspace(0.01, 0.2, 10)])
+    over = np.column_stack([np.linspace(0.683, 0.9, 10), np.zeros(10), np.full(10, 0.2)])
+    c = edge_clearance(feats, np.vstack([rise, over]))
+    assert c.min_m == pytest.approx(0.017, abs=1e-6)
+    # through the curb 3 cm below its top: negative
+    low = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.12)])
+    assert edge_clearance(feats, low).min_m < -0.02
+
+
+def test_level_floor_has_no_edge_clearance_and_no_warning():
+    """On level floor the toe passes 1 cm over the ground: under the 2 cm margin, but no edge
+    is crossed, so no edge clearance and no warning."""
+    from graph_slam.terrain.features.clearance import edge_clearance
+
+    h, var = grid(lambda x, y: np.zeros_like(x), 0.001, seed=5)
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    x = np.linspace(0.2, 1.5, 60)
+    path = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.01)])
+    assert edge_clearance(feats, path) is None
+    c = predict_clearance(view_of(h, var), feats, (0.2, 0.0), ClearanceConfig(lift_m=0.01))
+    assert c.min_m < 0.02 and not c.warning and math.isnan(c.edge_m)
+
+
+def test_cells_with_a_large_sigma_are_not_the_terrain():
+    """A level floor with a patch of cells 4 cm high but σ 6 cm (garbage points): the toe's
+    clearance is read over the trusted cells only; with the gate opened the patch wins."""
+    h, var = grid(lambda x, y: np.zeros_like(x), 0.001, seed=6)
+    i, j = int((1.1 - X0) / CELL), int((0.0 - Y0) / CELL)
+    h, var = h.copy(), var.copy()
+    h[i - 1 : i + 2, j - 1 : j + 2], var[i - 1 : i + 2, j - 1 : j + 2] = 0.04, 0.06**2
+    x = np.linspace(0.4, 1.4, 50)
+    path = np.column_stack([x, np.full_like(x, 0.005), np.full_like(x, 0.05)])
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    got = clearance_along(view_of(h, var), feats, path)
+    assert got.min_m == pytest.approx(0.05, abs=0.005)
+    loose = clearance_along(view_of(h, var), feats, path, ClearanceConfig(max_cell_sigma_m=1.0))
+    assert loose.min_m == pytest.approx(0.01, abs=0.003)
+
+
+def test_the_true_clearance_is_over_the_surface_under_the_toe():
+    from graph_slam.evaluation.clearance import true_swing_clearance
+
+    class Step:
+        def height_at(self, x, y):
+            return np.where(np.asarray(x) >= 1.0, 0.1, 0.0)
+
+    scene = SimpleNamespace(surfaces=Step())
+    toe = np.array([[0.995, 0.0, 0.05], [1.005, 0.0, 0.13], [0.5, 0.0, 0.06]])
+    assert true_swing_clearance(scene, np.eye(4), toe) == pytest.approx(0.03)
+    lifted = np.eye(4)
+    lifted[2, 3] = 0.01  # the stride frame 1 cm above the world: the surface 1 cm lower in it
+    assert true_swing_clearance(scene, lifted, toe) == pytest.approx(0.04)
+
+
+def test_poses_between_frames_follow_the_arc():
+    from graph_slam.terrain.features.clearance import interpolate_poses
+
+    def rot_y(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+    a, b = np.eye(4), np.eye(4)
+    b[:3, :3], b[:3, 3] = rot_y(0.8), [0.2, 0.0, 0.1]
+    got = interpolate_poses(np.array([0.0, 0.04]), np.stack([a, b]), np.array([0.0, 0.01, 0.04]))
+    assert np.allclose(got[0], a) and np.allclose(got[2], b)
+    assert np.allclose(got[1][:3, :3], rot_y(0.2)) and np.allclose(got[1][:3, 3], [0.05, 0, 0.025])
+
+
+def test_the_reference_descent_clears_the_nosing_it_leaves():
+    """Stairs down 34 cm ahead of the toe: the reference toe stays at the lift over the tread
+    it leaves until past that nosing (no warning), and lands a step lower."""
+    h, var = grid(lambda x, y: np.where(x >= 0.55, -0.17 * (1 + np.floor((x - 0.55) / 0.28)), 0.0),
+                  0.001, seed=7)  # fmt: skip
+    feats = extract_features(h, var, (X0, Y0), CELL)
+    path, kind = reference_swing(view_of(h, var), feats, (0.21, 0.0))
+    assert kind == "stairs_down"
+    assert path[-1, 2] == pytest.approx(-0.17, abs=0.01)
+    c = predict_clearance(view_of(h, var), feats, (0.21, 0.0))
+    assert c.edge_m > 0.02 and not c.warning

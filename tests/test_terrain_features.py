@@ -117,6 +117,17 @@ def test_ramp_slope_direction_start(slope_deg):
     assert 0 < ramp.slope_sigma_rad < SLOPE_TOL
 
 
+def test_a_ramp_seen_only_up_to_its_top_landing_has_no_start_line():
+    """The walker on the slope: the grid holds the ramp and the landing at its top, no level
+    ground before it. The landing is no start: the start line is unknown (it was once put at
+    the ramp's top, 2.5 m from the true start behind the heel)."""
+    g = math.tan(math.radians(8.0))
+    h, var = grid(lambda x, y: g * np.clip(x + 1.4, None, 2.5), 0.001, seed=9)
+    (ramp,) = features(h, var).ramps
+    assert abs(ramp.slope_rad - math.radians(8.0)) <= SLOPE_TOL
+    assert ramp.start is None
+
+
 @pytest.mark.parametrize("height", [0.10, -0.15])
 def test_curb_height_and_edge(height):
     h, var = grid(lambda x, y: np.where(x >= 0.711, height, 0.0), 0.001, seed=5)

@@ -224,59 +224,6 @@ def scene_height_at(scene, world_T_stride: np.ndarray, xy_m: np.ndarray) -> np.n
     return (up @ stride_T_world.T)[:, 2]
 
 
-def swing_clearance_pair(run_session, ref, stride, leg_model, config=None):
-    """The measured least toe clearance of a scored stride's swing (the variant's smoothed
-    poses and final grid) and the true one (the true poses over the scene's surface), both
-    from the encoders over the same mid-swing frames; None when either cannot be had."""
-    from graph_slam.strides.joints import interp_q
-    from graph_slam.terrain.features.clearance import ClearanceConfig, clearance_along, toe_path
-    from graph_slam.terrain.features.extract import features_of_view
-
-    cfg = config or ClearanceConfig()
-    session = run_session.session
-    grid = getattr(stride, "smoothed_grid", None)
-    if grid is None or ref.toe_off_s is None or session.joints is None or leg_model is None:
-        return None
-    t = np.asarray(ref.t_s)
-    s = (t - ref.toe_off_s) / max(ref.t_next_strike_s - ref.toe_off_s, 1e-9)
-    rows = np.flatnonzero((s >= cfg.mid_swing[0]) & (s <= cfg.mid_swing[1]))
-    t_joint = np.asarray(session.joints.t_s) + session.calibration.joints_time_offset_s
-    q = [interp_q(float(t[k]), t_joint, session.joints.q_rad) for k in rows]
-    est = np.asarray(stride.smoothed_stride_T_camera)
-    keep = [
-        k for k, qk in zip(rows, q, strict=True) if qk is not None and np.isfinite(est[k]).all()
-    ]
-    if len(keep) < 2:
-        return None
-    qs = np.array([interp_q(float(t[k]), t_joint, session.joints.q_rad) for k in keep])
-    measured = clearance_along(grid, features_of_view(grid, source="smoothed"),
-                               toe_path(est[keep], qs, leg_model), cfg)  # fmt: skip
-    true_toe = toe_path(np.asarray(ref.stride_T_camera)[keep], qs, leg_model)
-    ground = scene_height_at(session.scene, ref.world_T_stride, true_toe[:, :2])
-    true = float(np.min(true_toe[:, 2] - ground))
-    if not math.isfinite(measured.min_m):
-        return None
-    return measured.min_m, true, measured.sigma_m
-
-
-def summarise_clearances(pairs: Sequence[tuple[float, float, float]]) -> dict:
-    """n, RMSE, bias (measured − true), the fraction within ±5 mm, the std of error/σ."""
-    if not pairs:
-        return {"n": 0, "rmse": None, "bias": None, "within_5mm_fraction": None,
-                "std_error_over_sigma": None}  # fmt: skip
-    a = np.asarray(pairs, dtype=np.float64)
-    e = a[:, 0] - a[:, 1]
-    z = e / np.where(a[:, 2] > 0, a[:, 2], np.nan)
-    z = z[np.isfinite(z)]
-    return {
-        "n": int(e.size),
-        "rmse": float(np.sqrt(np.mean(e**2))),
-        "bias": float(np.mean(e)),
-        "within_5mm_fraction": float(np.mean(np.abs(e) <= 0.005)),
-        "std_error_over_sigma": float(np.std(z, ddof=1)) if z.size > 1 else None,
-    }
-
-
 DEADLINE_TOLERANCE = {"step": 0.01, "curb": 0.01, "box": 0.01, "ramp": math.radians(1.0)}
 """How close a feature's value (rise, height; a ramp's slope) must be to the final one to count
 as known; its edge must also be within ``DEADLINE_EDGE_M`` of the final edge."""
@@ -295,12 +242,23 @@ def feature_marks(features: TerrainFeatures) -> list[tuple[str, float, float, fl
     return out
 
 
+def _mark_y_ranges(features: TerrainFeatures) -> list:
+    """The y range of each :func:`feature_marks` entry's edge line (None: a ramp without a
+    start line), in the same order."""
+    out = [s.nosing.y_range_m for st in features.stairs for s in st.steps]
+    out += [c.edge.y_range_m for c in features.curbs]
+    out += [None if r.start is None else r.start.y_range_m for r in features.ramps]
+    out += [b.leading.y_range_m for b in features.boxes]
+    return out
+
+
 def feature_deadlines(t_s: Sequence[float], online: Sequence, final: TerrainFeatures,
                       toe_off_s: float | None) -> list[dict]:  # fmt: skip
     """Per feature of the stride's final grid: the first time an online grid (``online[k]``
     at ``t_s[k]``, None: not searched) had the same kind within ``DEADLINE_EDGE_M`` of its edge
     and ``DEADLINE_TOLERANCE`` of its value; ``lead_s`` = toe-off − that time."""
     out = []
+    y_ranges = _mark_y_ranges(final)
     for kind, x, y, value in feature_marks(final):
         known = float("nan")
         for t, feats in zip(t_s, online, strict=True):
@@ -313,12 +271,19 @@ def feature_deadlines(t_s: Sequence[float], online: Sequence, final: TerrainFeat
                 break
         lead = (toe_off_s - known) if toe_off_s is not None and math.isfinite(known) else math.nan
         out.append({"kind": kind, "edge_x_m": x, "value": value, "known_t_s": known,
-                    "lead_s": lead})  # fmt: skip
+                    "lead_s": lead, "edge_y_range_m": y_ranges[len(out)]})  # fmt: skip
     return out
 
 
 def summarise_feature_deadlines(rows: Sequence[dict]) -> dict:
-    """n, known, known before toe-off, known ≥ 0.5 s before it, median and least lead."""
+    """n, known, known before toe-off, known ≥ 0.5 s before it, median and least lead; under
+    ``swing`` the same for the rows marked ``in_swing`` (the features the swing must clear)."""
+    out = _deadline_counts(rows)
+    out["swing"] = _deadline_counts([r for r in rows if r.get("in_swing")])
+    return out
+
+
+def _deadline_counts(rows: Sequence[dict]) -> dict:
     lead = np.array([r["lead_s"] for r in rows], dtype=np.float64)
     known = np.isfinite(lead)
     return {

@@ -65,10 +65,13 @@ Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN
           "ramps": {"matched": int, "slope_rad"|"start_m": {...}},
           "curbs": {"matched": int, "height_m"|"edge_m": {...}},
           "boxes": {"matched": int, "height_m"|"leading_m"|"depth_m": {...}},
-          "swing_clearance": {"n", "rmse", "bias", "within_5mm_fraction",
+          "swing_clearance": {"n", "missed", "rmse", "bias", "within_5mm_fraction",
                               "std_error_over_sigma"},
+          "edge_clearance": {...as swing_clearance: over the edges each swing crossed},
           "deadlines": {"n", "n_known", "n_before_toe_off", "n_at_least_0_5_s",
-                        "lead_s_median", "lead_s_min", "by_kind": {"step"|"curb"|"box"|"ramp": int}},
+                        "lead_s_median", "lead_s_min", "by_kind": {"step"|"curb"|"box"|"ramp": int},
+                        "swing": {...the same over the features whose edge lies within the
+                                  measured toe's x range in mid-swing: those it must clear}},
           "warnings": {"swings", "true_below_margin", "flagged_below_margin", "false_warnings"}
         }
       }

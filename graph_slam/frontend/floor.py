@@ -87,6 +87,21 @@ class FloorConfig(ConfigModel):
         ge=0,
         description="the level gate is never tighter than this (the IMU's σ is a model)",
     )
+    first_strike_heel_m: float = Field(
+        0.05,
+        gt=0,
+        description="at a session's first strike (no IMU up to gate against) a plane is taken "
+        "as the ground only when the stance heel (from the encoders) lies within this of it: "
+        "on stairs ahead a plane through the nosings, 30° off, was fused as the floor",
+    )
+    first_strike_search_rad: float = Field(
+        math.radians(60.0),
+        gt=0,
+        le=math.pi / 2,
+        description="at a first strike with the heel known the plane is searched this far from "
+        "the IMU's up (10-45° off there); the camera must stand above it by this angle's cosine "
+        "times the heel's distance",
+    )
 
 
 @dataclass(frozen=True)

@@ -140,8 +140,9 @@ class GraphPipeline(PipelineBase):
         plane in this frame's depth only where that plane is level). Returns the anchor."""
         t_strike, self._pending_strike = self._pending_strike, None
         anchor = self.anchor.at_strike(
-            t_strike, t_frame_s, None if cloud is None else cloud.points_m
-        )
+            t_strike, t_frame_s, None if cloud is None else cloud.points_m,
+            self._heel_in_camera(t_frame_s),
+        )  # fmt: skip
         t_close = time.perf_counter()
         self.slam.foot_strike(
             t_strike,
@@ -153,6 +154,20 @@ class GraphPipeline(PipelineBase):
         )
         stages["stride_close"] = time.perf_counter() - t_close  # smoothing of the last stride
         return anchor
+
+    def _heel_in_camera(self, t_s: float) -> np.ndarray | None:
+        """The stance heel in the camera frame at ``t_s`` from the encoders (None: no leg
+        model, no encoder sample there, or the model refuses the angles)."""
+        from kinematics.errors import KinematicsError
+
+        leg = self.slam.leg
+        q = leg.q_at(t_s)
+        if q is None:
+            return None
+        try:
+            return np.linalg.inv(leg.model.foot_T_camera(q))[:3, 3]
+        except KinematicsError:
+            return None
 
     def _guess(self, t_s: float) -> np.ndarray:
         """Initial ``prev_T_current``: the IMU's prediction (``graph.imu_guess``; by default

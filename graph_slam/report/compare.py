@@ -203,10 +203,14 @@ class _Study:
     """Per variant: the feature scores of each stride's final grid."""
     clearances: dict[Variant, list] = field(default_factory=dict)
     """Per variant: (measured, true, σ) least swing clearance per stride."""
+    edge_clearances: dict[Variant, list] = field(default_factory=dict)
+    """Per variant: (measured, true, σ) clearance over each edge a swing passed (measured NaN:
+    no measured edge matched it on the measured path)."""
     feature_deadlines: dict[Variant, list] = field(default_factory=dict)
     """Per variant: when its online grid knew each feature of a stride's final grid."""
     clearance_flags: dict[Variant, list] = field(default_factory=dict)
-    """Per variant and stride: (warned in stance before toe-off, the true swing clearance)."""
+    """Per variant and stride: (warned in stance before toe-off, the true edge clearance; NaN:
+    the swing crossed no edge)."""
     n_strides: int = 0
 
     @classmethod
@@ -368,13 +372,18 @@ def _score(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
 
 def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
     """Each scored stride's final grid: its features against the scene's, its measured swing
-    clearance against the true one (graph_slam.evaluation.features)."""
+    clearance against the true one (graph_slam.evaluation.features, .clearance)."""
     from graph_slam.errors import GraphSlamError
+    from graph_slam.evaluation.clearance import (
+        edge_clearance_pairs,
+        in_swing,
+        swing_clearance_pair,
+        swing_toe_extent,
+    )
     from graph_slam.evaluation.features import (
         feature_deadlines,
         feature_truth_from_scene,
         score_features,
-        swing_clearance_pair,
     )
     from graph_slam.strides.kinematics import session_leg_model
     from graph_slam.terrain.features.extract import features_of_view
@@ -400,6 +409,8 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
             pair = swing_clearance_pair(run, ref, stride, leg)
             if pair is not None:
                 study.clearances.setdefault(variant, []).append(pair)
+            edges, true_edge = edge_clearance_pairs(run, ref, stride, leg)
+            study.edge_clearances.setdefault(variant, []).extend(edges)
             trace = run.traces.get(variant)
             if pair is not None and trace is not None and len(trace.predictions) == len(trace.t_s):
                 warned = any(
@@ -407,17 +418,25 @@ def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
                     for i in ref.frame_indices
                     if ref.toe_off_s is not None and trace.t_s[int(i)] < ref.toe_off_s
                 )
-                study.clearance_flags.setdefault(variant, []).append((warned, pair[1]))
+                no_edge = true_edge is None  # level floor: no edge to clear
+                study.clearance_flags.setdefault(variant, []).append(
+                    (warned, float("nan") if no_edge else true_edge)
+                )
             if trace is not None and trace.every_frame and len(trace.features) == len(trace.t_s):
                 idx = [int(i) for i in ref.frame_indices]
                 rows = feature_deadlines([trace.t_s[i] for i in idx],
                                          [trace.features[i] for i in idx], measured, ref.toe_off_s)  # fmt: skip
+                swing = swing_toe_extent(run, ref, stride, leg)  # the features it must clear
+                for r in rows:
+                    r["in_swing"] = in_swing(r, swing)
                 study.feature_deadlines.setdefault(variant, []).extend(rows)
 
 
 def _warning_summary(rows) -> dict:
-    """Swings, those truly under the warning margin (2 cm), how many of them the stance-time
-    prediction flagged before toe-off, and the flags raised over swings that cleared it."""
+    """Swings, those whose true edge clearance (over the edges the swing crossed; none on
+    level floor) is under the warning margin (2 cm), how many of them the stance-time
+    prediction flagged before toe-off, and the flags raised over swings that cleared it or
+    crossed no edge."""
     from graph_slam.terrain.features.clearance import ClearanceConfig
 
     margin = ClearanceConfig().warn_below_m
@@ -426,22 +445,20 @@ def _warning_summary(rows) -> dict:
         "swings": len(rows),
         "true_below_margin": len(low),
         "flagged_below_margin": int(sum(low)),
-        "false_warnings": int(sum(w for w, true in rows if true >= margin)),
+        "false_warnings": int(sum(w for w, true in rows if not true < margin)),
     }
 
 
 def _feature_summaries(study: _Study) -> dict[str, dict]:
-    from graph_slam.evaluation.features import (
-        summarise_clearances,
-        summarise_feature_deadlines,
-        summarise_scores,
-    )
+    from graph_slam.evaluation.clearance import summarise_clearances
+    from graph_slam.evaluation.features import summarise_feature_deadlines, summarise_scores
 
     return {
         str(v): {
             "grids": len(scores),
             **summarise_scores(scores),
             "swing_clearance": summarise_clearances(study.clearances.get(v, [])),
+            "edge_clearance": summarise_clearances(study.edge_clearances.get(v, [])),
             "deadlines": summarise_feature_deadlines(study.feature_deadlines.get(v, [])),
             "warnings": _warning_summary(study.clearance_flags.get(v, [])),
         }

@@ -88,6 +88,12 @@ def _mm(stats: dict | None, scale: float = 1e3) -> str:
     return f"{stats['rmse'] * scale:.1f} ({stats['n']}{'' if z is None else f', z {z:.2f}'})"
 
 
+def _clearance_cell(c: dict) -> str:
+    if not c.get("n"):
+        return "–"
+    return f"{c['rmse'] * 1e3:.1f}, {c['bias'] * 1e3:+.1f}, {c['within_5mm_fraction']:.0%} of {c['n']}"
+
+
 def features_section(features: dict) -> list[str]:
     """Each variant's final grids' stairs, ramps, curbs and boxes against the scene's, and the
     measured swing clearance against the true one (``metrics.json``'s ``terrain_features``)."""
@@ -100,39 +106,43 @@ def features_section(features: dict) -> list[str]:
         "ramps, curbs and boxes (docs/terrain.md); each is matched to the scene's and scored: "
         "RMSE in mm (slope in degrees), then (n, z = std of error/σ). The swing clearance: the "
         "toe's least height over the terrain in mid-swing from the smoothed poses, the encoders "
-        "and the grid, against the true poses over the scene's surface.",
+        "and the grid, against the true poses over the scene's surface. The edge clearance: "
+        "the toe's least distance to the edges the swing crossed (nosings, curbs, box edges; "
+        "docs/terrain.md), measured features against the scene's; missed: an edge the true "
+        "toe crossed with no measured edge on the measured path.",
         "",
         "| variant | grids | step rise | nosing | tread | ramp slope (°) | ramp start | curb "
         "height | curb edge | box height | box leading edge | box depth | swing clearance "
-        "(RMSE mm, bias mm, ≤5 mm) |",
-        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
+        "(RMSE mm, bias mm, ≤5 mm) | edge clearance (RMSE mm, bias mm, ≤5 mm; missed) |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
     ]
     deg = 180 / 3.141592653589793
     for name, f in features.items():
-        c = f["swing_clearance"]
-        clear = (
-            "–"
-            if not c["n"]
-            else f"{c['rmse'] * 1e3:.1f}, {c['bias'] * 1e3:+.1f}, {c['within_5mm_fraction']:.0%} of {c['n']}"
-        )
+        clear = _clearance_cell(f["swing_clearance"])
+        e = f.get("edge_clearance") or {"n": 0}
+        edge = _clearance_cell(e) + (f"; {e['missed']} missed" if e.get("missed") else "")
         cells = [
             _mm(f["steps"]["rise_m"]), _mm(f["steps"]["nosing_m"]), _mm(f["steps"]["tread_m"]),
             _mm(f["ramps"]["slope_rad"], deg), _mm(f["ramps"]["start_m"]),
             _mm(f["curbs"]["height_m"]), _mm(f["curbs"]["edge_m"]), _mm(f["boxes"]["height_m"]),
             _mm(f["boxes"]["leading_m"]), _mm(f["boxes"]["depth_m"]),
         ]  # fmt: skip
-        lines.append(f"| {name} | {f['grids']} | " + " | ".join(cells) + f" | {clear} |")
+        lines.append(f"| {name} | {f['grids']} | " + " | ".join(cells) + f" | {clear} | {edge} |")
     lines += [
         "",
         "Features known before toe-off: each feature of a stride's final grid is known at the "
         "first searched frame whose online grid had one of its kind with its edge within 2 cm "
-        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then. "
-        "Warnings: a swing is flagged when a stance frame's predicted clearance (the reference "
-        "swing over the online grid) was under 2 cm before its toe-off.",
+        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then; "
+        "the swing's own: those whose edge lies within the measured toe's x range in "
+        "mid-swing (the features that swing must clear). "
+        "Warnings: a swing is flagged when a stance frame's predicted edge clearance (the "
+        "reference swing over the online grid's edges) was under 2 cm before its toe-off; "
+        "truly < 2 cm: its true edge clearance was (a swing over level floor has none).",
         "",
         "| variant | features | known | before toe-off | ≥ 0.5 s before | median lead (s) | "
-        "swings | truly < 2 cm | flagged | false warnings |",
-        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
+        "the swing's own: features, ≥ 0.5 s before | swings | truly < 2 cm | flagged | false "
+        "warnings |",
+        "| :-- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |",
     ]
     for name, f in features.items():
         d = f.get("deadlines") or {}
@@ -142,8 +152,10 @@ def features_section(features: dict) -> list[str]:
         w = f.get("warnings") or {}
         warn = " | ".join(str(w.get(k, "–")) for k in
                           ("swings", "true_below_margin", "flagged_below_margin", "false_warnings"))  # fmt: skip
+        own = d.get("swing") or {}
+        own_cell = f"{own.get('n', 0)}, {own.get('n_at_least_0_5_s', 0)}"
         lines.append(f"| {name} | {d['n']} | {d['n_known']} | {d['n_before_toe_off']} | "
-                     f"{d['n_at_least_0_5_s']} | {med} | {warn} |")  # fmt: skip
+                     f"{d['n_at_least_0_5_s']} | {med} | {own_cell} | {warn} |")  # fmt: skip
     return [*lines, ""]
 
 

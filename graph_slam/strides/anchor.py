@@ -11,8 +11,12 @@ IMU's up. Otherwise (a ramp, a tread seen at an angle) the anchor keeps the IMU'
 records the plane's slope. :class:`StrideAnchor` returns which case applied:
 
 * ``floor``: the plane is level within its σ (at a session's first strike, whose IMU up has
-  under a second of history and is 10-40° off, any plane found is taken as level); fused by
-  inverse variance;
+  under a second of history and is 10-40° off, any plane found is taken as level when the
+  stance heel, from the encoders, lies on it: a plane that does not pass under the foot is
+  not the ground the foot stands on — on stairs ahead, the plane through the nosings, 31°
+  off, was fused as the floor and tilted the whole session; with the heel to decide, the
+  plane is searched within ``first_strike_search_rad`` of that poor up); fused by inverse
+  variance;
 * ``slope``: a plane was found but is tilted against the IMU's up: IMU alone, slope recorded;
 * ``imu``: no plane (no depth, too few points, none near up) or the floor is off: IMU alone;
 * ``none``: no IMU up vector either (the back end's own default anchor).
@@ -130,23 +134,35 @@ class StrideAnchor:
             return up, sigma, "gated"
         return f.up_in_imu, f.sigma_rad, "fused"
 
-    def at_strike(self, t_strike_s: float, t_s: float, points_m: np.ndarray | None) -> AnchorUp:
+    def at_strike(
+        self,
+        t_strike_s: float,
+        t_s: float,
+        points_m: np.ndarray | None,
+        heel_in_camera_m: np.ndarray | None = None,
+    ) -> AnchorUp:
         """The anchor for the stride struck at ``t_strike_s``, at its first frame ``t_s``
-        (``points_m``: that frame's cloud, camera frame; None: no depth)."""
+        (``points_m``: that frame's cloud, camera frame; None: no depth; ``heel_in_camera_m``:
+        the stance heel at ``t_s`` in the camera frame, from the encoders, None: unknown)."""
         up, sigma = self.imu_up(t_strike_s, t_s)
         if up is None:
             return AnchorUp(t_s, None, None, "none")
         up, sigma, how = self.with_graph(t_s, up, sigma)
         if points_m is None or not self.floor.enabled:
             return AnchorUp(t_s, up, sigma, "imu", graph=how)
-        return replace(self.with_plane(t_s, up, sigma, points_m), graph=how)
+        return replace(self.with_plane(t_s, up, sigma, points_m, heel_in_camera_m), graph=how)
 
-    def with_plane(self, t_s: float, up: np.ndarray, sigma: float | None, points_m) -> AnchorUp:
+    def with_plane(
+        self, t_s: float, up: np.ndarray, sigma: float | None, points_m, heel_in_camera_m=None
+    ) -> AnchorUp:
         """Fit the plane near ``up`` and decide the case (module text)."""
         cfg = self.floor
         sigma_imu = sigma if sigma is not None else self.short_sigma_rad
         level_gate = cfg.max_angle_rad + 3.0 * sigma_imu
         search = level_gate if cfg.assume_level else max(level_gate, cfg.slope_search_rad)
+        first = not cfg.assume_level and sigma is None and heel_in_camera_m is not None
+        if first:  # the heel decides what is ground: the plane may be far off the poor up
+            search = max(search, cfg.first_strike_search_rad)
         hint = self.camera_T_imu[:3, :3] @ up
         fit = fit_floor(points_m, hint, cfg, max_angle_rad=search)
         if not fit.ok:
@@ -155,9 +171,14 @@ class StrideAnchor:
         n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
         tilt = fit.angle_to_hint_rad
         slope = self.signed_slope(up, n_imu)
+        reason = self._not_ground(fit, heel_in_camera_m) if first else None
+        if reason is not None:  # not the ground under the foot (module text)
+            log.info("t=%.3f s: first strike's plane refused (%s)", t_s, reason)
+            fit = replace(fit, ok=False, reason=reason)
+            return AnchorUp(t_s, up, sigma, "imu", fit=fit)
         if cfg.assume_level or sigma is None:
             # a first strike's IMU up (under a second of history) is 10-40° off: nothing
-            # tells a slope from that error, so the ground is taken as level, as before
+            # tells a slope from that error, so the ground (under the heel) is taken as level
             consistent = True
         else:
             gate = cfg.level_gate_sigmas * math.hypot(sigma_imu, fit.sigma_rad)
@@ -166,6 +187,19 @@ class StrideAnchor:
             return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit)
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
         return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None)
+
+    def _not_ground(self, fit: FloorFit, heel_in_camera_m) -> str | None:
+        """Why a first strike's plane is not the ground the heel stands on (None: it is): the
+        heel must lie on it, and the camera stand above it by at least the search cone's
+        cosine times the heel's distance (a riser or a wall through the heel is no floor)."""
+        heel = np.asarray(heel_in_camera_m, float)
+        off = abs(float(fit.normal @ heel) + fit.offset_m)
+        if off > self.floor.first_strike_heel_m:
+            return f"not_under_heel: the heel {off:.3f} m off the plane"
+        least = math.cos(self.floor.first_strike_search_rad) * float(np.linalg.norm(heel))
+        if fit.offset_m < least:
+            return f"not_under_camera: the camera {fit.offset_m:.3f} m above it (< {least:.3f})"
+        return None
 
     def signed_slope(self, up_imu: np.ndarray, normal_imu: np.ndarray) -> float:
         """The plane's pitch along the camera's heading (+ rising ahead), radians."""

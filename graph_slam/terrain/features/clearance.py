@@ -7,7 +7,8 @@ where it is the step model of the feature: the far surface's height beyond the e
 near one's before it. A grid cell across an edge holds a mixture of both heights and would
 put the nosing up to a cell late and low; the feature's line is sub-cell.
 
-* :func:`clearance_along`: the minimum over a toe path (N×3) of ``z_toe − terrain``, where it
+* :func:`clearance_along`: the minimum over a toe path (N×3) of ``z_toe − terrain``
+  (:func:`clearance_profile` per point; a cell with σ over ``max_cell_sigma_m`` is unknown), where it
   occurs (the toe's x, y and the edge it passes, named ``stairs[0].step[1]``, ``curbs[0]``,
   ``boxes[0].leading``, or ``ground``), its σ (the terrain's σ there without the pose part,
   which the toe path placed by the same poses shares, and ``toe_sigma_m``).
@@ -18,7 +19,15 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
   ``lift_m`` over the ground; stairs or a curb: the lift over the first rise ahead; boxes are
   what the warning is for, the reference does not step over them) from the toe's position now
   over one stride length, against the current grid and features. ``warning`` when the predicted
-  clearance is below ``warn_below_m`` (2 cm).
+  **edge** clearance is below ``warn_below_m`` (2 cm).
+* :func:`edge_clearance` — the clearance over the edges a swing must clear: the least
+  Euclidean distance, in the vertical plane normal to each feature edge (a nosing, a curb, a
+  box's leading or trailing edge), from the toe path to the edge's profile (its vertical face
+  and the higher surface at its top; the lower surface is floor), over the path's points within
+  ``edge_band_m`` of the edge line inside its y range; negative when the toe is below the
+  profile. Level floor has no edge: a swing over it has no edge clearance, and raises no
+  warning however close the toe passes to the floor. The path is resampled every
+  ``resample_m`` first, so the same toe motion sampled at other times gives the same value.
 """
 
 from __future__ import annotations
@@ -38,12 +47,22 @@ class ClearanceConfig(ConfigModel):
     """The clearance's terrain model and the stance-time prediction (metres)."""
 
     toe_radius_m: float = Field(0.01, ge=0, description="grid cells within this of the toe")
+    max_cell_sigma_m: float = Field(
+        0.02,
+        gt=0,
+        description="a grid cell whose height σ (less its pose part) exceeds this is taken as "
+        "unknown: on the first stride of a walk, cells 1 m ahead with σ 5-9 cm read 2-5 cm "
+        "over a level floor and were the swing's least clearance",
+    )
     edge_band_m: float = Field(0.04, gt=0, description="the step model within this of an edge")
     warn_below_m: float = Field(0.02, description="predicted clearance that raises the warning")
     lift_m: float = Field(
         0.05, gt=0, description="the reference swing's peak toe lift over the ground"
     )
     stride_length_m: float = Field(1.3, gt=0, description="the reference swing's length")
+    resample_m: float = Field(
+        0.005, gt=0, description="the edge clearance resamples the toe path this finely"
+    )
     samples: int = Field(60, ge=4, description="points along the reference swing")
     mid_swing: tuple[float, float] = Field(
         (0.1, 0.85),
@@ -73,6 +92,8 @@ class Clearance:
     terrain: str = "level"
     """The reference swing's terrain type (predictions) or ``measured``."""
     warning: bool = False
+    edge_m: float = float("nan")
+    """The edge clearance (:func:`edge_clearance`; NaN: the path crosses no edge)."""
 
     def to_dict(self) -> dict:
         return _plain(self)
@@ -83,8 +104,10 @@ class Clearance:
             k: float("nan") if d[k] is None else float(d[k])
             for k in ("min_m", "sigma_m", "x_m", "y_m")
         }
+        edge_m = d.get("edge_m")
         return Clearance(**num, sample=int(d["sample"]), edge=str(d["edge"]),
-                         terrain=str(d["terrain"]), warning=bool(d["warning"]))  # fmt: skip
+                         terrain=str(d["terrain"]), warning=bool(d["warning"]),
+                         edge_m=float("nan") if edge_m is None else float(edge_m))  # fmt: skip
 
 
 def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, float]]:
@@ -142,18 +165,16 @@ def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.n
     return np.where(found, best, np.nan), np.where(found, sig, np.nan)
 
 
-def clearance_along(
-    view,
-    features: TerrainFeatures,
-    toe_xyz_m: np.ndarray,
-    config: ClearanceConfig | None = None,
-    toe_sigma_m: float = 0.0,
-    terrain: str = "measured",
-) -> Clearance:
-    """The least clearance of the toe path over the grid and the features' edges."""
+def clearance_profile(
+    view, features: TerrainFeatures, toe_xyz_m: np.ndarray, config: ClearanceConfig | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per point of the toe path (N×3): its clearance ``z_toe − terrain`` (NaN: the terrain
+    there unknown, or a cell whose σ exceeds ``max_cell_sigma_m``), the terrain's σ and the
+    edge it passes (``ground`` away from edges)."""
     cfg = config or ClearanceConfig()
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
     ground, sigma = _grid_heights(view, p[:, :2], cfg.toe_radius_m)
+    ground = np.where(sigma <= cfg.max_cell_sigma_m, ground, np.nan)
     name = np.full(len(p), "ground", dtype=object)
     for label, line, near, far, rise_sigma in _edges(features):
         lo, hi = line.y_range_m
@@ -165,7 +186,20 @@ def clearance_along(
         ground = np.where(band, model, ground)
         sigma = np.where(band, rise_sigma, sigma)
         name = np.where(band, label, name)
-    clear = p[:, 2] - ground
+    return p[:, 2] - ground, sigma, name
+
+
+def clearance_along(
+    view,
+    features: TerrainFeatures,
+    toe_xyz_m: np.ndarray,
+    config: ClearanceConfig | None = None,
+    toe_sigma_m: float = 0.0,
+    terrain: str = "measured",
+) -> Clearance:
+    """The least clearance of the toe path over the grid and the features' edges."""
+    p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    clear, sigma, name = clearance_profile(view, features, p, config)
     if not np.isfinite(clear).any():
         return Clearance(float("nan"), float("nan"), float("nan"), float("nan"), -1, "unknown",
                          terrain)  # fmt: skip
@@ -212,9 +246,10 @@ def reference_swing(
     z0 = float(np.nan_to_num(ground[0]))
     z1 = z0 + rise if kind != "ramp" else float(np.nan_to_num(ground[1], nan=z0))
     lift = cfg.lift_m * np.sqrt(np.sin(np.pi * s))  # a plateau: the toe stays up mid-swing
-    # up (or down) to the landing level by mid-swing when stepping up, over the whole swing
-    # otherwise
-    u = np.minimum(2 * s, 1.0) if rise > 0 else s
+    # up to the landing level by mid-swing when stepping up; down from mid-swing when stepping
+    # down (the toe clears the nosing of the tread it leaves first: lowered over the whole
+    # swing it passed that nosing a centimetre up); over the whole swing otherwise
+    u = np.minimum(2 * s, 1.0) if rise > 0 else np.clip(2 * s - 1, 0.0, 1.0) if rise < 0 else s
     z = z0 + (z1 - z0) * u * u * (3 - 2 * u) + lift
     return np.column_stack([xy, z]), kind
 
@@ -233,9 +268,69 @@ def predict_clearance(
     path, kind = reference_swing(view, feats, toe, cfg)
     mid = np.flatnonzero(cfg.mid_swing_mask(len(path)))
     c = clearance_along(view, feats, path[mid], cfg, terrain=kind)
-    warn = bool(math.isfinite(c.min_m) and c.min_m < cfg.warn_below_m)
+    edge = edge_clearance(feats, path[mid], cfg)
+    edge_m = float("nan") if edge is None else edge.min_m
+    warn = bool(math.isfinite(edge_m) and edge_m < cfg.warn_below_m)
     sample = int(mid[c.sample]) if c.sample >= 0 else -1
-    return Clearance(c.min_m, c.sigma_m, c.x_m, c.y_m, sample, c.edge, kind, warn)
+    return Clearance(c.min_m, c.sigma_m, c.x_m, c.y_m, sample, c.edge, kind, warn, edge_m)
+
+
+def resample_path(toe_xyz_m: np.ndarray, step_m: float) -> np.ndarray:
+    """The path (N×3) linearly resampled so that no two points are over ``step_m`` apart."""
+    p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    if len(p) < 2:
+        return p
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if not math.isfinite(s[-1]) or s[-1] <= 0:
+        return p
+    u = np.unique(np.concatenate([s, np.arange(0.0, s[-1], step_m)]))
+    return np.column_stack([np.interp(u, s, p[:, k]) for k in range(3)])
+
+
+def _profile_distance(d: np.ndarray, z: np.ndarray, near: float, far: float) -> np.ndarray:
+    """Signed distance of points (d along the edge normal, z) to an edge's profile: its
+    vertical face at d = 0 between the two heights and the higher surface on its side (the
+    lower surface is floor, not the edge); negative below the profile."""
+    lo, hi = min(near, far), max(near, far)
+    high_side = d >= 0 if far >= near else d <= 0
+    to_high = np.where(high_side, np.abs(z - hi), np.inf)
+    to_face = np.hypot(d, z - np.clip(z, lo, hi))
+    dist = np.minimum(to_high, to_face)
+    below = np.where(high_side, z < hi, z < lo)
+    return np.where(below, -dist, dist)
+
+
+def edge_clearances(
+    features: TerrainFeatures, toe_xyz_m: np.ndarray, config: ClearanceConfig | None = None
+) -> list[tuple[object, Clearance]]:
+    """Per feature edge the path comes within ``edge_band_m`` of: (its EdgeLine, the toe's
+    clearance over it) (module docstring)."""
+    cfg = config or ClearanceConfig()
+    p = resample_path(toe_xyz_m, cfg.resample_m)
+    out = []
+    for label, line, near, far, rise_sigma in _edges(features):
+        lo, hi = line.y_range_m
+        c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
+        d = (p[:, 0] - line.x_m) * c + (p[:, 1] - line.y_m) * s
+        band = (np.abs(d) <= cfg.edge_band_m) & (p[:, 1] >= lo - 0.02) & (p[:, 1] <= hi + 0.02)
+        if not band.any() or not (math.isfinite(near) and math.isfinite(far)):
+            continue
+        dist = _profile_distance(d[band], p[band, 2], near, far)
+        k = int(np.argmin(dist))
+        i = int(np.flatnonzero(band)[k])
+        out.append((line, Clearance(float(dist[k]), float(rise_sigma), float(p[i, 0]),
+                                    float(p[i, 1]), i, label, "edge", edge_m=float(dist[k]))))  # fmt: skip
+    return out
+
+
+def edge_clearance(
+    features: TerrainFeatures, toe_xyz_m: np.ndarray, config: ClearanceConfig | None = None
+) -> Clearance | None:
+    """The toe path's least clearance over the features' edges (module docstring); None when
+    no point of the path comes within ``edge_band_m`` of an edge."""
+    found = [c for _, c in edge_clearances(features, toe_xyz_m, config)]
+    return min(found, key=lambda c: c.min_m) if found else None
 
 
 def toe_path(stride_T_camera: np.ndarray, q_rad: np.ndarray, leg_model) -> np.ndarray:
@@ -247,4 +342,21 @@ def toe_path(stride_T_camera: np.ndarray, q_rad: np.ndarray, leg_model) -> np.nd
     for k, (pose, qk) in enumerate(zip(poses, q, strict=True)):
         camera_T_toe = leg_model.frame_T_frame("camera_optical", "toe", qk, check_limits=False)
         out[k] = (pose @ camera_T_toe)[:3, 3]
+    return out
+
+
+def interpolate_poses(t_s: np.ndarray, poses: np.ndarray, t_query: np.ndarray) -> np.ndarray:
+    """Poses (M×4×4) at ``t_query`` (inside ``t_s``, increasing) from frames' poses (N×4×4):
+    the position linear and the rotation along the shortest arc between the two frames around
+    each time. Sampling the toe this way (the encoders at the same times) follows the knee's
+    arc between frames where a straight line between the frames' toe points cut corners."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    t = np.asarray(t_s, dtype=np.float64)
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
+    tq = np.clip(np.asarray(t_query, dtype=np.float64), t[0], t[-1])
+    out = np.tile(np.eye(4), (len(tq), 1, 1))
+    out[:, :3, :3] = Slerp(t, Rotation.from_matrix(p[:, :3, :3]))(tq).as_matrix()
+    for k in range(3):
+        out[:, k, 3] = np.interp(tq, t, p[:, k, 3])
     return out

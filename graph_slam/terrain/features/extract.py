@@ -403,14 +403,17 @@ def _ramp_start(g: _Grid, mask, labels, terraces: dict, coef, centre, cov) -> Ed
     from scipy import ndimage
 
     ring = ndimage.binary_dilation(mask, iterations=4) & ~mask
-    near = [t for t in np.unique(labels[ring]) if t in terraces]
-    if not near:
-        return None
-    t = min(near, key=lambda t: terraces[t]["i"][0])
     c, gx, gy = (float(v) for v in coef)
     if abs(gx) < 1e-6:
         return None
     xm, ym = centre
+    # the terrace the ramp is entered from lies before it along x: a terrace met only beyond
+    # it (the landing at its top, the ramp's start out of view) gives no start line
+    near = [t for t in np.unique(labels[ring]) if t in terraces
+            and float(np.mean(g.x_of(np.nonzero(ring & (labels == t))[0]))) < xm]  # fmt: skip
+    if not near:
+        return None
+    t = min(near, key=lambda t: terraces[t]["i"][0])
     j = np.nonzero(mask)[1]
     lo, hi = float(g.y_of(j.min())), float(g.y_of(j.max()))
     yr = min(max(0.0, lo), hi)

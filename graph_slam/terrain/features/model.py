@@ -24,7 +24,8 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
    least ``curb_min_depth_m`` on is a **curb**, otherwise a stair of one step seen.
    Components of cells sloped between ``ramp_min_deg`` and ``ramp_max_deg`` are **ramps**:
    one plane fitted to them (slope, uphill direction, σ from the fit) and their start line, the
-   plane's intersection with the terrace they are entered from (the one nearest the heel).
+   plane's intersection with the terrace they are entered from (the one nearest the heel
+   among those before them along x; none in view: no start line).
 
 σ: a terrace height carries its cells' depth noise averaged and their pose part (correlated:
 it does not average); a rise the two independent parts and the difference of the pose parts
