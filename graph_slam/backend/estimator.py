@@ -109,17 +109,25 @@ class StrideSLAM:
         self.results.imu_counts = dict(self.imu.counts)
         return self.results
 
-    def predict_relative(self, t_s: float) -> np.ndarray | None:
-        """``last_T_new``: the camera's motion from the open stride's latest state to ``t_s``,
-        preintegrated from the current estimate (pose, velocity, bias) — an ICP initial guess
-        good to millimetres. None at a stride's first frame or across an IMU gap."""
+    def _carried_to(self, t_s: float):
+        """``(graph, its latest state, the IMU segment from it to t_s)`` of the open stride;
+        None with no open stride, a pending strike, ``t_s`` not after its last state or an
+        IMU gap."""
         g = self.strides.graph
         if g is None or self.strides.pending is not None or not t_s > g.t_s[-1]:
             return None
         last = g.nav(g.n_states - 1)
         seg = self.imu.buffer.integrate(g.t_s[-1], t_s, last.bias)
-        if not seg.ok:
+        return (g, last, seg) if seg.ok else None
+
+    def predict_relative(self, t_s: float) -> np.ndarray | None:
+        """``last_T_new``: the camera's motion from the open stride's latest state to ``t_s``,
+        preintegrated from the current estimate (pose, velocity, bias) — an ICP initial guess
+        good to millimetres. None at a stride's first frame or across an IMU gap."""
+        carried = self._carried_to(t_s)
+        if carried is None:
             return None
+        _, last, seg = carried
         nav = seg.pim.predict(gtsam.NavState(last.stride_T_imu, last.velocity_m_s), last.bias)
         last_T_new_imu = np.linalg.inv(last.stride_T_imu.matrix()) @ nav.pose().matrix()
         return self.camera_T_imu @ last_T_new_imu @ np.linalg.inv(self.camera_T_imu)
@@ -129,13 +137,10 @@ class StrideSLAM:
         state, carried by the gyro with the estimated bias), with that attitude's marginal
         covariance plus the carry's (causal: only what was added). None: no open stride, a
         pending strike, ``t_s`` not after its last state, an IMU gap, or no marginal."""
-        g = self.strides.graph
-        if g is None or self.strides.pending is not None or not t_s > g.t_s[-1]:
+        carried = self._carried_to(t_s)
+        if carried is None:
             return None
-        last = g.nav(g.n_states - 1)
-        seg = self.imu.buffer.integrate(g.t_s[-1], t_s, last.bias)
-        if not seg.ok:
-            return None
+        g, last, seg = carried
         try:
             cov_last = g.marginal_covariance(X(g.n_states - 1))[:3, :3]
         except RuntimeError as err:
