@@ -49,6 +49,7 @@ from graph_slam.evaluation.tables import table_4_1, table_4_2, table_box_counts
 from graph_slam.evaluation.timing import timing_stats
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.report.checks import preflight, run_warnings, write_compare_config
+from graph_slam.report.feature_scoring import feature_summaries, score_run_features
 from graph_slam.report.keys import Kind, MapSource, RunKey, run_keys
 from graph_slam.report.run import (
     ProgressCallback,
@@ -310,7 +311,7 @@ def _write_report(tmp: Path, specs, opened, cfg: CompareConfig, progress, warnin
     report = _tables(tmp, cfg, study, [s.name for s in opened], unscored)
     report.warnings = warnings
     deadlines = {v: d for v, d in study.deadlines.items() if d}  # variants scored
-    report.features = _feature_summaries(study)
+    report.features = feature_summaries(study)
     document = metrics_document(
         ", ".join(report.sessions), report.variants, report.maps, deadlines, report.features
     )
@@ -367,103 +368,7 @@ def _score(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
         study.deadlines[variant] += strides
     for name, size in run.truth_sizes().items():
         study.truth_sizes.setdefault(name, size)
-    _score_features(run, study, cfg)
-
-
-def _score_features(run: SessionRun, study: _Study, cfg: CompareConfig) -> None:
-    """Each scored stride's final grid: its features against the scene's, its measured swing
-    clearance against the true one (graph_slam.evaluation.features, .clearance)."""
-    from graph_slam.errors import GraphSlamError
-    from graph_slam.evaluation.clearance import (
-        edge_clearance_pairs,
-        in_swing,
-        swing_clearance_pair,
-        swing_toe_extent,
-    )
-    from graph_slam.evaluation.features import (
-        feature_deadlines,
-        feature_truth_from_scene,
-        score_features,
-    )
-    from graph_slam.strides.kinematics import session_leg_model
-    from graph_slam.terrain.features.extract import features_of_view
-
-    scene = run.session.scene
-    if scene is None or not run.references:
-        return
-    try:
-        leg = session_leg_model(
-            run.session, cfg.pipeline.mount_pitch_deg, cfg.pipeline.mount_estimate
-        )[0]
-    except GraphSlamError:
-        leg = None
-    for variant in run.results:
-        for ref in run.references:
-            stride = run.stride_of(variant, ref)
-            grid = None if stride is None else stride.smoothed_grid
-            if grid is None:
-                continue
-            truth = feature_truth_from_scene(scene, ref.world_T_stride)
-            measured = features_of_view(grid, source="smoothed")
-            study.features.setdefault(variant, []).append(score_features(measured, truth))
-            pair = swing_clearance_pair(run, ref, stride, leg)
-            if pair is not None:
-                study.clearances.setdefault(variant, []).append(pair)
-            edges, true_edge = edge_clearance_pairs(run, ref, stride, leg)
-            study.edge_clearances.setdefault(variant, []).extend(edges)
-            trace = run.traces.get(variant)
-            if pair is not None and trace is not None and len(trace.predictions) == len(trace.t_s):
-                warned = any(
-                    trace.predictions[int(i)] is not None and trace.predictions[int(i)].warning
-                    for i in ref.frame_indices
-                    if ref.toe_off_s is not None and trace.t_s[int(i)] < ref.toe_off_s
-                )
-                no_edge = true_edge is None  # level floor: no edge to clear
-                study.clearance_flags.setdefault(variant, []).append(
-                    (warned, float("nan") if no_edge else true_edge)
-                )
-            if trace is not None and trace.every_frame and len(trace.features) == len(trace.t_s):
-                idx = [int(i) for i in ref.frame_indices]
-                rows = feature_deadlines([trace.t_s[i] for i in idx],
-                                         [trace.features[i] for i in idx], measured, ref.toe_off_s)  # fmt: skip
-                swing = swing_toe_extent(run, ref, stride, leg)  # the features it must clear
-                for r in rows:
-                    r["in_swing"] = in_swing(r, swing)
-                study.feature_deadlines.setdefault(variant, []).extend(rows)
-
-
-def _warning_summary(rows) -> dict:
-    """Swings, those whose true edge clearance (over the edges the swing crossed; none on
-    level floor) is under the warning margin (2 cm), how many of them the stance-time
-    prediction flagged before toe-off, and the flags raised over swings that cleared it or
-    crossed no edge."""
-    from graph_slam.terrain.features.clearance import ClearanceConfig
-
-    margin = ClearanceConfig().warn_below_m
-    low = [w for w, true in rows if true < margin]
-    return {
-        "swings": len(rows),
-        "true_below_margin": len(low),
-        "flagged_below_margin": int(sum(low)),
-        "false_warnings": int(sum(w for w, true in rows if not true < margin)),
-    }
-
-
-def _feature_summaries(study: _Study) -> dict[str, dict]:
-    from graph_slam.evaluation.clearance import summarise_clearances
-    from graph_slam.evaluation.features import summarise_feature_deadlines, summarise_scores
-
-    return {
-        str(v): {
-            "grids": len(scores),
-            **summarise_scores(scores),
-            "swing_clearance": summarise_clearances(study.clearances.get(v, [])),
-            "edge_clearance": summarise_clearances(study.edge_clearances.get(v, [])),
-            "deadlines": summarise_feature_deadlines(study.feature_deadlines.get(v, [])),
-            "warnings": _warning_summary(study.clearance_flags.get(v, [])),
-        }
-        for v, scores in study.features.items()
-    }
+    score_run_features(run, study, cfg.pipeline)
 
 
 def _tables(out: Path, cfg: CompareConfig, study: _Study, sessions, unscored) -> CompareReport:
