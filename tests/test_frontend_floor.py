@@ -148,3 +148,15 @@ def test_preemptive_scoring_finds_the_same_floor(seed):
     assert math.degrees(math.acos(min(1.0, float(fast.normal @ full.normal)))) < 0.01
     assert abs(fast.offset_m - full.offset_m) < 1e-4
     assert math.degrees(math.acos(min(1.0, float(fast.normal @ up)))) < 0.1
+
+
+def test_inlier_counts_match_the_distance_matrix() -> None:
+    from graph_slam.terrain.maps.floor import inlier_counts
+
+    rng = np.random.default_rng(4)
+    points = rng.normal(size=(3000, 3))
+    normals = rng.normal(size=(50, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    offsets = rng.normal(size=50) * 0.2
+    expected = (np.abs(points @ normals.T + offsets) < 0.05).sum(axis=0)
+    np.testing.assert_array_equal(inlier_counts(points, normals, offsets, 0.05), expected)

@@ -98,17 +98,41 @@ def color_gradients(target: Cloud, index: np.ndarray, radius_m: float, max_nn: i
     found = np.isfinite(dist)
     found[:, 0] = False  # the point itself
     nbr = np.where(found, nbr, index[:, None])
-    n = normals[index]
-    diff = points[nbr] - points[index][:, None, :]
-    proj = (diff - np.einsum("mkj,mj->mk", diff, n)[..., None] * n[:, None, :]) * found[..., None]
-    b = (intensity[nbr] - intensity[index][:, None]) * found
-    count = found.sum(axis=1).astype(float)
-    ata = np.einsum("mki,mkj->mij", proj, proj) + (count**2)[:, None, None] * np.einsum(
-        "mi,mj->mij", n, n
-    )
-    atb = np.einsum("mki,mk->mi", proj, b)
-    usable = count + 1 >= 4
-    grad = np.zeros((len(index), 3))
-    ata_u = ata[usable] + 1e-12 * np.eye(3)
-    grad[usable] = np.linalg.solve(ata_u, atb[usable][..., None])[..., 0]
+    return _gradients(points, normals, intensity, np.asarray(index), nbr, found)
+
+
+@numba.njit(cache=True, nogil=True)
+def _gradients(points, normals, intensity, index, nbr, found):
+    """The least-squares gradient per ``index[m]`` over its ``found`` neighbours ``nbr[m]``:
+    the neighbours' offsets projected on the tangent plane, their intensity differences, and
+    the ``d·n = 0`` row weighted by the neighbour count (Open3D's construction)."""
+    grad = np.zeros((index.shape[0], 3))
+    for m in range(index.shape[0]):
+        i = index[m]
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        ata = np.zeros((3, 3))
+        atb = np.zeros(3)
+        count = 0
+        for k in range(nbr.shape[1]):
+            if not found[m, k]:
+                continue
+            j = nbr[m, k]
+            dx = points[j, 0] - points[i, 0]
+            dy = points[j, 1] - points[i, 1]
+            dz = points[j, 2] - points[i, 2]
+            along = dx * nx + dy * ny + dz * nz
+            v = (dx - along * nx, dy - along * ny, dz - along * nz)
+            b = intensity[j] - intensity[i]
+            for r in range(3):
+                atb[r] += v[r] * b
+                for c in range(3):
+                    ata[r, c] += v[r] * v[c]
+            count += 1
+        if count + 1 < 4:
+            continue
+        n = (nx, ny, nz)
+        for r in range(3):
+            for c in range(3):
+                ata[r, c] += count * count * n[r] * n[c] + (1e-12 if r == c else 0.0)
+        grad[m] = np.linalg.solve(ata, atb)
     return grad

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from pydantic import Field
 
@@ -104,6 +105,25 @@ class FloorPlane:
         return floor_T_stride
 
 
+@numba.njit(cache=True, nogil=True)
+def inlier_counts(
+    points: np.ndarray, normals: np.ndarray, offsets: np.ndarray, distance_m: float
+) -> np.ndarray:
+    """Per plane ``normals[k] · p + offsets[k] = 0``: how many ``points`` lie within
+    ``distance_m`` of it (one pass, no N×K distance matrix: that was most of a stride map's
+    floor fit)."""
+    counts = np.zeros(normals.shape[0], dtype=np.int64)
+    for k in range(normals.shape[0]):
+        nx, ny, nz, o = normals[k, 0], normals[k, 1], normals[k, 2], offsets[k]
+        n = 0
+        for i in range(points.shape[0]):
+            d = points[i, 0] * nx + points[i, 1] * ny + points[i, 2] * nz + o
+            if abs(d) < distance_m:
+                n += 1
+        counts[k] = n
+    return counts
+
+
 def fit_floor(points_m: np.ndarray, config: ObstacleConfig | None = None) -> FloorPlane:
     """The lowest dominant near-horizontal plane (RANSAC, then least squares on its inliers)."""
     cfg = config or ObstacleConfig()
@@ -122,7 +142,7 @@ def fit_floor(points_m: np.ndarray, config: ObstacleConfig | None = None) -> Flo
             "fit_floor: no near-horizontal plane found (is the cloud in the stride frame?)"
         )
     normals, offsets = normals[ok], offsets[ok]
-    inliers = (np.abs(sample @ normals.T + offsets) < cfg.floor_distance_m).sum(axis=0)
+    inliers = inlier_counts(sample, normals, offsets, cfg.floor_distance_m)
     # The plane with most inliers, unless a parallel plane below it is nearly as well supported
     # (a large box top can outnumber the floor); heights compared at the best plane's centroid.
     top = int(np.argmax(inliers))
