@@ -133,10 +133,30 @@ def _check_demo_out(out: Path, overwrite: bool) -> None:
     mark_folder(out / "sessions", command="demo")
 
 
+def _simulate_demo(sim_cfgs, out: Path, overwrite: bool, workers: int) -> list[Path]:
+    """The demo's sessions, simulated by up to ``workers`` processes (one at a time with 1)."""
+    from graph_slam.commands._common import progress_bar
+
+    outs = [out / "sessions" / speed for speed, _, _ in DEMO_SPEEDS]
+    if workers > 1:
+        from graph_slam.report.parallel import simulate_sessions
+
+        n = len(sim_cfgs)
+        with progress_bar(f"simulating {n} sessions ({min(workers, n)} at a time)") as update:
+            return [Path(p) for p in simulate_sessions(sim_cfgs, outs, overwrite, workers, update)]
+    from graph_slam.sim import simulate
+
+    paths = []
+    for (_, label, _), sim_cfg, folder in zip(DEMO_SPEEDS, sim_cfgs, outs, strict=True):
+        with progress_bar(f"simulating {label.lower()} ({sim_cfg.strides} strides)") as update:
+            paths.append(simulate(sim_cfg, folder, overwrite=overwrite, progress=update).path)
+    return paths
+
+
 def _drop_sessions(out: Path, sim_cfgs, seed: int) -> tuple[int, str]:
     """Remove the demo's simulated sessions (its inputs, most of its size) once the report is
-    written; ``sessions/README.md`` keeps the commands that simulate them again, byte for byte
-    (the simulator is seeded). Returns the bytes freed and that file's path."""
+    written; ``sessions/README.md`` keeps the commands that simulate the same frames and
+    streams again (the simulator is seeded; only session.yaml's creation time differs). Returns the bytes freed and that file's path."""
     freed = 0
     lines = [
         "# The demo's sessions",
@@ -253,7 +273,7 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 help="Keep the simulated sessions (about 260 MB at 424x240) after the report; "
                 "by default they are removed and sessions/README.md holds the commands that "
-                "simulate them again, byte for byte."
+                "simulate the same frames and streams again."
             ),
         ] = False,
     ) -> None:
@@ -264,10 +284,9 @@ def register(app: typer.Typer) -> None:
         (realtime: the real-time front end, the baseline on the 212×120 cloud;
         docs/benchmarks.md, "Demo").
         """
-        from graph_slam.commands._common import progress_bar
         from graph_slam.config import config_from_dict
         from graph_slam.report import SessionSpec
-        from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
+        from graph_slam.sim import SPEEDS_M_S, SimConfig
 
         t0 = time.perf_counter()
         courses = {"boxes": "thesis-boxes", "terrain": "terrain-course"}
@@ -294,15 +313,8 @@ def register(app: typer.Typer) -> None:
             for (speed, _, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True)
         ]
         _check_demo_out(out, overwrite)
-        specs = []
-        for (speed, label, _), n_strides, sim_cfg in zip(
-            DEMO_SPEEDS, counts, sim_cfgs, strict=True
-        ):
-            with progress_bar(f"simulating {label.lower()} ({n_strides} strides)") as update:
-                path = simulate(
-                    sim_cfg, out / "sessions" / speed, overwrite=overwrite, progress=update
-                )
-            specs.append(SessionSpec(path.path, label))
+        paths = _simulate_demo(sim_cfgs, out, overwrite, cfg.workers or 1)
+        specs = [SessionSpec(p, label) for p, (_, label, _) in zip(paths, DEMO_SPEEDS, strict=True)]
         t_sim = time.perf_counter() - t0
         typer.echo(
             f"simulated {len(specs)} sessions in {t_sim:.0f} s ({size}; variants "

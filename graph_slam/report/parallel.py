@@ -153,3 +153,58 @@ def _drain(ticks, tick) -> None:
             return
         for _ in range(n):
             tick(0, 0)
+
+
+def _simulate_task(cfg: dict, out: str, overwrite: bool, index: int, ticks) -> str:
+    """One simulation in a worker; progress goes back as ``(index, done, total)``."""
+    from graph_slam.sim import SimConfig, simulate
+
+    def progress(done: int, total: int) -> None:
+        ticks.put((index, done, total))
+
+    return str(simulate(SimConfig.model_validate(cfg), out, overwrite=overwrite,
+                        progress=progress).path)  # fmt: skip
+
+
+def simulate_sessions(cfgs: Sequence, outs: Sequence, overwrite: bool, workers: int, tick):
+    """Simulate ``cfgs[i]`` into ``outs[i]`` in ``workers`` spawned processes (each session is
+    the same as simulated alone: the simulator is seeded per session); ``tick(done, total)``
+    gets the frames rendered over all of them. Returns the session folders in order."""
+    context = mp.get_context("spawn")
+    with sigint_ignored():
+        manager = context.Manager()
+    progress: dict[int, tuple[int, int]] = {}
+    with manager, ProcessPoolExecutor(
+        max_workers=workers, mp_context=context, initializer=worker_init,
+        initargs=(os.getpid(),),
+    ) as pool:  # fmt: skip
+        ticks = manager.Queue()
+        futures = [
+            pool.submit(_simulate_task, cfg.model_dump(mode="json"), str(out), overwrite, i, ticks)
+            for i, (cfg, out) in enumerate(zip(cfgs, outs, strict=True))
+        ]
+        try:
+            while not all(f.done() for f in futures):
+                wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+                _drain_progress(ticks, progress, tick)
+            _drain_progress(ticks, progress, tick)
+            return [f.result() for f in futures]
+        except BaseException:
+            running = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in running:
+                process.terminate()
+            raise
+
+
+def _drain_progress(ticks, progress: dict, tick) -> None:
+    changed = False
+    while True:
+        try:
+            index, done, total = ticks.get_nowait()
+        except queue.Empty:
+            break
+        progress[index] = (done, total)
+        changed = True
+    if changed:
+        tick(sum(d for d, _ in progress.values()), sum(t for _, t in progress.values()))
