@@ -24,6 +24,7 @@ COUNT_NAMES = (
     "load_cell_strikes",
     "first_strikes",
     "first_strikes_unconfirmed",
+    "holds",
 )
 
 
@@ -58,10 +59,18 @@ class GaitPhaseConfig:
     max_nis: float = 20.0
     """Mean normalised innovation squared (2 dof) over ``rms_window_s`` beyond which the phase
     is re-acquired (counted)."""
+    max_hold_s: float = 0.3
+    """An update that holds the phase at its floor (it wanted to run backwards) or the rate at
+    its lower bound this long drops the lock, re-acquired at once (counted as ``holds``):
+    shorter than a swing (0.4-0.5 s), so that a lock held from a swing's start is regained
+    before the strike that ends it. Walks that keep their lock hold for < 0.1 s."""
     max_phase_step_cyc: float = 0.08
     """An update that moves the phase by more than this is a jump (counted, flagged)."""
     acquire_grace_cyc: float = 0.05
     """At (re-)acquisition, an event phase passed by less than this is still emitted."""
+    skipped_strike_max_cyc: float = 0.4
+    """A re-acquisition within a walk up to this far past a strike that was not emitted (the
+    last strike more than 0.6 stride before it) still emits it."""
     min_event_spacing_s: float = 0.35
     """Events of one kind closer than this are not emitted (a jump across a boundary)."""
     stall_ratio: float = 0.25
