@@ -156,7 +156,7 @@ class PhaseFilter:
         # previous estimate holds it there (the innovation then grows and, if the model keeps
         # failing, the NIS test re-acquires)
         ekf.x[0] = max(float(ekf.x[0]), self._phase_floor)
-        if self._held_longer(held, dt):
+        if self._held_longer(held, thigh.t_s, dt):
             return flags
         self._phase_floor = float(ekf.x[0])
         if not held:  # a rate held at its bound is the lost lock's, not the walker's
@@ -172,13 +172,16 @@ class PhaseFilter:
             self._lose_lock(forget=False)
         return flags
 
-    def _held_longer(self, held: bool, dt: float) -> bool:
+    def _held_longer(self, held: bool, t_s: float, dt: float) -> bool:
         """The update has held the phase at its floor (it wanted to run backwards) or the rate
-        at its lower bound for ``max_hold_s``: the lock is lost (the EKF has settled on a wrong
-        branch of the reference loop, as in a turn's short, flat steps); re-acquired at the next
-        sample (counted as ``holds``)."""
+        at its lower bound for ``max_hold_s`` within a walk (a stride measured, a strike in the
+        last 2.5 s): the lock is lost (the EKF has settled on a wrong branch of the reference
+        loop, as in a turn's short, flat steps); re-acquired at the next sample (counted as
+        ``holds``). Before a stride is measured the walk is starting from standing, its first
+        steps slower and flatter than the reference: a hold there is not a lost lock."""
         self._held_s = self._held_s + dt if held else 0.0
-        if self._held_s < self.cfg.max_hold_s:
+        in_walk = bool(self._strides) and t_s - self._last_event_t["foot_strike"] < 2.5
+        if self._held_s < self.cfg.max_hold_s or not in_walk:
             return False
         self.counts["holds"] += 1
         self._held_s = 0.0
