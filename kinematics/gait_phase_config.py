@@ -69,9 +69,6 @@ class GaitPhaseConfig:
     """An update that moves the phase by more than this is a jump (counted, flagged)."""
     acquire_grace_cyc: float = 0.05
     """At (re-)acquisition, an event phase passed by less than this is still emitted."""
-    skipped_strike_max_cyc: float = 0.4
-    """A re-acquisition within a walk up to this far past a strike that was not emitted (the
-    last strike more than 0.6 stride before it) still emits it."""
     min_event_spacing_s: float = 0.35
     """Events of one kind closer than this are not emitted (a jump across a boundary)."""
     stall_ratio: float = 0.25

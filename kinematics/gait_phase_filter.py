@@ -123,10 +123,11 @@ class PhaseFilter:
         return self._buffer_stride_s
 
     def _skipped_strike(self, t_s: float, phase: float, rate: float) -> bool:
-        """A re-acquisition in stance of a walk whose lock was lost before this cycle's strike
-        was emitted: that strike is still emitted (at the phase's estimate, or its impact)."""
+        """A re-acquisition in stance (before the toe-off) of a walk whose lock was lost before
+        this cycle's strike was emitted (the last strike more than 0.6 stride before it): that
+        strike is still emitted (at the phase's estimate, or its impact)."""
         stride = self._recent_stride_s()
-        if stride is None or phase % 1.0 > self.cfg.skipped_strike_max_cyc:
+        if stride is None or phase % 1.0 >= self.ref.at_rate("stance_fraction", rate):
             return False
         strike_s = t_s - (phase % 1.0) / rate
         return strike_s - self._last_event_t["foot_strike"] > 0.6 * stride
