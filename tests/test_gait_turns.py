@@ -63,8 +63,8 @@ def test_online_keeps_every_strike_through_a_turn(seed, angle_deg, impact):
 def test_femur_walks_with_turns_regain_the_lock(name):
     """Walks with 90-180° turns and no contact reference: the offline strikes are the
     yardstick. Each lock the turns' short, flat steps hold is dropped and regained (counted as
-    holds), and the online strikes then cover all but at most two of the offline strikes
-    within 0.25 s (before the lock was regained: 8 of 12 and 8 of 11)."""
+    holds), and the online strikes then lie within 0.25 s of all but at most three of the
+    offline strikes (9 of 12 and 10 of 11 now; 8 of 12 and 8 of 11 when a held lock was kept)."""
     from kinematics.gait_real import read_xsens_txt
 
     imu = read_xsens_txt(DATA / name)
@@ -72,6 +72,6 @@ def test_femur_walks_with_turns_regain_the_lock(name):
     res = estimate_online(imu)
     online = res.times("foot_strike")
     matched = sum(bool(np.min(np.abs(online - s)) <= 0.25) for s in offline)
-    assert res.counts["holds"] >= 1
     assert matched >= offline.size - 3, (offline, online)
+    assert res.counts["holds"] >= 1
     assert res.counts["axis_flipped"] == 0
