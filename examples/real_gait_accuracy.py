@@ -17,7 +17,9 @@ arrangement of the sensor), prints per data set and detector (offline
 * phase RMSE against the phase linear between reference strikes (offline: linear between the
   detected strikes);
 * the femur walks, which have no contact reference: the left and right strikes found, and
-  how many right strides hold exactly one left strike at 35-65 % of the stride;
+  how many right strides hold exactly one left strike at 35-65 % of the stride; how many of
+  the offline strikes an online strike lies within 30 / 60 / 250 ms of, and the online
+  strikes more than 250 ms from any offline one;
 * the mounting test (real walks): the walk seen by a sensor in each of the 24 right-handed axis
   arrangements; an arrangement is *swapped* when the median distance from its strikes to the
   reference strikes (the Xsens walk) or to the identity arrangement's strikes (the femur walks)
@@ -222,6 +224,18 @@ def alternation(femurs: list[Walk], online: bool) -> str:
     )
 
 
+def agreement(walk: Walk) -> str:
+    """A walk without a contact reference: the online strikes against the offline ones."""
+    offline, online = run_offline(walk, Tally()), run_online(walk, Tally())
+    d = np.array([np.min(np.abs(online - s)) if online.size else math.inf for s in offline])
+    far = sum(1 for s in online if not offline.size or np.min(np.abs(offline - s)) > 0.25)
+    within = " / ".join(str(int(np.sum(d <= w))) for w in (0.03, 0.06, 0.25))
+    return (
+        f"* {walk.name}: of {offline.size} offline strikes, online within 30 / 60 / 250 ms: "
+        f"{within}; online strikes more than 250 ms from any offline strike: {far} of {online.size}"
+    )
+
+
 HEADER = (
     "| data | detector | ref. strikes | found | missed | extra | median abs ms | worst abs ms | "
     "events standing | latency p95 ms (all / after the first) | phase RMSE % (worst walk) | mountings swapped / changed |"
@@ -257,6 +271,8 @@ def main() -> None:
     if len(femurs) == 2:
         for online in (False, True):
             print(alternation(femurs, online))
+        for walk in femurs:
+            print(agreement(walk))
     groups: dict[str, list[Walk]] = {}
     for walk in synthetic_walks(args.quick):
         groups.setdefault(walk.name, []).append(walk)

@@ -90,6 +90,8 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
         self._nis = 0.0
         self._nis_sum = 0.0
         self._stall_s = 0.0
+        self._held_s = 0.0
+        self._relocked = False
         self._shadow: OnlineGaitEstimator | None = None
         self._shadow_until_s = math.inf
         self._sum_mark = (0.0, 0.0, 0, 0)

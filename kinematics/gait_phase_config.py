@@ -24,6 +24,7 @@ COUNT_NAMES = (
     "load_cell_strikes",
     "first_strikes",
     "first_strikes_unconfirmed",
+    "holds",
 )
 
 
@@ -58,6 +59,12 @@ class GaitPhaseConfig:
     max_nis: float = 20.0
     """Mean normalised innovation squared (2 dof) over ``rms_window_s`` beyond which the phase
     is re-acquired (counted)."""
+    max_hold_s: float = 0.3
+    """An update that holds the phase at its floor (it wanted to run backwards) or the rate at
+    its lower bound this long drops the lock, re-acquired at once (counted as ``holds``):
+    shorter than a swing (0.4-0.5 s), so that a lock held from a swing's start is regained
+    before the strike that ends it. On the Xsens walk and the synthetic prosthetic set no hold
+    within a walk lasts 0.1 s, except as a walk ends into standing."""
     max_phase_step_cyc: float = 0.08
     """An update that moves the phase by more than this is a jump (counted, flagged)."""
     acquire_grace_cyc: float = 0.05

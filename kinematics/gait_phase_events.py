@@ -78,6 +78,13 @@ class EventEmission:
     def _emit(self, kind: str, t_event: float, detected_t_s: float, sigma: float):
         if t_event - self._last_event_t[kind] < self.cfg.min_event_spacing_s:
             return []
+        if kind == "foot_strike" and self._relocked:
+            # the first strike of a re-acquired lock is not the one just emitted again: a
+            # cadence does not halve within a stride
+            stride = self._recent_stride_s() or 1.0 / self._rate_prior()
+            if t_event - self._last_event_t[kind] < 0.6 * stride:
+                return []
+            self._relocked = False
         if kind == "foot_strike" and 0.6 < t_event - self._last_event_t[kind] < 2.5:
             self._stride_s = t_event - self._last_event_t[kind]
             self._strides.append(self._stride_s)

@@ -77,15 +77,7 @@ class PhaseFilter:
 
         cfg = self.cfg
         rate = self._rate_prior()
-        a, b = self.ref.coefficients(rate)
-        grid = np.arange(200) / 200.0
-        z = self._z(thigh)
-        cost = [
-            ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
-            @ ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
-            for p in grid
-        ]
-        phase = float(grid[int(np.argmin(cost))])
+        phase = self._nearest_phase(thigh, rate)
         ekf = ExtendedKalmanFilter(dim_x=2, dim_z=2)
         ekf.x = np.array([phase, rate])
         ekf.P = np.diag([0.1**2, 0.2**2])
@@ -95,14 +87,50 @@ class PhaseFilter:
         # an event the lock has just passed (a re-acquisition near it) is still emitted, once:
         # the spacing rule drops it if it was emitted before the lock was lost
         grace = self.cfg.acquire_grace_cyc
-        self._next_strike = math.floor(phase) + (0 if phase % 1.0 < grace else 1)
+        passed = phase % 1.0 < grace or self._skipped_strike(thigh.t_s, phase, rate)
+        self._next_strike = math.floor(phase) + (0 if passed else 1)
         sf = self.ref.at_rate("stance_fraction", rate)
         self._next_toe_off = math.floor(phase) + (1 if phase % 1.0 >= sf + grace else 0)
         self.counts["reacquired"] += 1
+        self._relocked = True
+        self._held_s = 0.0
+
+    def _nearest_phase(self, thigh: ThighState, rate: float) -> float:
+        """The phase on the reference loop (at ``rate``) nearest the measurement."""
+        cfg = self.cfg
+        a, b = self.ref.coefficients(rate)
+        grid = np.arange(200) / 200.0
+        z = self._z(thigh)
+        cost = [
+            ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
+            @ ((z - measurement(np.array([p, rate]), a, b)) / [cfg.angle_sigma, cfg.rate_sigma])
+            for p in grid
+        ]
+        return float(grid[int(np.argmin(cost))])
 
     def _rate_prior(self) -> float:
-        """The last cadence estimate, else that of 1.2 m/s."""
+        """The cadence of the last strides in this walk, else the last estimate, else that of
+        1.2 m/s (the EKF's own rate is the one a lost lock got wrong)."""
+        stride = self._recent_stride_s()
+        if stride is not None:
+            return float(np.clip(1.0 / stride, 0.3, 2.0))
         return self._last_rate if self._last_rate is not None else float(self.ref.rates_cyc_s[12])
+
+    def _recent_stride_s(self) -> float | None:
+        """The median of the last strides, else the cycle seen while learning the axis."""
+        if self._strides:
+            return float(np.median(self._strides))
+        return self._buffer_stride_s
+
+    def _skipped_strike(self, t_s: float, phase: float, rate: float) -> bool:
+        """A re-acquisition in stance (before the toe-off) of a walk whose lock was lost before
+        this cycle's strike was emitted (the last strike more than 0.6 stride before it): that
+        strike is still emitted (at the phase's estimate, or its impact)."""
+        stride = self._recent_stride_s()
+        if stride is None or phase % 1.0 >= self.ref.at_rate("stance_fraction", rate):
+            return False
+        strike_s = t_s - (phase % 1.0) / rate
+        return strike_s - self._last_event_t["foot_strike"] > 0.6 * stride
 
     def _ekf_step(self, thigh: ThighState, dt: float, saturated: bool) -> int:
         cfg, ekf = self.cfg, self._ekf
@@ -123,13 +151,17 @@ class PhaseFilter:
             self._lose_lock(forget=True)
             return flags | 32
         ekf.update(self._z(thigh), measurement_jacobian, measurement, args=(a, b), hx_args=(a, b))
+        held = float(ekf.x[0]) < self._phase_floor or float(ekf.x[1]) <= 0.3
         ekf.x[1] = float(np.clip(ekf.x[1], 0.3, 2.0))
         # the gait phase does not run backwards: an update that would move it behind the
         # previous estimate holds it there (the innovation then grows and, if the model keeps
         # failing, the NIS test re-acquires)
         ekf.x[0] = max(float(ekf.x[0]), self._phase_floor)
+        if self._held_longer(held, thigh.t_s, dt):
+            return flags
         self._phase_floor = float(ekf.x[0])
-        self._last_rate = float(ekf.x[1])
+        if not held:  # a rate held at its bound is the lost lock's, not the walker's
+            self._last_rate = float(ekf.x[1])
         if abs(float(ekf.x[0]) - before) > cfg.max_phase_step_cyc:
             self.counts["phase_jumps"] += 1
             flags |= 8
@@ -140,6 +172,22 @@ class PhaseFilter:
         if self._nis > cfg.max_nis:
             self._lose_lock(forget=False)
         return flags
+
+    def _held_longer(self, held: bool, t_s: float, dt: float) -> bool:
+        """The update has held the phase at its floor (it wanted to run backwards) or the rate
+        at its lower bound for ``max_hold_s`` within a walk (a stride measured, a strike in the
+        last 2.5 s): the lock is lost (the EKF has settled on a wrong branch of the reference
+        loop, as in a turn's short, flat steps); re-acquired at the next sample (counted as
+        ``holds``). Before a stride is measured the walk is starting from standing, its first
+        steps slower and flatter than the reference: a hold there is not a lost lock."""
+        self._held_s = self._held_s + dt if held else 0.0
+        in_walk = bool(self._strides) and t_s - self._last_event_t["foot_strike"] < 2.5
+        if self._held_s < self.cfg.max_hold_s or not in_walk:
+            return False
+        self.counts["holds"] += 1
+        self._held_s = 0.0
+        self._lose_lock(forget=False)
+        return True
 
     def _stalled(self, thigh: ThighState, a: np.ndarray, b: np.ndarray, rate: float, dt: float):
         """A stop in stance: the thigh rate stays below ``stall_ratio`` of the model's (the

@@ -91,12 +91,15 @@ def simulate_walks(
     seed: int = 0,
     stride_time_jitter: float = 0.02,
     pattern: GaitPattern = ABLE_BODIED,
+    turns: Sequence[tuple[float, float, float]] = (),
 ) -> Scenario:
     """Stand ``stand_s``, walk bout 1 (one speed per stride), stand, walk bout 2, ..., stand.
 
     ``speeds_per_bout=[]`` gives standing only (``stand_s`` long). ``pattern``: the gait's
     departure from the reference (:mod:`kinematics.gait_patterns`: prosthetic or sound side,
-    treadmill, heel-strike shock)."""
+    treadmill, heel-strike shock). ``turns``: ``(start_s, duration_s, angle_rad)`` each, a
+    change of heading (rotation of the whole leg about the vertical, counter-clockwise +)
+    smoothly over the interval; the walking direction follows the heading."""
     rng = np.random.default_rng(seed)
     bouts, total = _bouts(speeds_per_bout, stand_s, rng, stride_time_jitter)
     sway_f = rng.uniform(0.15, 0.5, 3)
@@ -140,15 +143,22 @@ def simulate_walks(
             w_all[inside], ph_all[inside] = w * b.speed_at(ph), ph
         return sag, add, rot, w_all, ph_all
 
+    def heading(t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        return sum((a * _smoothstep((t - t0) / d) for t0, d, a in turns), np.zeros_like(t))
+
     def world_r_thigh(t: np.ndarray):
         sag, add, rot, _, _ = fields(t)
-        return _ry(-sag) * _rx(add) * _rz(rot)
+        return _rz(heading(t)) * _ry(-sag) * _rx(add) * _rz(rot)
 
     dt = 1.0 / rate_hz
     fine_t = np.arange(0.0, total, dt / 4)
     _, _, _, vel, ph_fine = fields(fine_t)
     pos = np.zeros((fine_t.size, 3))
-    pos[:, 0] = 0.0 if pattern.treadmill else np.cumsum(vel) * (dt / 4)
+    if not pattern.treadmill:
+        psi = heading(fine_t)
+        pos[:, 0] = np.cumsum(vel * np.cos(psi)) * (dt / 4)
+        pos[:, 1] = np.cumsum(vel * np.sin(psi)) * (dt / 4)
     pos[:, 2] = 0.9 + 0.02 * (vel / 1.8) * np.cos(4 * np.pi * ph_fine)  # smooth bob
     splines = [CubicSpline(fine_t, pos[:, i]) for i in range(3)]
 
