@@ -4,6 +4,7 @@ command that printed it (a table in the docs is pasted from it, never typed)."""
 from __future__ import annotations
 
 import datetime
+import functools
 import os
 import shlex
 import subprocess
@@ -11,9 +12,12 @@ import sys
 from pathlib import Path
 
 
+@functools.cache
 def commit() -> str:
     """The checkout's short commit (``+dirty`` with uncommitted changes), or the package
-    version when graph_slam does not run from a git checkout."""
+    version when graph_slam does not run from a git checkout. Read once per process: a
+    command calls it when it starts (:func:`mark_start`), so a table printed at its end names
+    the code that ran, not a commit made meanwhile."""
     root = Path(__file__).resolve().parents[2]
     try:
         head = subprocess.run(
@@ -29,6 +33,11 @@ def commit() -> str:
 
         return f"graph_slam {__version__}"
     return head + ("+dirty" if dirty else "")
+
+
+def mark_start() -> None:
+    """Read the commit now, at the command's start (see :func:`commit`)."""
+    commit()
 
 
 def cores() -> int:

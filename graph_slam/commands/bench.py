@@ -15,6 +15,14 @@ bench_app = typer.Typer(
 )
 
 
+@bench_app.callback()
+def _started() -> None:
+    """The commit a printed table names is the one that started (bench.caption.commit)."""
+    from graph_slam.bench.caption import mark_start
+
+    mark_start()
+
+
 def _check_options(**values: float) -> None:
     """Each option value (named by its keyword) is finite and > 0: a ConfigError naming it."""
     import math
