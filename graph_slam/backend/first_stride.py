@@ -19,10 +19,15 @@ stride (:class:`FirstStrideRefit`):
    online poses stay as they were): the first stride's graph again, with its first state's
    tilt σ relaxed to ``priors.first_stride_refit_tilt_sigma_rad`` about the stride frame's
    x/y axes (yaw and position keep defining the frame) and an attitude factor
-   (``AttitudeFactorPose3``) at its last state, batch-smoothed (LM); ``world_T_stride`` of the
-   first stride is chained again from the second's by the kept preintegration, so the later
-   strides do not move. Flag ``first_stride_refit`` (``first_stride_refit_failed`` when the
-   smoothing failed: the earlier poses stay).
+   (``AttitudeFactorPose3``) at its last state, batch-smoothed (LM); then again with a prior
+   on its last velocity: the second stride's first velocity (from its own ICP and stance
+   factors; the first stride's, in swing, is barely observable) carried back by the kept
+   preintegration. The second stride's ``world_T_stride`` is chained again from the new end
+   state and the later strides follow it rigidly: the world frame stays the first stride's,
+   now gravity-aligned. Only the smoothed output changes: the online world poses keep the
+   chain they had (they differ from the smoothed ones by that rigid correction). Flag
+   ``first_stride_refit`` (``first_stride_refit_failed`` when the smoothing failed: the
+   earlier poses stay).
 
 Off with ``priors.first_stride_refit: false``. The first stride's terrain maps (fused at its
 close) are not fused again.
@@ -106,6 +111,8 @@ class FirstStrideRefit:
         self.summary: StrideSummary | None = None
         self.attitude: StrikeAttitude | None = None
         self.next_graph: StrideGraph | None = None
+        self.finished = False
+        """The run has ended (:meth:`apply` was called)."""
 
     def keep(self, summary: StrideSummary, graph: StrideGraph) -> None:
         """At a stride's close: the session's first stride (begun without a strike) is kept,
@@ -141,15 +148,17 @@ class FirstStrideRefit:
         self.graph = self.summary = self.attitude = self.next_graph = None
 
     def apply(self, strides: list[StrideSummary], deferred: list) -> bool:
-        """Smooth the first stride again and chain it to the second (module docstring);
-        ``deferred``: the chain's queue of strides waiting for their smoothing (the first is
-        taken out: this is its smoothing). Returns whether the poses changed."""
+        """At the end of a run: smooth the first stride again and chain the second to it
+        (module docstring). ``deferred``: the chain's queue of strides waiting for their
+        smoothing; while the first waits there, nothing is done (called again after it).
+        Returns whether the poses changed."""
+        self.finished = True
         if self.graph is None or self.attitude is None or self.next_graph is None:
             self.release()
             return False
         g, s, a = self.graph, self.summary, self.attitude
-        deferred[:] = [(d, dg) for d, dg in deferred if dg is not g]
-        s.flags = tuple(sorted({*s.flags, *g.flags} - {"smoothing_deferred"}))
+        if any(dg is g for _, dg in deferred):
+            return False  # after its deferred smoothing (StrideChain.smooth_deferred)
         values = self._solve(g, a, next_velocity(self.next_graph))
         self.release()
         if values is None:
@@ -158,10 +167,11 @@ class FirstStrideRefit:
         n = g.n_states
         nav = g.nav(n - 1, values)
         pred = a.pim.predict(gtsam.NavState(nav.stride_T_imu, nav.velocity_m_s), nav.bias)
-        # the second stride's frame stays: the first is placed so its carried end meets it
-        s.world_T_stride = (
-            strides[1].world_T_stride @ a.stride_T_imu @ np.linalg.inv(pred.pose().matrix())
-        )
+        # the second stride chains from the new end state; the later ones follow it rigidly
+        world_T_next = s.world_T_stride @ pred.pose().matrix() @ np.linalg.inv(a.stride_T_imu)
+        correction = world_T_next @ np.linalg.inv(strides[1].world_T_stride)
+        for later in strides[1:]:
+            later.world_T_stride = correction @ later.world_T_stride
         inv_ext = np.linalg.inv(self.camera_T_imu)
         s.smoothed_stride_T_camera = np.array(
             [values.atPose3(X(k)).matrix() @ inv_ext for k in range(n)]

@@ -329,6 +329,8 @@ class StrideChain:
             summary.smoothing_s = smoothed.seconds
             summary.flags = tuple(sorted({*summary.flags, *g.flags} - {"smoothing_deferred"}))
             done.append(summary)
+        if self.first.finished and self.refit_first() and self.results.strides[0] not in done:
+            done.append(self.results.strides[0])  # waited for its deferred smoothing
         return done
 
     def refit_first(self) -> bool:
