@@ -22,15 +22,17 @@ stride (:class:`FirstStrideRefit`):
    (``AttitudeFactorPose3``) at its last state, batch-smoothed (LM); then again with a prior
    on its last velocity: the second stride's first velocity (from its own ICP and stance
    factors; the first stride's, in swing, is barely observable) carried back by the kept
-   preintegration. The second stride's ``world_T_stride`` is chained again from the new end
-   state and the later strides follow it rigidly: the world frame stays the first stride's,
-   now gravity-aligned. Only the smoothed output changes: the online world poses keep the
-   chain they had (they differ from the smoothed ones by that rigid correction). Flag
+   preintegration. The new poses are expressed in the first stride's frame as it was (the
+   rigid motion that best maps them onto the earlier smoothed poses, :func:`frame_fit`), so
+   its terrain maps and grids, fused at its close and not fused again, stay in their frame
+   and the world frame stays where it was. The second stride's ``world_T_stride`` is
+   chained again from the new end state and the later strides follow it rigidly. Only the
+   smoothed output changes: the online world poses keep the chain they had (from the second
+   stride on they differ from the smoothed ones by that rigid correction). Flag
    ``first_stride_refit`` (``first_stride_refit_failed`` when the smoothing failed: the
    earlier poses stay).
 
-Off with ``priors.first_stride_refit: false``. The first stride's terrain maps (fused at its
-close) are not fused again.
+Off with ``priors.first_stride_refit: false``.
 """
 
 from __future__ import annotations
@@ -167,16 +169,17 @@ class FirstStrideRefit:
         n = g.n_states
         nav = g.nav(n - 1, values)
         pred = a.pim.predict(gtsam.NavState(nav.stride_T_imu, nav.velocity_m_s), nav.bias)
+        inv_ext = np.linalg.inv(self.camera_T_imu)
+        new = np.array([values.atPose3(X(k)).matrix() @ inv_ext for k in range(n)])
+        old_T_new = frame_fit(s.smoothed_stride_T_camera, new)  # the stride frame as it was
+        s.smoothed_stride_T_camera = old_T_new @ new
         # the second stride chains from the new end state; the later ones follow it rigidly
-        world_T_next = s.world_T_stride @ pred.pose().matrix() @ np.linalg.inv(a.stride_T_imu)
+        next_T_imu = old_T_new @ pred.pose().matrix()
+        world_T_next = s.world_T_stride @ next_T_imu @ np.linalg.inv(a.stride_T_imu)
         correction = world_T_next @ np.linalg.inv(strides[1].world_T_stride)
         for later in strides[1:]:
             later.world_T_stride = correction @ later.world_T_stride
-        inv_ext = np.linalg.inv(self.camera_T_imu)
-        s.smoothed_stride_T_camera = np.array(
-            [values.atPose3(X(k)).matrix() @ inv_ext for k in range(n)]
-        )
-        s.velocity_end_m_s = nav.velocity_m_s
+        s.velocity_end_m_s = old_T_new[:3, :3] @ nav.velocity_m_s
         s.bias_end = np.asarray(nav.bias.vector())
         s.flags = tuple(sorted({*s.flags, "first_stride_refit"}))
         return True
@@ -204,6 +207,22 @@ class FirstStrideRefit:
             if values is None:
                 break
         return values
+
+
+def frame_fit(old_T_camera: np.ndarray, new_T_camera: np.ndarray) -> np.ndarray:
+    """``old_T_new``: the rigid motion that best maps the poses ``new_T_camera`` onto
+    ``old_T_camera`` (n×4×4; NaN poses left out): the chordal mean of the rotations, then the
+    mean of the positions. Identity when none is finite."""
+    ok = np.isfinite(old_T_camera).all(axis=(1, 2)) & np.isfinite(new_T_camera).all(axis=(1, 2))
+    out = np.eye(4)
+    if not ok.any():
+        return out
+    old, new = old_T_camera[ok], new_T_camera[ok]
+    u, _, vt = np.linalg.svd(np.einsum("kij,klj->il", old[:, :3, :3], new[:, :3, :3]))
+    rot = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    out[:3, :3] = rot
+    out[:3, 3] = np.mean(old[:, :3, 3] - new[:, :3, 3] @ rot.T, axis=0)
+    return out
 
 
 def next_velocity(g: StrideGraph) -> tuple[np.ndarray, np.ndarray] | None:
