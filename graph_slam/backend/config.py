@@ -138,6 +138,17 @@ class PriorConfig(ConfigModel):
         description="stride anchor with a known up vector: position σ added to the encoders' "
         "(the heel defines the origin)",
     )
+    first_stride_refit: bool = Field(
+        True,
+        description="smooth the session's first stride again (smoothed output only) once the "
+        "first foot strike's up vector is known (graph_slam.backend.first_stride)",
+    )
+    first_stride_refit_tilt_sigma_rad: float = Field(
+        0.5,
+        gt=0,
+        description="the first state's roll/pitch σ in that second smoothing: its up vector "
+        "came from a short window of a moving leg",
+    )
     carry_inflation: float = Field(1.0, ge=1, description="multiplies carried covariances")
     first_carry_inflation: float = Field(
         10.0,

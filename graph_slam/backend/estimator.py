@@ -106,6 +106,7 @@ class StrideSLAM:
         if self.strides.graph is not None:
             self.strides.close()
         self.strides.settle_pending(at_once=True)
+        self.strides.refit_first()  # the first stride with the first strike's up vector
         self.results.imu_counts = dict(self.imu.counts)
         return self.results
 

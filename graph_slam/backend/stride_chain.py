@@ -36,6 +36,7 @@ import numpy as np
 
 from graph_slam.backend import factors
 from graph_slam.backend.config import BackendConfig
+from graph_slam.backend.first_stride import FirstStrideRefit
 from graph_slam.backend.gating import GateDecision
 from graph_slam.backend.keys import B, V, X
 from graph_slam.backend.measurements import KinematicMeasurement
@@ -114,6 +115,7 @@ class StrideChain:
         self.deferred: list[tuple[StrideSummary, StrideGraph]] = []
         self._unsettled: _Unsettled | None = None  # end_state: next_frame
         self._retired: _Unsettled | None = None
+        self.first = FirstStrideRefit(config.priors, self.camera_T_imu)
         """Closed strides whose batch smoothing waits (``defer_smoothing``)."""
 
     @property
@@ -153,6 +155,7 @@ class StrideChain:
         inputs.loose_tilt_before = not self._tilt_known and tilt_known and anchor is not None
         self._tilt_known = bool(tilt_known)
         priors, flags = self._priors(inputs)
+        self.first.strike(reason, anchor, self.imu, self._last_nav, t_s)
         self._new_graph(t_s, priors, flags)
         self.world_T_stride = _chained(inputs.world_T_old, priors)
         if self._unsettled is not None:  # started from the provisional end state
@@ -278,6 +281,7 @@ class StrideChain:
         self._last_nav = (g.t_s[-1], last, *end)
         summary = self._summary(smoothed.values, covs, smoothed.seconds, last)
         self.results.strides.append(summary)
+        self.first.keep(summary, g)
         if self._unsettled is not None:
             self._unsettled.summary = summary
         if defer:
@@ -337,7 +341,14 @@ class StrideChain:
             summary.smoothing_s = smoothed.seconds
             summary.flags = tuple(sorted({*summary.flags, *g.flags} - {"smoothing_deferred"}))
             done.append(summary)
+        if self.first.finished and self.refit_first() and self.results.strides[0] not in done:
+            done.append(self.results.strides[0])  # waited for its deferred smoothing
         return done
+
+    def refit_first(self) -> bool:
+        """The session's first stride smoothed again with the first strike's up vector
+        (:mod:`graph_slam.backend.first_stride`; smoothed poses only). At the end of a run."""
+        return self.first.apply(self.results.strides, self.deferred)
 
     def _camera_poses(self, values: gtsam.Values, n: int) -> np.ndarray:
         """``stride_T_camera`` of states ``0..n-1`` in ``values`` (n×4×4)."""
