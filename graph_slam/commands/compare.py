@@ -136,22 +136,16 @@ def _check_demo_out(out: Path, overwrite: bool) -> None:
     mark_folder(out / "sessions", command="demo")
 
 
-def _simulate_demo(sim_cfgs, out: Path, overwrite: bool, workers: int) -> list[Path]:
-    """The demo's sessions, simulated by up to ``workers`` processes (one at a time with 1)."""
+def _simulate_demo(sim_cfgs, out: Path, overwrite: bool) -> list[Path]:
+    """The demo's sessions, one after the other (each simulation already keeps the cores
+    busy: two at once in worker processes took 41-50 s against 42 s)."""
     from graph_slam.commands._common import progress_bar
-
-    outs = [out / "sessions" / speed for speed, _, _ in DEMO_SPEEDS]
-    if workers > 1:
-        from graph_slam.report.parallel import simulate_sessions
-
-        n = len(sim_cfgs)
-        with progress_bar(f"simulating {n} sessions ({min(workers, n)} at a time)") as update:
-            return [Path(p) for p in simulate_sessions(sim_cfgs, outs, overwrite, workers, update)]
     from graph_slam.sim import simulate
 
     paths = []
-    for (_, label, _), sim_cfg, folder in zip(DEMO_SPEEDS, sim_cfgs, outs, strict=True):
+    for (speed, label, _), sim_cfg in zip(DEMO_SPEEDS, sim_cfgs, strict=True):
         with progress_bar(f"simulating {label.lower()} ({sim_cfg.strides} strides)") as update:
+            folder = out / "sessions" / speed
             paths.append(simulate(sim_cfg, folder, overwrite=overwrite, progress=update).path)
     return paths
 
@@ -318,7 +312,7 @@ def register(app: typer.Typer) -> None:
             for (speed, _, _), n_strides in zip(DEMO_SPEEDS, counts, strict=True)
         ]
         _check_demo_out(out, overwrite)
-        paths = _simulate_demo(sim_cfgs, out, overwrite, cfg.workers or 1)
+        paths = _simulate_demo(sim_cfgs, out, overwrite)
         specs = [SessionSpec(p, label) for p, (_, label, _) in zip(paths, DEMO_SPEEDS, strict=True)]
         t_sim = time.perf_counter() - t0
         typer.echo(
