@@ -150,6 +150,11 @@ def _simulate_demo(sim_cfgs, out: Path, overwrite: bool) -> list[Path]:
     return paths
 
 
+def _folder_bytes(folder: Path) -> int:
+    """The bytes of every file under ``folder``."""
+    return sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
+
+
 def _drop_sessions(out: Path, sim_cfgs, seed: int) -> tuple[int, str]:
     """Remove the demo's simulated sessions (its inputs, most of its size) once the report is
     written; ``sessions/README.md`` keeps the commands that simulate the same frames and
@@ -167,7 +172,7 @@ def _drop_sessions(out: Path, sim_cfgs, seed: int) -> tuple[int, str]:
     for (speed, _, _), cfg in zip(DEMO_SPEEDS, sim_cfgs, strict=True):
         folder = out / "sessions" / speed
         if folder.is_dir():
-            freed += sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
+            freed += _folder_bytes(folder)
             shutil.rmtree(folder)
         lines.append(
             f"graph-slam simulate --scene {cfg.scene} --speed {speed} --strides "
@@ -327,7 +332,7 @@ def register(app: typer.Typer) -> None:
                 f"sessions removed ({freed / 1e6:.0f} MB; --keep-sessions keeps them): "
                 f"{readme} simulates them again"
             )
-        size_mb = sum(f.stat().st_size for f in out.rglob("*") if f.is_file()) / 1e6
+        size_mb = _folder_bytes(out) / 1e6
         typer.echo(f"demo done in {time.perf_counter() - t0:.0f} s; {out}: {size_mb:.0f} MB")
 
     @app.command()
