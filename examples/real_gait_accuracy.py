@@ -16,10 +16,16 @@ arrangement of the sensor), prints per data set and detector (offline
   identifies it, else once the sensor's axis is learned from a whole cycle);
 * phase RMSE against the phase linear between reference strikes (offline: linear between the
   detected strikes);
-* the femur walks, which have no contact reference: the left and right strikes found, and
-  how many right strides hold exactly one left strike at 35-65 % of the stride; how many of
-  the offline strikes an online strike lies within 30 / 60 / 250 ms of, and the online
-  strikes more than 250 ms from any offline one;
+* the femur walks, which have no contact reference, are scored against the reference derived
+  from the two thighs of the walk (:mod:`kinematics.gait_two_legs`: each leg's shock between
+  its thigh's flexion peak and the other thigh's largest extension, stronger in its own
+  thigh); strikes in a span without a reference are not scored (counted), an ambiguous
+  reference strike is an interval. Per femur walk also: the reference itself (strikes,
+  flexion peaks without one, ambiguous ones, 1-σ), and each detector's strikes against the
+  bounds that do not use the shock (after the thigh's flexion peak, before the other thigh's
+  largest extension); how many right strides hold exactly one left strike at 35-65 % of the
+  stride; how many of the offline strikes an online strike lies within 30 / 60 / 250 ms of,
+  and the online strikes more than 250 ms from any offline one;
 * the mounting test (real walks): the walk seen by a sensor in each of the 24 right-handed axis
   arrangements; an arrangement is *swapped* when the median distance from its strikes to the
   reference strikes (the Xsens walk) or to the identity arrangement's strikes (the femur walks)
@@ -42,17 +48,27 @@ from pathlib import Path
 import numpy as np
 
 from kinematics.gait_events import detect_from_thigh_imu, gait_phase, match_events
+from kinematics.gait_impact import envelope
 from kinematics.gait_online import estimate_online
 from kinematics.gait_patterns import PROSTHETIC_SIDE, SOUND_SIDE
 from kinematics.gait_phase_metrics import reference_phase, score_online
 from kinematics.gait_real import (
     read_reference_strikes,
+    read_xsens_orientation,
     read_xsens_txt,
     rearranged,
     right_handed_arrangements,
 )
 from kinematics.gait_scenarios import simulate_walks
 from kinematics.gait_synth import random_mounting
+from kinematics.gait_two_legs import (
+    DerivedStrikes,
+    Leg,
+    derive_strikes,
+    physical_checks,
+    score_against,
+    thigh_inclination_rad,
+)
 from kinematics.imu import ImuSeries
 
 REPO = Path(__file__).resolve().parents[1]
@@ -65,6 +81,10 @@ class Walk:
     imu: ImuSeries
     strikes_s: np.ndarray | None
     """Reference strikes (None: no contact reference)."""
+    derived: DerivedStrikes | None = None
+    """A reference derived from the two thighs of the walk (when there is no other)."""
+    legs: tuple[Leg, Leg] | None = None
+    """(this thigh, the other thigh) of a two-thigh walk."""
 
 
 def walk_start_s(imu: ImuSeries) -> float:
@@ -82,11 +102,24 @@ def real_walks(data: Path) -> list[Walk]:
     if xsens.exists():
         ref = read_reference_strikes(data / "reference_events.csv")
         walks.append(Walk("Xsens thigh walk (120 Hz)", read_xsens_txt(xsens), ref))
+    femurs = []
     for name, side in (("00B4227C.txt", "right"), ("00B421EE.txt", "left")):
         if (data / name).exists():
             imu = read_xsens_txt(data / name)
             walks.append(Walk(f"OpenSense {side} femur (100 Hz, turns)", imu, None))
+            femurs.append((walks[-1], _leg(imu, data / name)))
+    if len(femurs) == 2:
+        for (walk, own), (_, other) in (femurs, femurs[::-1]):
+            walk.legs = (own, other)
+            walk.derived = derive_strikes(own, other)
+            walk.strikes_s = walk.derived.strikes_s
     return walks
+
+
+def _leg(imu: ImuSeries, path: Path) -> Leg:
+    t, global_R_sensor = read_xsens_orientation(path)
+    incl = thigh_inclination_rad(global_R_sensor, imu.accel_m_s2, imu.gyro_rad_s)
+    return Leg(t, incl, envelope(t, imu.accel_m_s2))
 
 
 def synthetic_walks(quick: bool) -> list[Walk]:
@@ -120,6 +153,7 @@ class Tally:
     missed: int = 0
     extra: int = 0
     standing: int = 0
+    unscored: int = 0
     errors: list = dataclasses.field(default_factory=list)
     latency: list = dataclasses.field(default_factory=list)
     latency_rest: list = dataclasses.field(default_factory=list)
@@ -131,7 +165,7 @@ class Tally:
         rest = np.asarray(self.latency_rest) * 1e3
         return [
             f"{self.true}",
-            f"{self.found}",
+            f"{self.found}" + (f" ({self.unscored} unscored)" if self.unscored else ""),
             f"{self.missed}",
             f"{self.extra}",
             f"{np.median(e):.0f}" if e.size else "–",
@@ -150,7 +184,12 @@ def run_offline(walk: Walk, tally: Tally) -> np.ndarray:
     tally.standing += int(np.sum(np.concatenate([ev.foot_strikes_s, ev.toe_offs_s]) < start))
     tally.found += ev.foot_strikes_s.size
     if walk.strikes_s is not None:
-        err, missed, extra = match_events(ev.foot_strikes_s, walk.strikes_s)
+        if walk.derived is not None:
+            sc = score_against(ev.foot_strikes_s, walk.derived)
+            err, missed, extra = sc.errors_s, sc.missed, sc.extra
+            tally.unscored += sc.unscored
+        else:
+            err, missed, extra = match_events(ev.foot_strikes_s, walk.strikes_s)
         tally.true += walk.strikes_s.size
         tally.missed += missed
         tally.extra += extra
@@ -171,7 +210,17 @@ def run_online(walk: Walk, tally: Tally) -> np.ndarray:
     start = walk_start_s(walk.imu)
     tally.standing += sum(1 for e in res.events if e.t_s < start or e.detected_t_s < start)
     tally.found += strikes.size
-    if walk.strikes_s is not None:
+    if walk.derived is not None:
+        ref = score_against(strikes, walk.derived, res.times("foot_strike", detected=True))
+        tally.true += walk.derived.strikes_s.size
+        tally.missed += ref.missed
+        tally.extra += ref.extra
+        tally.unscored += ref.unscored
+        tally.errors += list(ref.errors_s)
+        tally.latency += list(ref.latencies_s)
+        tally.latency_rest += list(ref.latencies_s[1:])
+        tally.rmse.append(score_online(res, walk.strikes_s, np.zeros(0)).phase_rmse_cyc)
+    elif walk.strikes_s is not None:
         sc = score_online(res, walk.strikes_s, np.zeros(0))
         tally.true += sc.foot_strike.true
         tally.missed += sc.foot_strike.missed
@@ -187,12 +236,12 @@ def mounting_test(walk: Walk, online: bool, quick: bool) -> tuple[int, int, int]
     """(arrangements, swapped, changed) over the right-handed axis arrangements."""
     run = run_online if online else run_offline
     base = run(walk, Tally())
-    reference = walk.strikes_s if walk.strikes_s is not None else base
+    reference = walk.strikes_s if walk.derived is None and walk.strikes_s is not None else base
     stride = float(np.median(np.diff(reference))) if reference.size > 1 else 1.2
     arrangements = right_handed_arrangements()[:: 4 if quick else 1]
     swapped = changed = 0
     for r in arrangements:
-        strikes = run(Walk(walk.name, rearranged(walk.imu, r), walk.strikes_s), Tally())
+        strikes = run(Walk(walk.name, rearranged(walk.imu, r), None), Tally())
         if strikes.size == 0 or reference.size == 0:
             swapped += int(strikes.size != reference.size)
             continue
@@ -221,6 +270,28 @@ def alternation(femurs: list[Walk], online: bool) -> str:
     return (
         f"* OpenSense femurs, {det}: {right.size} right and {left.size} left strikes; "
         f"{ok} of {strides} right strides hold exactly one left strike at 35-65 % of the stride"
+    )
+
+
+def derived_reference(walk: Walk) -> str:
+    """The derived reference of a femur walk, and the shock-free bounds for each detector."""
+    ref, (own, other) = walk.derived, walk.legs
+    amb = ref.ambiguous_s[ref.ambiguous_s > 0]
+    checks = []
+    for online in (False, True):
+        strikes = (run_online if online else run_offline)(walk, Tally())
+        c = physical_checks(strikes, own, other)
+        checks.append(
+            f"{'online' if online else 'offline'} {c.after_flexion} / {c.before_other_extension}"
+            f" of {c.strikes}"
+        )
+    gaps = f" (by {1e3 * amb.min():.0f}-{1e3 * amb.max():.0f} ms)" if amb.size else ""
+    return (
+        f"* {walk.name}, derived reference: {ref.strikes_s.size} strikes of {ref.strides} "
+        f"flexion peaks ({ref.no_shock} spans without one, the recording's ends included), "
+        f"{amb.size} ambiguous{gaps}, 1-σ {1e3 * ref.uncertainty_s:.0f} ms otherwise; strikes "
+        f"after their thigh's flexion peak / before the other thigh's largest extension: "
+        + "; ".join(checks)
     )
 
 
@@ -261,6 +332,8 @@ def main() -> None:
             cells = tally.cells(online)
             if walk.strikes_s is None:
                 cells = ["–", cells[1], "–", "–", "–", "–", cells[6], "–", "–"]
+            elif walk.derived is not None:
+                cells[0] += " (derived)"
             name = "online" if online else "offline"
             print(
                 f"| {walk.name} | {name} | "
@@ -272,6 +345,8 @@ def main() -> None:
         for online in (False, True):
             print(alternation(femurs, online))
         for walk in femurs:
+            if walk.derived is not None:
+                print(derived_reference(walk))
             print(agreement(walk))
     groups: dict[str, list[Walk]] = {}
     for walk in synthetic_walks(args.quick):

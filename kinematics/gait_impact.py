@@ -162,6 +162,15 @@ class ImpactRefinement:
     strength: float
 
 
+def _wide_windows(strikes_s: np.ndarray, cfg: ImpactConfig) -> ImpactConfig:
+    """The search window widened to half the walk's median stride after the phase model's
+    strike (see :func:`refine_strikes`)."""
+    gaps = np.diff(np.sort(strikes_s))
+    gaps = gaps[gaps <= 2.5]
+    stride = float(np.median(gaps)) if gaps.size else 1.2
+    return replace(cfg, window_s=(cfg.window_s[0], max(cfg.window_s[1], 0.5 * stride)))
+
+
 def refine_strikes(
     t_s: np.ndarray,
     env: np.ndarray,
@@ -170,16 +179,25 @@ def refine_strikes(
 ) -> ImpactRefinement:
     """Move each strike a phase model found to its impact onset minus ``lag_s``.
 
+    The onset is searched in ``window_s`` around the model's strike, and where none rises
+    there, up to half a stride after it: a template of able-bodied thigh motion can place the
+    strike well before the shock (on the OpenSense right femur 0.1-0.35 s, before the thigh's
+    flexion peak), and within half a stride after a strike the largest burst is this leg's
+    (the other leg's strike comes half a stride later, felt only through the pelvis). The
+    typical peak and the strength are measured over those wider windows too.
     Strikes with no onset in their window (a soft first step) keep the model's time plus the
     walk's median model bias (measured on the others, when at least three have an onset).
     Without impacts (strength below ``min_strength``) the strikes are returned unchanged."""
     cfg = config or ImpactConfig()
     t = np.asarray(t_s, dtype=float)
     strikes = np.asarray(model_strikes_s, dtype=float)
-    peak, strength = typical_peak(t, env, strikes, cfg)
+    wide = _wide_windows(strikes, cfg)
+    peak, strength = typical_peak(t, env, strikes, wide)
     if strikes.size == 0 or strength < cfg.min_strength:
         return ImpactRefinement(strikes, 0, 0.0, strength)
     onsets = np.array([onset_near(t, env, s, peak, cfg) for s in strikes])
+    for i in np.flatnonzero(~np.isfinite(onsets)):
+        onsets[i] = onset_near(t, env, strikes[i], peak, wide)
     found = np.isfinite(onsets)
     impact_strikes = onsets - cfg.lag_s
     bias = float(np.median(impact_strikes[found] - strikes[found])) if found.sum() >= 3 else 0.0

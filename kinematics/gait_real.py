@@ -8,7 +8,9 @@ the rate stated in the header (``Sample rate`` or ``Update Rate``), so dropped p
 Without a gyro, the angular velocity in the sensor frame is derived from consecutive
 orientations, ``ω_k = Log(global_R_sensor_kᵀ · global_R_sensor_k+1) / Δt`` (the export lists the
 matrix column by column: ``Mat[1][1], Mat[2][1], Mat[3][1], Mat[1][2], ...``), stamped at the
-midpoint of the two samples and resampled to the sample times.
+midpoint of the two samples and resampled to the sample times. :func:`read_xsens_orientation`
+gives the orientation matrices themselves (a two-thigh walk's contact reference,
+:mod:`kinematics.gait_two_legs`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,22 @@ from kinematics.imu import ImuSeries
 def read_xsens_txt(path: str | Path) -> ImuSeries:
     """An Xsens MT text export as an :class:`ImuSeries` (see the module docstring)."""
     path = Path(path)
+    t, accel, gyro, global_R_sensor = _read_xsens(path)
+    if gyro is None:
+        gyro = _gyro_from_orientation(t, global_R_sensor)
+    return ImuSeries(t_s=t, gyro_rad_s=gyro, accel_m_s2=accel, source=str(path))
+
+
+def read_xsens_orientation(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """``(t_s, global_R_sensor)`` of an Xsens MT text export with the orientation matrix
+    (N×3×3; the same times as :func:`read_xsens_txt`)."""
+    path = Path(path)
+    t, _, _, global_R_sensor = _read_xsens(path, need_orientation=True)
+    return t, global_R_sensor
+
+
+def _read_xsens(path: Path, need_orientation: bool = False):
+    """(t_s, accel, gyro or None, global_R_sensor or None) of an Xsens text export."""
     try:
         lines = path.read_text(encoding="utf-8", errors="strict").splitlines()
     except (OSError, UnicodeDecodeError) as err:
@@ -49,11 +67,14 @@ def read_xsens_txt(path: str | Path) -> ImuSeries:
     gyro_cols = ["Gyr_X", "Gyr_Y", "Gyr_Z"]
     mat_cols = [f"Mat[{i}][{j}]" for j in (1, 2, 3) for i in (1, 2, 3)]
     has_gyro = all(c in header for c in gyro_cols)
-    if not has_gyro and not all(c in header for c in mat_cols):
+    has_mat = all(c in header for c in mat_cols)
+    if need_orientation and not has_mat:
+        raise GaitInputError(f"{path}: line {body + 1}: no orientation matrix Mat[i][j]")
+    if not has_gyro and not has_mat:
         raise GaitInputError(
             f"{path}: line {body + 1}: need Gyr_X..Z or the orientation matrix Mat[i][j]"
         )
-    cols = need + (gyro_cols if has_gyro else mat_cols)
+    cols = need + (gyro_cols if has_gyro else []) + (mat_cols if has_mat else [])
     index = [header.index(c) for c in cols]
     rows = []
     for line_no, line in enumerate(lines[body + 1 :], start=body + 2):
@@ -71,11 +92,12 @@ def read_xsens_txt(path: str | Path) -> ImuSeries:
         raise GaitInputError(f"{path}: fewer than 3 samples")
     t = (data[:, 0] - data[0, 0]) / rate
     accel = data[:, 1:4]
-    if has_gyro:
-        gyro = data[:, 4:7]
-    else:
-        gyro = _gyro_from_orientation(t, data[:, 4:13].reshape(-1, 3, 3).transpose(0, 2, 1))
-    return ImuSeries(t_s=t, gyro_rad_s=gyro, accel_m_s2=accel, source=str(path))
+    gyro = data[:, 4:7] if has_gyro else None
+    start = 7 if has_gyro else 4
+    global_R_sensor = (
+        data[:, start : start + 9].reshape(-1, 3, 3).transpose(0, 2, 1) if has_mat else None
+    )
+    return t, accel, gyro, global_R_sensor
 
 
 def _gyro_from_orientation(t_s: np.ndarray, global_R_sensor: np.ndarray) -> np.ndarray:
