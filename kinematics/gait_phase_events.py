@@ -48,7 +48,10 @@ class EventEmission:
     def _strike_time(self, t_s: float, phase: float, rate: float) -> float | None:
         """The foot strike emitted at this sample, if any: the impact onset in the strike's
         window (impact mode), else the calibrated phase crossing the integer, else (impact
-        mode, no onset by the window's end) the calibrated prediction."""
+        mode, no onset by the window's end) the calibrated prediction. The window stays open
+        ``window_s[1]`` past the last sample at which the thigh still flexes (a strike follows
+        the flexion peak: a prediction made early in a turn must not close it before the
+        shock)."""
         timing = self.timing
         w0, w1 = timing.cfg.window_s
         target = self._next_strike
@@ -58,6 +61,9 @@ class EventEmission:
             win = timing.arm(target, pred + w1, pred - timing.bias_s, pred)
             self._armed_for = target
         if win is not None:
+            if self.state is not None and self.state.rate_rad_s > 0.0:
+                # the thigh still flexes: its strike, which follows the flexion peak, is to come
+                win.close_at_s = max(win.close_at_s, t_s + w1)
             onset = timing.poll()
             if onset is not None or t_s >= win.close_at_s:
                 strike = timing.close(onset)
