@@ -114,6 +114,8 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
         self._strides: deque[float] = deque(maxlen=3)
         self._buffer_stride_s: float | None = None
         self._armed_for: int | None = None
+        self._recent_angles: deque[tuple[float, float]] = deque()
+        """(t_s, thigh angle) over the last ``swing_cyc`` stride: where the flexion peak was."""
 
     # --- public ------------------------------------------------------------------------------
     def update(

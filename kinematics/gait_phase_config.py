@@ -25,6 +25,7 @@ COUNT_NAMES = (
     "first_strikes",
     "first_strikes_unconfirmed",
     "holds",
+    "shock_strikes",
 )
 
 

@@ -31,6 +31,13 @@ class EventEmission:
         out = []
         if self.load_cell.alive(t_s):  # the load cell gives the events (_load_cell_event)
             return []
+        shock = self._shock_strike(t_s)
+        if shock is not None:
+            emitted = self._emit("foot_strike", shock, detected_t_s, sigma)
+            if emitted:
+                self.counts["shock_strikes"] += 1
+                self._relocked = True  # the phase's own strike of this cycle is not emitted
+            out += emitted
         strike = self._strike_time(t_s, phase, rate)
         if strike is not None:
             out += self._emit("foot_strike", strike, detected_t_s, sigma)
@@ -44,6 +51,34 @@ class EventEmission:
             out += emitted
         self.events += out
         return out
+
+    def _shock_strike(self, t_s: float) -> float | None:
+        """A strike from its shock alone, when no strike window is open (the phase lost in a
+        turn's pause or flat steps): the envelope rises through the onset threshold more than
+        0.6 stride after the last strike, and the thigh reached a flexion peak within
+        ``swing_cyc`` of a stride before, after flexing by ``min_swing_rad`` (a strike follows the flexion
+        peak of its swing). Emitted at the onset minus ``lag_s``."""
+        timing, cfg = self.timing, self.timing.cfg
+        stride = self._plausible_stride_s()
+        angles = self._recent_angles
+        if self.state is not None and math.isfinite(self.state.angle_rad):
+            angles.append((t_s, self.state.angle_rad))
+        while angles and angles[0][0] < t_s - cfg.swing_cyc * stride:
+            angles.popleft()
+        if timing.window is not None:
+            return None
+        onset = timing.rise_now()
+        if onset is None:
+            return None
+        if onset - self._last_event_t["foot_strike"] < 0.6 * stride:
+            return None
+        k = max(range(len(angles)), key=lambda i: angles[i][1], default=None)
+        if k is None or k == len(angles) - 1:
+            return None  # still flexing (or no history): the peak is not behind
+        before = min(a for _, a in list(angles)[: k + 1])
+        if angles[k][1] - before < cfg.min_swing_rad:
+            return None
+        return onset - cfg.impact.lag_s
 
     def _strike_time(self, t_s: float, phase: float, rate: float) -> float | None:
         """The foot strike emitted at this sample, if any: the impact onset in the strike's
@@ -87,7 +122,7 @@ class EventEmission:
         if kind == "foot_strike" and self._relocked:
             # the first strike of a re-acquired lock is not the one just emitted again: a
             # cadence does not halve within a stride
-            stride = self._recent_stride_s() or 1.0 / self._rate_prior()
+            stride = self._plausible_stride_s()
             if t_event - self._last_event_t[kind] < 0.6 * stride:
                 return []
             self._relocked = False

@@ -122,6 +122,13 @@ class PhaseFilter:
             return float(np.median(self._strides))
         return self._buffer_stride_s
 
+    def _plausible_stride_s(self) -> float:
+        """The last strides' median, else the cadence prior's stride, within the adult range
+        (the reference curves: 0.92-1.59 s at 1.8-0.6 m/s): a rate held at its lower bound in
+        a lost lock (0.3 cycle/s) is no stride."""
+        stride = self._recent_stride_s() or 1.0 / self._rate_prior()
+        return float(np.clip(stride, 0.9, 1.6))
+
     def _skipped_strike(self, t_s: float, phase: float, rate: float) -> bool:
         """A re-acquisition in stance (before the toe-off) of a walk whose lock was lost before
         this cycle's strike was emitted (the last strike more than 0.6 stride before it): that

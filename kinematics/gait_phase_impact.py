@@ -48,6 +48,14 @@ class StrikeTimingConfig:
     """The phase bias is the median over this many recent strides."""
     history_s: float = 0.4
     """Envelope history kept for the toe-offs' bursts."""
+    swing_cyc: float = 0.6
+    """A shock outside any strike window is this leg's strike when the thigh reached a flexion
+    peak within this share of the recent stride before it (the swing, at most 0.45 of a
+    stride, and the terminal swing after the peak) ..."""
+    min_swing_rad: float = math.radians(10.0)
+    """... having flexed by at least this much before that peak (a walking thigh swings by
+    30-50°; the other leg's strike, felt through the pelvis, comes in this leg's mid-stance,
+    while it extends)."""
 
 
 @dataclass
@@ -188,6 +196,13 @@ class StrikeTiming:
             past = self._past_rise()
             if past is not None:
                 return past
+        return self.rise_now()
+
+    def rise_now(self) -> float | None:
+        """The onset when the envelope has just risen through the threshold (impact mode,
+        window or not; interpolated), else None."""
+        if not self.impact_mode or self._t_before is None:
+            return None
         level = self.level()
         if self._prev_env < level <= self.env:
             frac = (level - self._prev_env) / (self.env - self._prev_env)
