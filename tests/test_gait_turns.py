@@ -75,3 +75,44 @@ def test_femur_walks_with_turns_regain_the_lock(name):
     assert matched >= offline.size - 3, (offline, online)
     assert res.counts["holds"] >= 1
     assert res.counts["axis_flipped"] == 0
+
+
+def test_no_strike_from_a_shock_alone_when_the_windows_hold_the_shocks():
+    """On a walk whose phase stays locked every shock falls in its strike window: the rescue of
+    a strike from its shock alone (a lock lost in a turn) does not fire."""
+    walk, _, _ = _turning_walk(seed=1, angle_rad=-math.pi, impact=True)
+    res = estimate_online(walk.imu)
+    assert res.counts["shock_strikes"] == 0
+    assert res.counts["impact_strikes"] >= walk.foot_strikes_s.size - 2
+
+
+@pytest.mark.skipif(not (DATA / "00B4227C.txt").exists(), reason="shared real walks absent")
+def test_femur_walks_online_against_the_two_thigh_reference():
+    """The reference derived from the two thighs (kinematics.gait_two_legs): online, every
+    referenced strike is found and none is extra on either leg; on the left femur the strike in
+    the turn whose lock was lost (15.26 s) comes from its shock after the flexion peak, within
+    30 ms, and the worst error is within 60 ms."""
+    from kinematics.gait_impact import envelope
+    from kinematics.gait_real import read_xsens_orientation, read_xsens_txt
+    from kinematics.gait_two_legs import Leg, derive_strikes, score_against, thigh_inclination_rad
+
+    imus, legs = {}, {}
+    for name in ("00B4227C.txt", "00B421EE.txt"):
+        imu = read_xsens_txt(DATA / name)
+        t, global_R_sensor = read_xsens_orientation(DATA / name)
+        incl = thigh_inclination_rad(global_R_sensor, imu.accel_m_s2, imu.gyro_rad_s)
+        imus[name], legs[name] = imu, Leg(t, incl, envelope(t, imu.accel_m_s2))
+    right, left = "00B4227C.txt", "00B421EE.txt"
+    for own, other in ((right, left), (left, right)):
+        ref = derive_strikes(legs[own], legs[other])
+        res = estimate_online(imus[own])
+        sc = score_against(res.times("foot_strike"), ref, res.times("foot_strike", detected=True))
+        assert sc.missed == 0 and sc.extra == 0, (ref.strikes_s, res.times("foot_strike"))
+        assert np.median(np.abs(sc.errors_s)) <= 0.03
+        assert np.percentile(sc.latencies_s, 95) <= 0.1
+        if own == left:
+            assert np.max(np.abs(sc.errors_s)) <= 0.06
+            k = int(np.argmin(np.abs(ref.strikes_s - 15.26)))
+            assert abs(ref.strikes_s[k] - 15.26) < 0.02
+            assert np.min(np.abs(res.times("foot_strike") - ref.strikes_s[k])) <= 0.03
+            assert res.counts["shock_strikes"] >= 1
