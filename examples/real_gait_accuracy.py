@@ -26,6 +26,9 @@ arrangement of the sensor), prints per data set and detector (offline
   largest extension); how many right strides hold exactly one left strike at 35-65 % of the
   stride; how many of the offline strikes an online strike lies within 30 / 60 / 250 ms of,
   and the online strikes more than 250 ms from any offline one;
+* per real walk, the phase RMSE of a causal phase that knows every past reference strike and
+  extrapolates the median of the last three strides (what the walk's stride-time variability
+  alone costs a time-based causal phase);
 * the mounting test (real walks): the walk seen by a sensor in each of the 24 right-handed axis
   arrangements; an arrangement is *swapped* when the median distance from its strikes to the
   reference strikes (the Xsens walk) or to the identity arrangement's strikes (the femur walks)
@@ -295,6 +298,24 @@ def derived_reference(walk: Walk) -> str:
     )
 
 
+def time_phase_bound(walk: Walk) -> float:
+    """Phase RMSE of a causal phase that knows every past reference strike exactly and
+    predicts each stride as the median of the last three (linear in time from the last
+    strike): what the variability of the walk's stride times alone costs a causal estimate
+    that does not read the thigh's motion within the stride."""
+    t, s = walk.imu.t_s, np.sort(walk.strikes_s)
+    ref, est = reference_phase(t, s), np.full(t.size, np.nan)
+    for i in range(1, s.size):
+        past = np.diff(s[: i + 1])
+        past = past[past <= 2.5][-3:]
+        if past.size:
+            m = (t >= s[i]) & (t < (s[i + 1] if i + 1 < s.size else t[-1]))
+            est[m] = np.minimum((t[m] - s[i]) / float(np.median(past)), 0.999)
+    both = np.isfinite(ref) & np.isfinite(est)
+    d = np.mod(est[both] - ref[both] + 0.5, 1.0) - 0.5
+    return float(np.sqrt(np.mean(d**2))) if d.size else math.nan
+
+
 def agreement(walk: Walk) -> str:
     """A walk without a contact reference: the online strikes against the offline ones."""
     offline, online = run_offline(walk, Tally()), run_online(walk, Tally())
@@ -348,6 +369,13 @@ def main() -> None:
             if walk.derived is not None:
                 print(derived_reference(walk))
             print(agreement(walk))
+    for walk in walks:
+        if walk.strikes_s is not None and walk.strikes_s.size > 3:
+            print(
+                f"* {walk.name}: phase RMSE of a causal phase linear in time from each "
+                "reference strike over the median of the last three strides: "
+                f"{100 * time_phase_bound(walk):.1f} %"
+            )
     groups: dict[str, list[Walk]] = {}
     for walk in synthetic_walks(args.quick):
         groups.setdefault(walk.name, []).append(walk)
