@@ -116,6 +116,9 @@ def register(app: typer.Typer) -> None:
             f"{np.median(lat) if lat.size else float('nan'):.1f} ms, p95 "
             f"{np.percentile(lat, 95) if lat.size else float('nan'):.1f} ms"
         )
+        why = ", ".join(f"{k} {v}" for k, v in result.counts["skipped"].items())
+        typer.echo(f"skipped by reason: {why}; warm-up before the start {result.warm_up_s:.1f} s")
+        typer.echo(f"timing: {result.timing.summary()}")
         typer.echo(f"counts: {result.counts}")
         if result.n_processed == 0:
             raise ConfigError("no frame was processed: nothing to write")

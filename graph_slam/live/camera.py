@@ -30,7 +30,7 @@ import numpy as np
 
 from graph_slam.errors import RealsenseError
 from graph_slam.live.sdk import rs_module
-from graph_slam.session.adapters.align import CameraModel, align_color_to_depth, pixel_rays
+from graph_slam.session.adapters.align import CameraModel
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 
@@ -52,8 +52,8 @@ class CameraSetup:
 @dataclass(frozen=True)
 class FrameItem:
     """A depth frame as librealsense gave it (kept, not decoded); :meth:`rgbd` decodes it
-    and registers its colour image (when paired) to it, only for the frames the estimator
-    takes: a skipped frame costs nothing in the callback or after."""
+    and registers its colour image (when paired) to it, off librealsense's callback (the live
+    loop does it on its preparing thread, as each frame arrives)."""
 
     t_s: float
     index: int
@@ -61,7 +61,7 @@ class FrameItem:
     depth: Any  # rs.depth_frame (kept)
     color: Any = None  # rs.video_frame (kept) or None: depth-only
     setup: CameraSetup | None = None
-    rays: np.ndarray | None = None
+    registration: Any = None  # align_compiled.Registration for the camera pair
 
     def rgbd(self) -> RgbdFrame:
         s = self.setup
@@ -72,9 +72,7 @@ class FrameItem:
             rgb = np.asanyarray(self.color.get_data())
             if s.color_bgr:
                 rgb = rgb[:, :, ::-1]
-            aligned = align_color_to_depth(depth_m, np.ascontiguousarray(rgb), s.depth_model,
-                                           s.color_model, s.color_T_depth, self.rays)  # fmt: skip
-            color = aligned.color_rgb
+            color = self.registration(depth_m, rgb).color_rgb  # compiled, the GIL released
         return RgbdFrame(t_s=self.t_s, depth_m=depth_m, color_rgb=color, index=self.index)
 
 
@@ -214,7 +212,12 @@ class RealsenseSource:
             playback.set_real_time(self.real_time)
             playback.set_status_changed_callback(self._on_status)
         self._setup = self._read_setup(rs, profile, device)
-        self._rays = pixel_rays(self._setup.depth_model)
+        self._registration = None
+        if self._setup.color_model is not None:
+            from graph_slam.session.adapters.align_compiled import Registration
+
+            s = self._setup
+            self._registration = Registration(s.depth_model, s.color_model, s.color_T_depth)
         return self._setup
 
     def _read_setup(self, rs, profile, device) -> CameraSetup:
@@ -269,6 +272,7 @@ class RealsenseSource:
             self._pipe.get_active_profile().get_device().as_playback().pause()
 
     def resume(self) -> None:
+        self._last_arrival = time.perf_counter()  # the pause is not a camera gone quiet
         if self.playback is not None and self._pipe is not None:
             self._pipe.get_active_profile().get_device().as_playback().resume()
 
@@ -362,4 +366,4 @@ class RealsenseSource:
         self.counts["depth"] += 1
         self.counts["color used" if color is not None else "depth-only"] += 1
         index = depth.get_frame_number()
-        self.items.put(FrameItem(t_s, index, arrival, depth, color, setup, self._rays))
+        self.items.put(FrameItem(t_s, index, arrival, depth, color, setup, self._registration))

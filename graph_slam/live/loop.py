@@ -1,23 +1,33 @@
 """Running the pipeline live: a camera source and the prosthesis's streams into the causal
 real-time pipeline, until Ctrl-C, the end of a playback or a camera that stops sending.
 
-The rules are the causal replay's (graph_slam.pipelines.replay): the estimator is one
-worker; when it is free it takes **the newest frame that has arrived and skips the older
-waiting ones** (counted); before a frame it gets the IMU samples up to and including the
-first one at or after the frame's time (it waits for that one at most ``imu_wait_s``), the
-prosthesis samples known by then and the foot strikes stamped at or before the frame.
-Latency is measured from the frame's arrival in this process (librealsense's callback) to
-its pose.
+Threads (docs/recording.md, "Live"):
 
-While it runs: a one-line status every ``status_interval_s`` (rate, skipped frames, latency,
+- librealsense's callbacks put each depth frame (kept, not decoded) and the merged IMU samples
+  on the source's queue, stamped with their arrival (``time.perf_counter``);
+- the **preparing** thread (:mod:`graph_slam.live.prep`) decodes each frame and registers its
+  colour image to it (compiled, the GIL released) as it arrives;
+- the **estimator** thread (the caller's) books what arrived in a :class:`~graph_slam.live.
+  handoff.FrameQueue` and takes a frame by its rule: a frame is ready when the IMU has a sample
+  at or after its time; the oldest ready frame is taken, unless newer ones became ready while
+  the estimator was busy (then the newest, the older skipped as ``busy``); a frame whose IMU
+  has not come ``imu_wait_s`` after its arrival is skipped as ``imu late``. Before a frame it
+  gets the IMU samples up to and including the first one at or after the frame's time, the
+  prosthesis samples known by then and the foot strikes stamped at or before the frame;
+- the **writer** thread writes the processed frames to the session as the run goes on.
+
+Latency is measured from the frame's arrival in this process (librealsense's callback) to its
+pose. A one-line status every ``status_interval_s`` (rate, skipped frames by reason, latency,
 samples), and — when a viewer is given — poses and the live elevation grid to rerun. On stop:
 the frames processed (with the IMU, joints and events) are written as a session, and the
 outputs of ``graph-slam run`` for it from the live results (:func:`graph_slam.report.run`
-with ``precomputed``): complete up to the last frame processed, each folder written whole.
+with ``precomputed``), complete up to the last frame processed, each folder written whole,
+and ``live.json`` (the counts, skips by reason, latency and where the time went).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import queue
 import threading
@@ -28,9 +38,57 @@ from pathlib import Path
 
 import numpy as np
 
-from graph_slam.live.camera import EndItem, FrameItem, ImuItem, RealsenseSource
+from graph_slam.live.camera import EndItem, ImuItem, RealsenseSource
+from graph_slam.live.handoff import FrameQueue
+from graph_slam.live.prep import PreparedFrame, Preparer
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import GaitEvents, ImuSeries, JointSeries, RgbdFrame
+
+
+@dataclass
+class _Timing:
+    """Where a live run's time went, per processed frame (``*_cpu_s``: CPU time of the
+    estimator's thread, ``time.thread_time``; the rest wall time from the frame's arrival)."""
+
+    wait_s: list[float] = field(default_factory=list)  #: arrival → the estimator starts it
+    ready_s: list[float] = field(default_factory=list)  #: arrival → ready (its IMU arrived)
+    feed_cpu_s: list[float] = field(default_factory=list)  #: IMU, joints, events given
+    pipeline_cpu_s: list[float] = field(default_factory=list)  #: ``add_frame``
+    after_cpu_s: list[float] = field(default_factory=list)  #: writer hand-off, viewer
+    since_start_s: list[float] = field(default_factory=list)  #: when its pose came
+    book_cpu_s: float = 0.0  #: booking arrivals and the skip rule, the whole run
+    prepare_cpu_s: list[float] = field(default_factory=list)  #: per arrived frame, preparing
+    prepare_color: list[bool] = field(default_factory=list)  #: ... with a colour image
+
+    def frame(self, **values: float) -> None:
+        for key, value in values.items():
+            getattr(self, key).append(value)
+
+    def summary(self) -> dict[str, object]:
+        """Medians and 95th percentiles in ms (the status and the run's ``live.json``)."""
+
+        def stats(values) -> dict[str, float | None]:
+            v = np.asarray(values, dtype=float) * 1e3
+            if not v.size:
+                return {"median_ms": None, "p95_ms": None}
+            return {"median_ms": round(float(np.median(v)), 3),
+                    "p95_ms": round(float(np.percentile(v, 95)), 3)}  # fmt: skip
+
+        color = np.asarray(self.prepare_color, dtype=bool)
+        prep = np.asarray(self.prepare_cpu_s, dtype=float)
+        n = max(len(self.wait_s), 1)
+        return {
+            "estimator_thread_cpu": {
+                "feed": stats(self.feed_cpu_s), "pipeline": stats(self.pipeline_cpu_s),
+                "after": stats(self.after_cpu_s),
+                "booking_per_frame_ms": round(1e3 * self.book_cpu_s / n, 3),
+                "colour_registration_ms": 0.0,
+            },
+            "preparing_thread_cpu": {"with_colour": stats(prep[color]),
+                                     "depth_only": stats(prep[~color])},
+            "wait_for_imu": stats(self.ready_s), "wait_to_start": stats(self.wait_s),
+            "processed_in_first_second": int(np.sum(np.asarray(self.since_start_s) <= 1.0)),
+        }  # fmt: skip
 
 
 @dataclass
@@ -45,10 +103,28 @@ class LiveResult:
     counts: dict[str, dict[str, int]] = field(default_factory=dict)
     session: Path | None = None
     outputs: Path | None = None
+    timing: _Timing = field(default_factory=_Timing)
+    warm_up_s: float = 0.0
 
     @property
     def n_processed(self) -> int:
         return int(self.latency_s.size)
+
+    def summary(self) -> dict[str, object]:
+        """The run's figures (written as ``live.json``; the CLI's last lines)."""
+        lat = self.latency_s * 1e3
+        return {
+            "stop_reason": self.stop_reason,
+            "frames": {"arrived": self.n_arrived, "processed": self.n_processed,
+                       "skipped": self.skipped,
+                       "skipped_percent": round(100.0 * self.skipped / max(self.n_arrived, 1), 2),
+                       "skipped_by_reason": dict(self.counts.get("skipped", {}))},
+            "latency_ms": {"median": round(float(np.median(lat)), 3) if lat.size else None,
+                           "p95": round(float(np.percentile(lat, 95)), 3) if lat.size else None},
+            "warm_up_s": round(self.warm_up_s, 3),
+            "timing": self.timing.summary(),
+            "counts": self.counts,
+        }  # fmt: skip
 
 
 @dataclass
@@ -67,14 +143,23 @@ def leg_model(mount_pitch_deg: float):
     return LegModel(LegParams(mount_pitch_down_rad=math.radians(mount_pitch_deg)))
 
 
-def warm_up(pipe, setup, n: int = 4) -> None:
+def warm_up(pipe, setup, n: int = 6) -> None:
     """A throw-away pipeline over a few made-up frames (a textured floor 1 m ahead, moving
-    1 cm per frame) and IMU samples, so that the first real frame is not the one that loads
-    and compiles everything."""
+    1 cm per frame; every third one with colour, as a 30 Hz colour stream beside 90 Hz depth
+    gives) and IMU samples, and the colour registration compiled for this camera pair, so
+    that the first real frames are not the ones that load and compile everything."""
     k = setup.intrinsics
     v = np.mgrid[0 : k.height_px, 0 : k.width_px][0]
     rng = np.random.default_rng(0)
     texture = rng.integers(0, 255, (k.height_px, k.width_px, 3), dtype=np.uint8)
+    register = None
+    if setup.color_model is not None:
+        from graph_slam.session.adapters.align_compiled import Registration
+
+        register = Registration(setup.depth_model, setup.color_model, setup.color_T_depth)
+        c = setup.color_model
+        register(np.ones((k.height_px, k.width_px), np.float32),
+                 np.zeros((c.height_px, c.width_px, 3), np.uint8))  # fmt: skip
     for i in range(n):
         t = 0.011 * i
         t_imu = t - 0.01 + np.arange(5) * 0.0025
@@ -82,7 +167,7 @@ def warm_up(pipe, setup, n: int = 4) -> None:
         if i == 1:
             pipe.foot_strike(t - 0.005)
         depth = (1.0 + 0.2 * v / k.height_px + 0.01 * i).astype(np.float32)
-        color = np.roll(texture, i, axis=1) if setup.color_model is not None else None
+        color = np.roll(texture, i, axis=1) if register is not None and i % 3 == 0 else None
         pipe.add_frame(RgbdFrame(t, depth, color, i), True)
     pipe.finish()
 
@@ -115,12 +200,13 @@ class LiveRunner:
         self._writer_thread: threading.Thread | None = None
         self._to_write: queue.Queue = queue.Queue()
         self.rec = _Recorded()
-        self._imu_t: list[float] = []
         self._imu_pending: list[ImuItem] = []
         self._latency: list[float] = []
         self.compute_s: list[float] = []
-        self._arrived = self._skipped = 0
+        self.timing = _Timing()
+        self.frames: FrameQueue | None = None
         self._loaded = False
+        self._t0 = self.warm_up_s = 0.0
 
     def run(self, max_s: float | None = None) -> LiveResult:
         from graph_slam.pipelines.replay import frozen_heap
@@ -138,66 +224,95 @@ class LiveRunner:
                            leg_model(self.mount_pitch_deg),
                            setup.color_model is not None)  # fmt: skip
 
+        w0 = time.perf_counter()
         warm_up(make(), setup)  # imports, compiled kernels, thread pools: not per-frame work
         self.pipe = make()
+        self.warm_up_s = time.perf_counter() - w0
+        self.frames = FrameQueue(self.imu_wait_s, needs_imu=setup.has_imu)
         if self.session_path is not None:
             self._start_writer(self.session_path)
         self.source.discard()
+        prep = Preparer(self.source)
+        prep.start()
         self.source.resume()
         reason = "stopped"
-        t_start = time.perf_counter()
+        t_start = self._t0 = time.perf_counter()
         with frozen_heap():
             try:
-                reason = self._loop(t_start, max_s)
+                reason = self._loop(prep.items, t_start, max_s)
             except KeyboardInterrupt:
                 reason = "interrupted (Ctrl-C)"
             finally:
                 self.source.stop()
+                prep.stop()
                 self.prosthesis.close()
         results = self.pipe.finish()
         results.config["mount_pitch"] = {"source": "config", "pitch_deg": self.mount_pitch_deg}
         counts = {"camera": dict(self.source.counts), "imu": dict(self.source.merger.counts),
-                  "prosthesis": dict(self.prosthesis.counts)}  # fmt: skip
-        return LiveResult(results, np.asarray(self._latency), self._arrived, self._skipped,
-                          reason, counts)  # fmt: skip
+                  "prosthesis": dict(self.prosthesis.counts),
+                  "skipped": dict(self.frames.skips)}  # fmt: skip
+        return LiveResult(results, np.asarray(self._latency), self.frames.n_arrived,
+                          self.frames.n_skipped, reason, counts, timing=self.timing,
+                          warm_up_s=self.warm_up_s)  # fmt: skip
 
     # ------------------------------------------------------------------ the loop
-    def _loop(self, t_start: float, max_s: float | None) -> str:
-        newest: FrameItem | None = None
+    def _loop(self, inbox: queue.Queue, t_start: float, max_s: float | None) -> str:
+        """Book what arrived, take a ready frame (the rule: graph_slam.live.handoff), process
+        it; wait on the inbox in between (never longer than the next IMU deadline)."""
+        frames, timing = self.frames, self.timing
         next_status = t_start + self.status_interval_s
         ended: str | None = None
+        busy = False  # a frame was processed since the last update
         while True:
-            item = self.source.get(0.002 if newest is None else 0.0005)
-            while item is not None:
-                if isinstance(item, FrameItem):
-                    self._arrived += 1
-                    if newest is not None:
-                        self._skipped += 1
-                    newest = item
-                elif isinstance(item, ImuItem):
-                    self._imu_pending.append(item)
-                    self._imu_t.append(float(item.t_s[-1]))
-                elif isinstance(item, EndItem):
-                    ended = item.reason
-                item = self.source.items.get_nowait() if not self.source.items.empty() else None
             now = time.perf_counter()
-            if newest is not None and (ended or self._covered(newest, now)):
-                self._process(newest)
-                newest = None
+            if not busy and ended is None:
+                deadline = frames.deadline_s()
+                wait = min(next_status, deadline if deadline is not None else math.inf) - now
+                item = self._get(inbox, min(max(wait, 0.0), 0.05))
+            else:
+                item = self._get(inbox, 0.0)
+            c0 = time.thread_time()
+            while item is not None:
+                ended = self._book(item) or ended
+                item = self._get(inbox, 0.0)
+            now = time.perf_counter()
+            frames.update(now, busy=busy)
+            if ended is not None:
+                frames.end()
+            taken = frames.take()
+            timing.book_cpu_s += time.thread_time() - c0
+            busy = taken is not None
+            if busy:
+                self._process(taken.item, taken.ready_s)
+                now = time.perf_counter()
             if self.status is not None and now >= next_status:
                 self.status(self.status_line(now - t_start))
-                next_status += self.status_interval_s
-            if ended and newest is None:
+                next_status += self.status_interval_s * max(1, math.ceil((now - next_status)
+                                                                          / self.status_interval_s))  # fmt: skip
+            if ended is not None and not busy and not frames.waiting:
                 return ended
             if max_s is not None and now - t_start > max_s:
                 return f"time limit {max_s:g} s"
 
-    def _covered(self, item: FrameItem, now: float) -> bool:
-        """The IMU has a sample at or after the frame (or waited long enough for it)."""
-        if not self.setup.has_imu:
-            return True
-        last = self._imu_t[-1] if self._imu_t else -math.inf
-        return last >= item.t_s or now - item.arrival_s > self.imu_wait_s
+    @staticmethod
+    def _get(inbox: queue.Queue, timeout_s: float):
+        try:
+            return inbox.get(timeout=timeout_s) if timeout_s > 0 else inbox.get_nowait()
+        except queue.Empty:
+            return None
+
+    def _book(self, item) -> str | None:
+        """One item from the preparing thread into the queues; the reason when it ends."""
+        if isinstance(item, PreparedFrame):
+            self.frames.frame(item, item.t_s, item.arrival_s)
+            self.timing.prepare_cpu_s.append(item.cpu_s)
+            self.timing.prepare_color.append(item.with_color)
+        elif isinstance(item, ImuItem):
+            self._imu_pending.append(item)
+            self.frames.imu(float(item.t_s[-1]))
+        elif isinstance(item, EndItem):
+            return item.reason
+        return None
 
     def _feed_imu(self, t_s: float) -> None:
         """IMU chunks up to and including the first sample at or after ``t_s``."""
@@ -215,8 +330,10 @@ class LiveRunner:
             if chunk.t_s[-1] >= t_s:
                 return
 
-    def _process(self, item: FrameItem) -> None:
-        frame = item.rgbd()  # colour registered to depth now: only for the frames taken
+    def _process(self, item: PreparedFrame, ready_s: float) -> None:
+        c0 = time.thread_time()
+        w0 = time.perf_counter()
+        frame = item.frame
         self._feed_imu(frame.t_s)
         known = self.prosthesis.until(frame.t_s)
         if known.joints_t_s:
@@ -231,8 +348,9 @@ class LiveRunner:
             self._loaded = kind == "foot_strike"
         index = len(self._latency)
         frame = RgbdFrame(frame.t_s, frame.depth_m, frame.color_rgb, index)
-        w0 = time.perf_counter()
+        c1 = time.thread_time()
         out = self.pipe.add_frame(frame, self._loaded)
+        c2 = time.thread_time()
         now = time.perf_counter()
         self._latency.append(now - item.arrival_s)
         self.compute_s.append(now - w0)
@@ -242,6 +360,10 @@ class LiveRunner:
             self.rec.frames.append(frame)
         if self.viewer is not None:
             self.viewer.frame(out)
+        c3 = time.thread_time()
+        self.timing.frame(wait_s=w0 - item.arrival_s, ready_s=ready_s - item.arrival_s,
+                          feed_cpu_s=c1 - c0, pipeline_cpu_s=c2 - c1, after_cpu_s=c3 - c2,
+                          since_start_s=now - self._t0)  # fmt: skip
 
     def status_line(self, elapsed_s: float) -> str:
         lat = np.asarray(self._latency[-200:]) * 1e3
@@ -250,8 +372,11 @@ class LiveRunner:
         rate = n / elapsed_s if elapsed_s > 0 else 0.0
         p = self.prosthesis.counts
         extra = ", ".join(f"{k} {v}" for k, v in p.items() if v and k != "received")
+        skips = self.frames.skips if self.frames is not None else {}
+        why = ", ".join(f"{k} {v}" for k, v in skips.items() if v)
         return (
-            f"{elapsed_s:6.1f} s  {rate:5.1f} frames/s  processed {n}  skipped {self._skipped}  "
+            f"{elapsed_s:6.1f} s  {rate:5.1f} frames/s  processed {n}  skipped "
+            f"{sum(skips.values())}{f' ({why})' if why else ''}  "
             f"latency p95 {p95} ms  imu {self.source.merger.counts['used']}  {extra}"
         )
 
@@ -325,4 +450,5 @@ def write_outputs(runner: LiveRunner, result: LiveResult, out: Path, *, overwrit
     report = run([session], out / "run", cfg, overwrite=overwrite,
                  precomputed={"live": {Variant(variant): result.results}})  # fmt: skip
     result.session, result.outputs = session, report.out
+    (out / "live.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
     return report
