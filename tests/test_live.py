@@ -48,6 +48,24 @@ def test_load_events_online_with_hysteresis() -> None:
     assert found[0][0] == pytest.approx(0.2 + 0.01 * 50 / 700, abs=1e-9)
 
 
+def test_log_replay_knows_an_event_at_its_stamp(tmp_path: Path) -> None:
+    """A load crossing is known from the sample after it: by a frame stamped after the
+    crossing's (interpolated) time the event is known, as run's replay has it."""
+    from graph_slam.live.prosthesis import LogReplay
+    from graph_slam.session.adapters.config import ProsthesisLogConfig
+
+    t = np.arange(12) * 0.01
+    load = np.where(t >= 0.06, 700.0, 0.0)
+    rows = "\n".join(f"{a:.3f},0.1,0.0,{b}" for a, b in zip(t, load, strict=True))
+    (tmp_path / "log.csv").write_text("t_s,knee_rad,ankle_rad,load_n\n" + rows + "\n")
+    spec = ProsthesisLogConfig(load=LoadColumn(column="load_n", foot_strike_above_n=50,
+                                               toe_off_below_n=20))  # fmt: skip
+    log = LogReplay(tmp_path / "log.csv", spec, 100.0)
+    assert log.until(100.05).events == []  # the crossing sample (0.06) not yet known
+    (t_event, kind), = log.until(100.0508).events  # fmt: skip
+    assert kind == "foot_strike" and t_event == pytest.approx(100.05 + 0.01 * 50 / 700)
+
+
 def _send(sock, port: int, payload) -> None:
     data = payload if isinstance(payload, bytes) else json.dumps(payload).encode()
     sock.sendto(data, ("127.0.0.1", port))
@@ -155,6 +173,19 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     online = np.loadtxt(tmp_path / "out" / "run" / "live" / "icp_imu_kin" / "online.tum", ndmin=2)
     np.testing.assert_allclose(online[:, 0], session.frame_times_s[: online.shape[0]])
     assert online.shape[0] >= 0.5 * result.n_processed
+    live = json.loads((tmp_path / "out" / "live.json").read_text())
+    assert live["frames"]["processed"] == result.n_processed
+    assert sum(live["frames"]["skipped_by_reason"].values()) == result.skipped
+    # graph-slam run on the frames processed gives the live outputs, exactly
+    from graph_slam.report import RunConfig, run
+
+    cfg_run = RunConfig.model_validate(
+        yaml.safe_load((tmp_path / "out" / "run" / "config.yaml").read_text())
+    )
+    again = run([tmp_path / "out" / "session"], tmp_path / "again", cfg_run)
+    for name in ("online.tum", "smoothed.tum", "frames.csv"):
+        ours = (tmp_path / "out" / "run" / "live" / "icp_imu_kin" / name).read_text()
+        assert (again.out / "live" / "icp_imu_kin" / name).read_text() == ours, name
 
 
 def test_missing_extra_is_named_before_any_work(monkeypatch, tmp_path: Path, capsys) -> None:

@@ -206,6 +206,7 @@ class LiveRunner:
         self.timing = _Timing()
         self.frames: FrameQueue | None = None
         self._loaded = False
+        self._events_pending: list[tuple[float, str]] = []  # known, stamped after the frame
         self._t0 = self.warm_up_s = 0.0
 
     def run(self, max_s: float | None = None) -> LiveResult:
@@ -341,9 +342,11 @@ class LiveRunner:
                                  np.asarray(known.ankle_rad))  # fmt: skip
             self.rec.joints += list(zip(known.joints_t_s, known.knee_rad, known.ankle_rad,
                                         strict=True))  # fmt: skip
-        for t_event, kind in known.events:
-            self.rec.events.append((t_event, kind))
-            if kind == "foot_strike" and t_event <= frame.t_s:
+        self.rec.events += known.events
+        self._events_pending = sorted(self._events_pending + known.events)
+        while self._events_pending and self._events_pending[0][0] <= frame.t_s:
+            t_event, kind = self._events_pending.pop(0)  # stamped at or before the frame
+            if kind == "foot_strike":
                 self.pipe.foot_strike(t_event)
             self._loaded = kind == "foot_strike"
         index = len(self._latency)
