@@ -108,6 +108,7 @@ def register(app: typer.Typer) -> None:
         result = runner.run(max_s=max_seconds)
         if viewer is not None:
             viewer.close()
+            typer.echo(f"viewer: {viewer.counts}")
         lat = result.latency_s * 1e3
         skipped_pct = 100.0 * result.skipped / max(result.n_arrived, 1)
         typer.echo(
