@@ -46,6 +46,11 @@ def register(app: typer.Typer) -> None:
             str | None,
             typer.Option(help="spawn: open a rerun viewer; or a viewer address to connect to."),
         ] = None,
+        imu_wait: Annotated[
+            float,
+            typer.Option(help="Skip a frame whose IMU sample after it has not come this long "
+                         "after the frame (ms)."),
+        ] = 20.0,
         max_seconds: Annotated[
             float | None, typer.Option(help="Stop after this long (default: until Ctrl-C).")
         ] = None,
@@ -64,6 +69,8 @@ def register(app: typer.Typer) -> None:
         from graph_slam.session.adapters.config import ConvertConfig
 
         rs_module()  # a missing extra is said before anything else
+        if not imu_wait > 0:
+            raise ConfigError(f"--imu-wait {imu_wait}: must be positive (ms)")
         if log is not None and udp is not None:
             raise ConfigError("--log and --udp: give one prosthesis source")
         from graph_slam.session.atomic import check_output, mark_folder
@@ -104,7 +111,8 @@ def register(app: typer.Typer) -> None:
                                 connect=None if rerun == "spawn" else rerun)  # fmt: skip
         session_path = out / "session"
         runner = LiveRunner(source, prosthesis, pcfg, mount_pitch_deg=mount_pitch,
-                            status=typer.echo, viewer=viewer, session_path=session_path)  # fmt: skip
+                            status=typer.echo, viewer=viewer, session_path=session_path,
+                            imu_wait_s=imu_wait * 1e-3)  # fmt: skip
         result = runner.run(max_s=max_seconds)
         if viewer is not None:
             viewer.close()
