@@ -27,9 +27,11 @@ and ``live.json`` (the counts, skips by reason, latency and where the time went)
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import queue
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -41,90 +43,9 @@ import numpy as np
 from graph_slam.live.camera import EndItem, ImuItem, RealsenseSource
 from graph_slam.live.handoff import FrameQueue
 from graph_slam.live.prep import PreparedFrame, Preparer
+from graph_slam.live.result import LiveResult, Timing
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import GaitEvents, ImuSeries, JointSeries, RgbdFrame
-
-
-@dataclass
-class _Timing:
-    """Where a live run's time went, per processed frame (``*_cpu_s``: CPU time of the
-    estimator's thread, ``time.thread_time``; the rest wall time from the frame's arrival)."""
-
-    wait_s: list[float] = field(default_factory=list)  #: arrival → the estimator starts it
-    ready_s: list[float] = field(default_factory=list)  #: arrival → ready (its IMU arrived)
-    feed_cpu_s: list[float] = field(default_factory=list)  #: IMU, joints, events given
-    pipeline_cpu_s: list[float] = field(default_factory=list)  #: ``add_frame``
-    after_cpu_s: list[float] = field(default_factory=list)  #: writer hand-off, viewer
-    since_start_s: list[float] = field(default_factory=list)  #: when its pose came
-    book_cpu_s: float = 0.0  #: booking arrivals and the skip rule, the whole run
-    prepare_cpu_s: list[float] = field(default_factory=list)  #: per arrived frame, preparing
-    prepare_color: list[bool] = field(default_factory=list)  #: ... with a colour image
-
-    def frame(self, **values: float) -> None:
-        for key, value in values.items():
-            getattr(self, key).append(value)
-
-    def summary(self) -> dict[str, object]:
-        """Medians and 95th percentiles in ms (the status and the run's ``live.json``)."""
-
-        def stats(values) -> dict[str, float | None]:
-            v = np.asarray(values, dtype=float) * 1e3
-            if not v.size:
-                return {"median_ms": None, "p95_ms": None}
-            return {"median_ms": round(float(np.median(v)), 3),
-                    "p95_ms": round(float(np.percentile(v, 95)), 3)}  # fmt: skip
-
-        color = np.asarray(self.prepare_color, dtype=bool)
-        prep = np.asarray(self.prepare_cpu_s, dtype=float)
-        n = max(len(self.wait_s), 1)
-        return {
-            "estimator_thread_cpu": {
-                "feed": stats(self.feed_cpu_s), "pipeline": stats(self.pipeline_cpu_s),
-                "after": stats(self.after_cpu_s),
-                "booking_per_frame_ms": round(1e3 * self.book_cpu_s / n, 3),
-                "colour_registration_ms": 0.0,
-            },
-            "preparing_thread_cpu": {"with_colour": stats(prep[color]),
-                                     "depth_only": stats(prep[~color])},
-            "wait_for_imu": stats(self.ready_s), "wait_to_start": stats(self.wait_s),
-            "processed_in_first_second": int(np.sum(np.asarray(self.since_start_s) <= 1.0)),
-        }  # fmt: skip
-
-
-@dataclass
-class LiveResult:
-    """What a live run did: the pipeline's results, timing, counts, why it stopped."""
-
-    results: object
-    latency_s: np.ndarray
-    n_arrived: int
-    skipped: int
-    stop_reason: str
-    counts: dict[str, dict[str, int]] = field(default_factory=dict)
-    session: Path | None = None
-    outputs: Path | None = None
-    timing: _Timing = field(default_factory=_Timing)
-    warm_up_s: float = 0.0
-
-    @property
-    def n_processed(self) -> int:
-        return int(self.latency_s.size)
-
-    def summary(self) -> dict[str, object]:
-        """The run's figures (written as ``live.json``; the CLI's last lines)."""
-        lat = self.latency_s * 1e3
-        return {
-            "stop_reason": self.stop_reason,
-            "frames": {"arrived": self.n_arrived, "processed": self.n_processed,
-                       "skipped": self.skipped,
-                       "skipped_percent": round(100.0 * self.skipped / max(self.n_arrived, 1), 2),
-                       "skipped_by_reason": dict(self.counts.get("skipped", {}))},
-            "latency_ms": {"median": round(float(np.median(lat)), 3) if lat.size else None,
-                           "p95": round(float(np.percentile(lat, 95)), 3) if lat.size else None},
-            "warm_up_s": round(self.warm_up_s, 3),
-            "timing": self.timing.summary(),
-            "counts": self.counts,
-        }  # fmt: skip
 
 
 @dataclass
@@ -172,6 +93,23 @@ def warm_up(pipe, setup, n: int = 6) -> None:
     pipe.finish()
 
 
+@contextlib.contextmanager
+def _gil_switch(interval_s: float | None):
+    """Python's thread switch interval for the run (None: left as it is). The estimator's
+    thread holds the GIL in Python code; librealsense's callbacks (the IMU samples a waiting
+    frame needs) get it after at most this long (Python's default, 5 ms, delayed them
+    by that much)."""
+    if interval_s is None:
+        yield
+        return
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(interval_s)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(before)
+
+
 class LiveRunner:
     """One live run (see the module docstring); :meth:`run` returns a :class:`LiveResult`."""
 
@@ -189,12 +127,14 @@ class LiveRunner:
         keep_frames: bool = True,
         pipeline_factory: Callable | None = None,
         session_path: Path | None = None,
+        gil_switch_s: float | None = 0.0005,
     ) -> None:
         self.source, self.prosthesis, self.config = source, prosthesis, config
         self.mount_pitch_deg = mount_pitch_deg
         self.status, self.status_interval_s = status, status_interval_s
         self.viewer, self.imu_wait_s, self.keep_frames = viewer, imu_wait_s, keep_frames
         self.pipeline_factory = pipeline_factory
+        self.gil_switch_s = gil_switch_s
         self.session_path = None if session_path is None else Path(session_path)
         self._writer = None
         self._writer_thread: threading.Thread | None = None
@@ -203,7 +143,7 @@ class LiveRunner:
         self._imu_pending: list[ImuItem] = []
         self._latency: list[float] = []
         self.compute_s: list[float] = []
-        self.timing = _Timing()
+        self.timing = Timing()
         self.frames: FrameQueue | None = None
         self._loaded = False
         self._events_pending: list[tuple[float, str]] = []  # known, stamped after the frame
@@ -238,7 +178,7 @@ class LiveRunner:
         self.source.resume()
         reason = "stopped"
         t_start = self._t0 = time.perf_counter()
-        with frozen_heap():
+        with frozen_heap(), _gil_switch(self.gil_switch_s):
             try:
                 reason = self._loop(prep.items, t_start, max_s)
             except KeyboardInterrupt:
