@@ -46,7 +46,6 @@ class Timing:
                 "feed": stats(self.feed_cpu_s), "pipeline": stats(self.pipeline_cpu_s),
                 "after": stats(self.after_cpu_s),
                 "booking_per_frame_ms": round(1e3 * self.book_cpu_s / n, 3),
-                "colour_registration_ms": 0.0,
             },
             "preparing_thread_cpu": {"with_colour": stats(prep[color]),
                                      "depth_only": stats(prep[~color])},
