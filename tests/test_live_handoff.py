@@ -90,7 +90,7 @@ def test_a_late_imu_skips_the_frames_whose_wait_ran_out_and_no_more() -> None:
     late = arrival[10] + 0.045
     imu = [(late if 10 <= k <= 14 else a, c) for k, (a, c) in enumerate(imu)]
     processed, q = _drive(t, arrival, imu, cost_s=0.002, wait_s=0.02)
-    assert q.skips == {"busy": 0, "imu late": 3, "stream ended": 0}
+    assert q.skips == {"busy": 0, "imu late": 3, "stream ended": 0, "unreadable": 0}
     assert [s for s, _ in q.skipped] == list(t[10:13])
     np.testing.assert_array_equal(processed, np.delete(t, [10, 11, 12]))
 
@@ -98,16 +98,18 @@ def test_a_late_imu_skips_the_frames_whose_wait_ran_out_and_no_more() -> None:
 def test_frames_the_imu_never_covers_are_skipped_when_the_streams_end() -> None:
     t, arrival, imu = _stream(10)
     processed, q = _drive(t, arrival, imu[:8], cost_s=0.002, wait_s=1.0, end_s=0.2)
-    assert q.skips == {"busy": 0, "imu late": 0, "stream ended": 2}
+    assert q.skips == {"busy": 0, "imu late": 0, "stream ended": 2, "unreadable": 0}
     np.testing.assert_array_equal(processed, t[:8])
 
 
 # --------------------------------------------------------------------------- the threaded loop
 @dataclass
 class _Depth:
-    raw: np.ndarray
+    raw: np.ndarray | None
 
     def get_data(self):
+        if self.raw is None:
+            raise RuntimeError("frame data lost")
         return self.raw
 
 
@@ -119,6 +121,7 @@ class _FakeCamera:
     n: int
     period_s: float
     imu_delay_s: float = 0.0
+    unreadable: tuple[int, ...] = ()
     items: queue.Queue = field(default_factory=queue.Queue)
     counts: dict = field(default_factory=dict)
     playback: str = "fake"
@@ -156,7 +159,7 @@ class _FakeCamera:
             now = time.perf_counter()
             t_s = k * self.period_s
             if kind == 0:
-                raw = np.full((12, 16), 1000, np.uint16)
+                raw = np.full((12, 16), 1000, np.uint16) if k not in self.unreadable else None
                 self.items.put(FrameItem(t_s, k, now, _Depth(raw), None, self.setup))
             else:
                 self.items.put(ImuItem(np.array([t_s + 1e-4]), np.zeros((1, 3)),
@@ -238,3 +241,10 @@ def test_live_loop_waits_for_a_late_imu_without_skipping() -> None:
     np.testing.assert_allclose(frames, np.arange(20) * 0.020)
     # the waits themselves depend on the machine's load (a late sender thread sends in bursts)
     assert len(result.timing.ready_s) == 20 and min(result.timing.ready_s) >= 0.0
+
+
+def test_an_unreadable_frame_is_skipped_and_counted_and_the_run_goes_on() -> None:
+    result, frames = _live(_FakeCamera(10, 0.010, unreadable=(4,)), cost_s=0.0, imu_wait_s=1.0)
+    assert result.stop_reason == "end of playback"
+    assert result.counts["skipped"]["unreadable"] == 1 and result.n_arrived == 10
+    assert 0.04 not in frames and len(frames) + result.skipped == 10

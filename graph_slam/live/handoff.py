@@ -17,7 +17,8 @@ and are booked meanwhile. Then:
   not processed with the IMU stopping short of its time: the estimator would extrapolate, and
   the outputs would differ from ``graph-slam run`` on the same frames;
 - when the streams end, the frames that can no longer become ready are skipped, counted as
-  ``stream ended``.
+  ``stream ended``;
+- a frame that cannot be decoded is skipped, counted as ``unreadable`` (the run goes on).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
-SKIP_REASONS: tuple[str, ...] = ("busy", "imu late", "stream ended")
+SKIP_REASONS: tuple[str, ...] = ("busy", "imu late", "stream ended", "unreadable")
 
 
 @dataclass
@@ -57,6 +58,12 @@ class FrameQueue:
     def frame(self, item: Any, t_s: float, arrival_s: float) -> None:
         self.n_arrived += 1
         self.waiting.append(Waiting(item, t_s, arrival_s))
+
+    def unreadable(self, t_s: float) -> None:
+        """A frame arrived that could not be decoded."""
+        self.n_arrived += 1
+        self.skips["unreadable"] += 1
+        self.skipped.append((t_s, "unreadable"))
 
     def imu(self, last_t_s: float) -> None:
         """IMU samples up to ``last_t_s`` have arrived."""

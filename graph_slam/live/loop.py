@@ -42,7 +42,7 @@ import numpy as np
 
 from graph_slam.live.camera import EndItem, ImuItem, RealsenseSource
 from graph_slam.live.handoff import FrameQueue
-from graph_slam.live.prep import PreparedFrame, Preparer
+from graph_slam.live.prep import PreparedFrame, Preparer, UnreadableFrame
 from graph_slam.live.result import LiveResult, Timing
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import GaitEvents, ImuSeries, JointSeries, RgbdFrame
@@ -248,6 +248,8 @@ class LiveRunner:
             self.frames.frame(item, item.t_s, item.arrival_s)
             self.timing.prepare_cpu_s.append(item.cpu_s)
             self.timing.prepare_color.append(item.with_color)
+        elif isinstance(item, UnreadableFrame):
+            self.frames.unreadable(item.t_s)
         elif isinstance(item, ImuItem):
             self._imu_pending.append(item)
             self.frames.imu(float(item.t_s[-1]))

@@ -9,6 +9,7 @@ they are decoded. The CPU time of each frame's preparation is kept (``cpu_s``).
 
 from __future__ import annotations
 
+import logging
 import queue
 import threading
 import time
@@ -16,6 +17,17 @@ from dataclasses import dataclass
 
 from graph_slam.live.camera import EndItem, FrameItem
 from graph_slam.session.records import RgbdFrame
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class UnreadableFrame:
+    """A frame librealsense gave that could not be decoded (skipped, counted)."""
+
+    t_s: float
+    index: int
+    error: str
 
 
 @dataclass(frozen=True)
@@ -56,8 +68,8 @@ class Preparer:
                 try:
                     item = self._prepare(item)
                 except Exception as err:  # a frame librealsense gave that cannot be read
-                    item = EndItem(f"error preparing frame {item.index}: {err}",
-                                   time.perf_counter())  # fmt: skip
+                    log.warning("frame %d (t %.6f s) skipped: %s", item.index, item.t_s, err)
+                    item = UnreadableFrame(item.t_s, item.index, str(err))
             self.items.put(item)
             if isinstance(item, EndItem):
                 return
