@@ -44,7 +44,8 @@ def register(app: typer.Typer) -> None:
         variant: Annotated[str, typer.Option(help="Pipeline variant.")] = "icp+imu+kin",
         rerun: Annotated[
             str | None,
-            typer.Option(help="spawn: open a rerun viewer; or a viewer address to connect to."),
+            typer.Option(help="spawn: open a rerun viewer; file: only OUT/live.rrd; or a "
+                         "viewer address to connect to."),
         ] = None,
         imu_wait: Annotated[
             float,
@@ -108,7 +109,7 @@ def register(app: typer.Typer) -> None:
 
             out.mkdir(parents=True, exist_ok=True)
             viewer = LiveViewer(out / "live.rrd", spawn=rerun == "spawn",
-                                connect=None if rerun == "spawn" else rerun)  # fmt: skip
+                                connect=None if rerun in ("spawn", "file") else rerun)  # fmt: skip
         session_path = out / "session"
         runner = LiveRunner(source, prosthesis, pcfg, mount_pitch_deg=mount_pitch,
                             status=typer.echo, viewer=viewer, session_path=session_path,
