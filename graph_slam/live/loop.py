@@ -395,5 +395,7 @@ def write_outputs(runner: LiveRunner, result: LiveResult, out: Path, *, overwrit
     report = run([session], out / "run", cfg, overwrite=overwrite,
                  precomputed={"live": {Variant(variant): result.results}})  # fmt: skip
     result.session, result.outputs = session, report.out
-    (out / "live.json").write_text(json.dumps(result.summary(), indent=2) + "\n")
+    tmp = out / ".live.json.tmp"  # written whole or not at all
+    tmp.write_text(json.dumps(result.summary(), indent=2) + "\n")
+    tmp.replace(out / "live.json")
     return report
