@@ -39,6 +39,17 @@ def test_imu_merger_interpolates_accel_at_gyro_stamps_causally() -> None:
     assert c["gyro"] == c["used"] + c["before accel"] + c["out of order"] + c["accel gap"]
 
 
+def test_imu_merger_counts_the_samples_that_never_arrived() -> None:
+    """400 Hz gyro with 3 samples lost in one gap and 1 in another, 250 Hz accel with 2
+    lost: counted, not guessed from a nominal rate."""
+    m = ImuMerger()
+    gyro = np.delete(np.arange(40) * 0.0025, [10, 11, 12, 30])
+    accel = np.delete(np.arange(26) * 0.004, [7, 8])
+    for t in sorted([(t, "g") for t in gyro] + [(t, "a") for t in accel]):
+        m.gyro(t[0], np.zeros(3)) if t[1] == "g" else m.accel(t[0], np.zeros(3))
+    assert (m.counts["gyro missing"], m.counts["accel missing"]) == (4, 2)
+
+
 def test_load_events_online_with_hysteresis() -> None:
     events = LoadEvents(LoadColumn(column="load_n", foot_strike_above_n=50, toe_off_below_n=20))
     t = np.arange(0, 1.0, 0.01)

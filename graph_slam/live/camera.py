@@ -93,24 +93,35 @@ class EndItem:
 @dataclass
 class ImuMerger:
     """Online accel + gyro → IMU samples on the gyro's stamps (accel interpolated linearly).
-    A gyro sample waits for the first accel sample at or after it; counts every sample."""
+    A gyro sample waits for the first accel sample at or after it; counts every sample, and
+    the samples that never arrived (``gyro missing`` / ``accel missing``: a gap between two
+    samples of a stream longer than 1.5 of its shortest interval so far counts the periods
+    it skipped; librealsense drops motion frames when its callback is held up)."""
 
     max_gap_s: float = 0.05
     _accel: list[tuple[float, np.ndarray]] = field(default_factory=list)
     _gyro: list[tuple[float, np.ndarray]] = field(default_factory=list)
     _last_gyro_s: float = -np.inf
+    _period_s: dict[str, float] = field(default_factory=lambda: {"gyro": np.inf, "accel": np.inf})
     counts: dict[str, int] = field(
         default_factory=lambda: {
             "gyro": 0, "accel": 0, "used": 0, "before accel": 0, "accel gap": 0,
-            "out of order": 0,
+            "out of order": 0, "gyro missing": 0, "accel missing": 0,
         }
     )  # fmt: skip
+
+    def _missing(self, stream: str, dt_s: float) -> None:
+        period = self._period_s[stream] = min(self._period_s[stream], dt_s)
+        if dt_s > 1.5 * period:
+            self.counts[f"{stream} missing"] += round(dt_s / period) - 1
 
     def accel(self, t_s: float, value: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
         self.counts["accel"] += 1
         if self._accel and t_s <= self._accel[-1][0]:
             self.counts["out of order"] += 1
             return []
+        if self._accel:
+            self._missing("accel", t_s - self._accel[-1][0])
         self._accel = [*self._accel[-1:], (t_s, value)]
         return self._release()
 
@@ -119,6 +130,8 @@ class ImuMerger:
         if t_s <= self._last_gyro_s:
             self.counts["out of order"] += 1
             return []
+        if np.isfinite(self._last_gyro_s):
+            self._missing("gyro", t_s - self._last_gyro_s)
         self._last_gyro_s = t_s
         self._gyro.append((t_s, value))
         return self._release()

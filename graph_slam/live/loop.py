@@ -319,10 +319,13 @@ class LiveRunner:
         extra = ", ".join(f"{k} {v}" for k, v in p.items() if v and k != "received")
         skips = self.frames.skips if self.frames is not None else {}
         why = ", ".join(f"{k} {v}" for k, v in skips.items() if v)
+        m = self.source.merger.counts
+        lost = m.get("gyro missing", 0) + m.get("accel missing", 0)
+        missing = f" ({lost} samples never arrived)" if lost else ""
         return (
             f"{elapsed_s:6.1f} s  {rate:5.1f} frames/s  processed {n}  skipped "
             f"{sum(skips.values())}{f' ({why})' if why else ''}  "
-            f"latency p95 {p95} ms  imu {self.source.merger.counts['used']}  {extra}"
+            f"latency p95 {p95} ms  imu {m['used']}{missing}  {extra}"
         )
 
     # ------------------------------------------------------------------ outputs
