@@ -203,9 +203,14 @@ class RealsenseSource:
         self._used_color = -1
         self._last_depth_s = -np.inf
         self._ended = threading.Event()
+        self._setup: CameraSetup | None = None
 
     # ------------------------------------------------------------------ start / stop
     def start(self) -> CameraSetup:
+        """Start the camera or the playback (a playback paused at once: :meth:`resume`
+        plays it) and read what it gives."""
+        from graph_slam.session.adapters.align_compiled import Registration  # numba: first
+
         rs = self.rs
         cfg = rs.config()
         if self.playback is not None:
@@ -222,16 +227,16 @@ class RealsenseSource:
         device = profile.get_device()
         if self.playback is not None:
             playback = device.as_playback()
+            playback.pause()  # nothing of the recording is played before the run starts
             playback.set_real_time(self.real_time)
             playback.set_status_changed_callback(self._on_status)
-        self._setup = self._read_setup(rs, profile, device)
+        setup = self._read_setup(rs, profile, device)
         self._registration = None
-        if self._setup.color_model is not None:
-            from graph_slam.session.adapters.align_compiled import Registration
-
-            s = self._setup
-            self._registration = Registration(s.depth_model, s.color_model, s.color_T_depth)
-        return self._setup
+        if setup.color_model is not None:
+            self._registration = Registration(setup.depth_model, setup.color_model,
+                                              setup.color_T_depth)  # fmt: skip
+        self._setup = setup
+        return setup
 
     def _read_setup(self, rs, profile, device) -> CameraSetup:
         streams = {s.stream_type(): s for s in profile.get_streams()}
@@ -361,6 +366,9 @@ class RealsenseSource:
     def _frameset(self, fs, arrival: float) -> None:
         depth = fs.get_depth_frame()
         if not depth:
+            return
+        if self._setup is None:  # before start() has read the camera: not yet running
+            self.counts["before start"] = self.counts.get("before start", 0) + 1
             return
         t_s = depth.get_timestamp() * 1e-3
         if t_s <= self._last_depth_s:  # the frame syncer gives a depth frame again

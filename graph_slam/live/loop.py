@@ -64,11 +64,21 @@ def leg_model(mount_pitch_deg: float):
     return LegModel(LegParams(mount_pitch_down_rad=math.radians(mount_pitch_deg)))
 
 
+#: modules the pipeline imports on a path the made-up frames do not take (the stride's anchor
+#: from the nominal heel-strike pitch when the IMU's up is not known yet: 0.16 s; the model data)
+_LAZY_IMPORTS: tuple[str, ...] = ("kinematics.gait_curves", "graph_slam_models")
+
+
 def warm_up(pipe, setup, n: int = 6) -> None:
     """A throw-away pipeline over a few made-up frames (a textured floor 1 m ahead, moving
     1 cm per frame; every third one with colour, as a 30 Hz colour stream beside 90 Hz depth
-    gives) and IMU samples, and the colour registration compiled for this camera pair, so
-    that the first real frames are not the ones that load and compile everything."""
+    gives), IMU and joint samples and a foot strike (the stride's kinematic anchor), and the
+    colour registration compiled for this camera pair, so that the first real frames are not
+    the ones that load and compile everything."""
+    import importlib
+
+    for name in _LAZY_IMPORTS:
+        importlib.import_module(name)
     k = setup.intrinsics
     v = np.mgrid[0 : k.height_px, 0 : k.width_px][0]
     rng = np.random.default_rng(0)
@@ -85,6 +95,8 @@ def warm_up(pipe, setup, n: int = 6) -> None:
         t = 0.011 * i
         t_imu = t - 0.01 + np.arange(5) * 0.0025
         pipe.add_imu(t_imu, np.zeros((5, 3)), np.tile([0.0, -9.81, 0.0], (5, 1)))
+        t_joints = t - 0.01 + np.arange(6) * 0.002  # the leg's kinematics at a foot strike
+        pipe.add_joints(t_joints, np.full(6, 0.1), np.zeros(6))
         if i == 1:
             pipe.foot_strike(t - 0.005)
         depth = (1.0 + 0.2 * v / k.height_px + 0.01 * i).astype(np.float32)
