@@ -9,11 +9,14 @@ grid's boxes are searched there, not on the estimator's thread. When the viewer 
 
 from __future__ import annotations
 
+import logging
 import queue
 import threading
 from pathlib import Path
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 
 class LiveViewer:
@@ -57,8 +60,12 @@ class LiveViewer:
 
     def _drain(self) -> None:
         while (out := self._waiting.get()) is not None:
-            self._draw(out)
-            self.counts["drawn"] += 1
+            try:
+                self._draw(out)
+                self.counts["drawn"] += 1
+            except Exception as err:  # the view only: never the run
+                self.counts["failed"] = self.counts.get("failed", 0) + 1
+                log.warning("rerun: frame %s not drawn (%s)", getattr(out, "frame_index", "?"), err)
 
     def _draw(self, out) -> None:
         log = self.logger
@@ -75,6 +82,7 @@ class LiveViewer:
 
     def close(self) -> None:
         """Draw what waits, then close the recording."""
-        self._waiting.put(None)
-        self._thread.join()
+        if self._thread.is_alive():
+            self._waiting.put(None)
+            self._thread.join()
         self.logger.close()
