@@ -39,6 +39,17 @@ def test_imu_merger_interpolates_accel_at_gyro_stamps_causally() -> None:
     assert c["gyro"] == c["used"] + c["before accel"] + c["out of order"] + c["accel gap"]
 
 
+def test_imu_merger_counts_the_samples_that_never_arrived() -> None:
+    """400 Hz gyro with 3 samples lost in one gap and 1 in another, 250 Hz accel with 2
+    lost: counted, not guessed from a nominal rate."""
+    m = ImuMerger()
+    gyro = np.delete(np.arange(40) * 0.0025, [10, 11, 12, 30])
+    accel = np.delete(np.arange(26) * 0.004, [7, 8])
+    for t in sorted([(t, "g") for t in gyro] + [(t, "a") for t in accel]):
+        m.gyro(t[0], np.zeros(3)) if t[1] == "g" else m.accel(t[0], np.zeros(3))
+    assert (m.counts["gyro missing"], m.counts["accel missing"]) == (4, 2)
+
+
 def test_load_events_online_with_hysteresis() -> None:
     events = LoadEvents(LoadColumn(column="load_n", foot_strike_above_n=50, toe_off_below_n=20))
     t = np.arange(0, 1.0, 0.01)
@@ -46,6 +57,24 @@ def test_load_events_online_with_hysteresis() -> None:
     found = [e for e in (events.add(float(a), float(b)) for a, b in zip(t, load, strict=True)) if e]
     assert [k for _, k in found] == ["foot_strike", "toe_off"]
     assert found[0][0] == pytest.approx(0.2 + 0.01 * 50 / 700, abs=1e-9)
+
+
+def test_log_replay_knows_an_event_at_its_stamp(tmp_path: Path) -> None:
+    """A load crossing is known from the sample after it: by a frame stamped after the
+    crossing's (interpolated) time the event is known, as run's replay has it."""
+    from graph_slam.live.prosthesis import LogReplay
+    from graph_slam.session.adapters.config import ProsthesisLogConfig
+
+    t = np.arange(12) * 0.01
+    load = np.where(t >= 0.06, 700.0, 0.0)
+    rows = "\n".join(f"{a:.3f},0.1,0.0,{b}" for a, b in zip(t, load, strict=True))
+    (tmp_path / "log.csv").write_text("t_s,knee_rad,ankle_rad,load_n\n" + rows + "\n")
+    spec = ProsthesisLogConfig(load=LoadColumn(column="load_n", foot_strike_above_n=50,
+                                               toe_off_below_n=20))  # fmt: skip
+    log = LogReplay(tmp_path / "log.csv", spec, 100.0)
+    assert log.until(100.05).events == []  # the crossing sample (0.06) not yet known
+    (t_event, kind), = log.until(100.0508).events  # fmt: skip
+    assert kind == "foot_strike" and t_event == pytest.approx(100.05 + 0.01 * 50 / 700)
 
 
 def _send(sock, port: int, payload) -> None:
@@ -155,6 +184,19 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     online = np.loadtxt(tmp_path / "out" / "run" / "live" / "icp_imu_kin" / "online.tum", ndmin=2)
     np.testing.assert_allclose(online[:, 0], session.frame_times_s[: online.shape[0]])
     assert online.shape[0] >= 0.5 * result.n_processed
+    live = json.loads((tmp_path / "out" / "live.json").read_text())
+    assert live["frames"]["processed"] == result.n_processed
+    assert sum(live["frames"]["skipped_by_reason"].values()) == result.skipped
+    # graph-slam run on the frames processed gives the live outputs, exactly
+    from graph_slam.report import RunConfig, run
+
+    cfg_run = RunConfig.model_validate(
+        yaml.safe_load((tmp_path / "out" / "run" / "config.yaml").read_text())
+    )
+    again = run([tmp_path / "out" / "session"], tmp_path / "again", cfg_run)
+    for name in ("online.tum", "smoothed.tum", "frames.csv"):
+        ours = (tmp_path / "out" / "run" / "live" / "icp_imu_kin" / name).read_text()
+        assert (again.out / "live" / "icp_imu_kin" / name).read_text() == ours, name
 
 
 def test_missing_extra_is_named_before_any_work(monkeypatch, tmp_path: Path, capsys) -> None:

@@ -44,8 +44,14 @@ def register(app: typer.Typer) -> None:
         variant: Annotated[str, typer.Option(help="Pipeline variant.")] = "icp+imu+kin",
         rerun: Annotated[
             str | None,
-            typer.Option(help="spawn: open a rerun viewer; or a viewer address to connect to."),
+            typer.Option(help="spawn: open a rerun viewer; file: only OUT/live.rrd; or a "
+                         "viewer address to connect to."),
         ] = None,
+        imu_wait: Annotated[
+            float,
+            typer.Option(help="Skip a frame whose IMU sample after it has not come this long "
+                         "after the frame (ms)."),
+        ] = 20.0,
         max_seconds: Annotated[
             float | None, typer.Option(help="Stop after this long (default: until Ctrl-C).")
         ] = None,
@@ -64,6 +70,8 @@ def register(app: typer.Typer) -> None:
         from graph_slam.session.adapters.config import ConvertConfig
 
         rs_module()  # a missing extra is said before anything else
+        if not imu_wait > 0:
+            raise ConfigError(f"--imu-wait {imu_wait}: must be positive (ms)")
         if log is not None and udp is not None:
             raise ConfigError("--log and --udp: give one prosthesis source")
         from graph_slam.session.atomic import check_output, mark_folder
@@ -101,13 +109,15 @@ def register(app: typer.Typer) -> None:
 
             out.mkdir(parents=True, exist_ok=True)
             viewer = LiveViewer(out / "live.rrd", spawn=rerun == "spawn",
-                                connect=None if rerun == "spawn" else rerun)  # fmt: skip
+                                connect=None if rerun in ("spawn", "file") else rerun)  # fmt: skip
         session_path = out / "session"
         runner = LiveRunner(source, prosthesis, pcfg, mount_pitch_deg=mount_pitch,
-                            status=typer.echo, viewer=viewer, session_path=session_path)  # fmt: skip
+                            status=typer.echo, viewer=viewer, session_path=session_path,
+                            imu_wait_s=imu_wait * 1e-3)  # fmt: skip
         result = runner.run(max_s=max_seconds)
         if viewer is not None:
             viewer.close()
+            typer.echo(f"viewer: {viewer.counts}")
         lat = result.latency_s * 1e3
         skipped_pct = 100.0 * result.skipped / max(result.n_arrived, 1)
         typer.echo(
@@ -116,6 +126,9 @@ def register(app: typer.Typer) -> None:
             f"{np.median(lat) if lat.size else float('nan'):.1f} ms, p95 "
             f"{np.percentile(lat, 95) if lat.size else float('nan'):.1f} ms"
         )
+        why = ", ".join(f"{k} {v}" for k, v in result.counts["skipped"].items())
+        typer.echo(f"skipped by reason: {why}; warm-up before the start {result.warm_up_s:.1f} s")
+        typer.echo(f"timing: {result.timing.summary()}")
         typer.echo(f"counts: {result.counts}")
         if result.n_processed == 0:
             raise ConfigError("no frame was processed: nothing to write")

@@ -2,8 +2,9 @@
 streams into the causal real-time pipeline (``graph-slam live``; docs/recording.md)."""
 
 from graph_slam.live.camera import CameraSetup, ImuMerger, RealsenseSource
-from graph_slam.live.loop import LiveResult, LiveRunner, write_outputs
+from graph_slam.live.loop import LiveRunner, write_outputs
 from graph_slam.live.prosthesis import LogReplay, NoProsthesis, UdpStream
+from graph_slam.live.result import LiveResult
 
 __all__ = [
     "CameraSetup",

@@ -30,7 +30,7 @@ import numpy as np
 
 from graph_slam.errors import RealsenseError
 from graph_slam.live.sdk import rs_module
-from graph_slam.session.adapters.align import CameraModel, align_color_to_depth, pixel_rays
+from graph_slam.session.adapters.align import CameraModel
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 
@@ -52,8 +52,8 @@ class CameraSetup:
 @dataclass(frozen=True)
 class FrameItem:
     """A depth frame as librealsense gave it (kept, not decoded); :meth:`rgbd` decodes it
-    and registers its colour image (when paired) to it, only for the frames the estimator
-    takes: a skipped frame costs nothing in the callback or after."""
+    and registers its colour image (when paired) to it, off librealsense's callback (the live
+    loop does it on its preparing thread, as each frame arrives)."""
 
     t_s: float
     index: int
@@ -61,7 +61,7 @@ class FrameItem:
     depth: Any  # rs.depth_frame (kept)
     color: Any = None  # rs.video_frame (kept) or None: depth-only
     setup: CameraSetup | None = None
-    rays: np.ndarray | None = None
+    registration: Any = None  # align_compiled.Registration for the camera pair
 
     def rgbd(self) -> RgbdFrame:
         s = self.setup
@@ -72,9 +72,7 @@ class FrameItem:
             rgb = np.asanyarray(self.color.get_data())
             if s.color_bgr:
                 rgb = rgb[:, :, ::-1]
-            aligned = align_color_to_depth(depth_m, np.ascontiguousarray(rgb), s.depth_model,
-                                           s.color_model, s.color_T_depth, self.rays)  # fmt: skip
-            color = aligned.color_rgb
+            color = self.registration(depth_m, rgb).color_rgb  # compiled, the GIL released
         return RgbdFrame(t_s=self.t_s, depth_m=depth_m, color_rgb=color, index=self.index)
 
 
@@ -95,24 +93,35 @@ class EndItem:
 @dataclass
 class ImuMerger:
     """Online accel + gyro → IMU samples on the gyro's stamps (accel interpolated linearly).
-    A gyro sample waits for the first accel sample at or after it; counts every sample."""
+    A gyro sample waits for the first accel sample at or after it; counts every sample, and
+    the samples that never arrived (``gyro missing`` / ``accel missing``: a gap between two
+    samples of a stream longer than 1.5 of its shortest interval so far counts the periods
+    it skipped; librealsense drops motion frames when its callback is held up)."""
 
     max_gap_s: float = 0.05
     _accel: list[tuple[float, np.ndarray]] = field(default_factory=list)
     _gyro: list[tuple[float, np.ndarray]] = field(default_factory=list)
     _last_gyro_s: float = -np.inf
+    _period_s: dict[str, float] = field(default_factory=lambda: {"gyro": np.inf, "accel": np.inf})
     counts: dict[str, int] = field(
         default_factory=lambda: {
             "gyro": 0, "accel": 0, "used": 0, "before accel": 0, "accel gap": 0,
-            "out of order": 0,
+            "out of order": 0, "gyro missing": 0, "accel missing": 0,
         }
     )  # fmt: skip
+
+    def _missing(self, stream: str, dt_s: float) -> None:
+        period = self._period_s[stream] = min(self._period_s[stream], dt_s)
+        if dt_s > 1.5 * period:
+            self.counts[f"{stream} missing"] += round(dt_s / period) - 1
 
     def accel(self, t_s: float, value: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
         self.counts["accel"] += 1
         if self._accel and t_s <= self._accel[-1][0]:
             self.counts["out of order"] += 1
             return []
+        if self._accel:
+            self._missing("accel", t_s - self._accel[-1][0])
         self._accel = [*self._accel[-1:], (t_s, value)]
         return self._release()
 
@@ -121,6 +130,8 @@ class ImuMerger:
         if t_s <= self._last_gyro_s:
             self.counts["out of order"] += 1
             return []
+        if np.isfinite(self._last_gyro_s):
+            self._missing("gyro", t_s - self._last_gyro_s)
         self._last_gyro_s = t_s
         self._gyro.append((t_s, value))
         return self._release()
@@ -192,9 +203,14 @@ class RealsenseSource:
         self._used_color = -1
         self._last_depth_s = -np.inf
         self._ended = threading.Event()
+        self._setup: CameraSetup | None = None
 
     # ------------------------------------------------------------------ start / stop
     def start(self) -> CameraSetup:
+        """Start the camera or the playback (a playback paused at once: :meth:`resume`
+        plays it) and read what it gives."""
+        from graph_slam.session.adapters.align_compiled import Registration  # numba: first
+
         rs = self.rs
         cfg = rs.config()
         if self.playback is not None:
@@ -211,11 +227,16 @@ class RealsenseSource:
         device = profile.get_device()
         if self.playback is not None:
             playback = device.as_playback()
+            playback.pause()  # nothing of the recording is played before the run starts
             playback.set_real_time(self.real_time)
             playback.set_status_changed_callback(self._on_status)
-        self._setup = self._read_setup(rs, profile, device)
-        self._rays = pixel_rays(self._setup.depth_model)
-        return self._setup
+        setup = self._read_setup(rs, profile, device)
+        self._registration = None
+        if setup.color_model is not None:
+            self._registration = Registration(setup.depth_model, setup.color_model,
+                                              setup.color_T_depth)  # fmt: skip
+        self._setup = setup
+        return setup
 
     def _read_setup(self, rs, profile, device) -> CameraSetup:
         streams = {s.stream_type(): s for s in profile.get_streams()}
@@ -269,6 +290,7 @@ class RealsenseSource:
             self._pipe.get_active_profile().get_device().as_playback().pause()
 
     def resume(self) -> None:
+        self._last_arrival = time.perf_counter()  # the pause is not a camera gone quiet
         if self.playback is not None and self._pipe is not None:
             self._pipe.get_active_profile().get_device().as_playback().resume()
 
@@ -345,6 +367,9 @@ class RealsenseSource:
         depth = fs.get_depth_frame()
         if not depth:
             return
+        if self._setup is None:  # before start() has read the camera: not yet running
+            self.counts["before start"] = self.counts.get("before start", 0) + 1
+            return
         t_s = depth.get_timestamp() * 1e-3
         if t_s <= self._last_depth_s:  # the frame syncer gives a depth frame again
             return
@@ -362,4 +387,4 @@ class RealsenseSource:
         self.counts["depth"] += 1
         self.counts["color used" if color is not None else "depth-only"] += 1
         index = depth.get_frame_number()
-        self.items.put(FrameItem(t_s, index, arrival, depth, color, setup, self._rays))
+        self.items.put(FrameItem(t_s, index, arrival, depth, color, setup, self._registration))

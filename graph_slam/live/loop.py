@@ -1,25 +1,37 @@
 """Running the pipeline live: a camera source and the prosthesis's streams into the causal
 real-time pipeline, until Ctrl-C, the end of a playback or a camera that stops sending.
 
-The rules are the causal replay's (graph_slam.pipelines.replay): the estimator is one
-worker; when it is free it takes **the newest frame that has arrived and skips the older
-waiting ones** (counted); before a frame it gets the IMU samples up to and including the
-first one at or after the frame's time (it waits for that one at most ``imu_wait_s``), the
-prosthesis samples known by then and the foot strikes stamped at or before the frame.
-Latency is measured from the frame's arrival in this process (librealsense's callback) to
-its pose.
+Threads (docs/recording.md, "Live"):
 
-While it runs: a one-line status every ``status_interval_s`` (rate, skipped frames, latency,
+- librealsense's callbacks put each depth frame (kept, not decoded) and the merged IMU samples
+  on the source's queue, stamped with their arrival (``time.perf_counter``);
+- the **preparing** thread (:mod:`graph_slam.live.prep`) decodes each frame and registers its
+  colour image to it (compiled, the GIL released) as it arrives;
+- the **estimator** thread (the caller's) books what arrived in a :class:`~graph_slam.live.
+  handoff.FrameQueue` and takes a frame by its rule: a frame is ready when the IMU has a sample
+  at or after its time; the oldest ready frame is taken, unless newer ones became ready while
+  the estimator was busy (then the newest, the older skipped as ``busy``); a frame whose IMU
+  has not come ``imu_wait_s`` after its arrival is skipped as ``imu late``. Before a frame it
+  gets the IMU samples up to and including the first one at or after the frame's time, the
+  prosthesis samples known by then and the foot strikes stamped at or before the frame;
+- the **writer** thread writes the processed frames to the session as the run goes on.
+
+Latency is measured from the frame's arrival in this process (librealsense's callback) to its
+pose. A one-line status every ``status_interval_s`` (rate, skipped frames by reason, latency,
 samples), and — when a viewer is given — poses and the live elevation grid to rerun. On stop:
 the frames processed (with the IMU, joints and events) are written as a session, and the
 outputs of ``graph-slam run`` for it from the live results (:func:`graph_slam.report.run`
-with ``precomputed``): complete up to the last frame processed, each folder written whole.
+with ``precomputed``), complete up to the last frame processed, each folder written whole,
+and ``live.json`` (the counts, skips by reason, latency and where the time went).
 """
 
 from __future__ import annotations
 
+import contextlib
+import json
 import math
 import queue
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -28,27 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
-from graph_slam.live.camera import EndItem, FrameItem, ImuItem, RealsenseSource
+from graph_slam.live.camera import EndItem, ImuItem, RealsenseSource
+from graph_slam.live.handoff import FrameQueue
+from graph_slam.live.prep import PreparedFrame, Preparer, UnreadableFrame
+from graph_slam.live.result import LiveResult, Timing
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.session.records import GaitEvents, ImuSeries, JointSeries, RgbdFrame
-
-
-@dataclass
-class LiveResult:
-    """What a live run did: the pipeline's results, timing, counts, why it stopped."""
-
-    results: object
-    latency_s: np.ndarray
-    n_arrived: int
-    skipped: int
-    stop_reason: str
-    counts: dict[str, dict[str, int]] = field(default_factory=dict)
-    session: Path | None = None
-    outputs: Path | None = None
-
-    @property
-    def n_processed(self) -> int:
-        return int(self.latency_s.size)
 
 
 @dataclass
@@ -67,24 +64,62 @@ def leg_model(mount_pitch_deg: float):
     return LegModel(LegParams(mount_pitch_down_rad=math.radians(mount_pitch_deg)))
 
 
-def warm_up(pipe, setup, n: int = 4) -> None:
+#: modules the pipeline imports on a path the made-up frames do not take (the stride's anchor
+#: from the nominal heel-strike pitch when the IMU's up is not known yet: 0.16 s; the model data)
+_LAZY_IMPORTS: tuple[str, ...] = ("kinematics.gait_curves", "graph_slam_models")
+
+
+def warm_up(pipe, setup, n: int = 6) -> None:
     """A throw-away pipeline over a few made-up frames (a textured floor 1 m ahead, moving
-    1 cm per frame) and IMU samples, so that the first real frame is not the one that loads
-    and compiles everything."""
+    1 cm per frame; every third one with colour, as a 30 Hz colour stream beside 90 Hz depth
+    gives), IMU and joint samples and a foot strike (the stride's kinematic anchor), and the
+    colour registration compiled for this camera pair, so that the first real frames are not
+    the ones that load and compile everything."""
+    import importlib
+
+    for name in _LAZY_IMPORTS:
+        importlib.import_module(name)
     k = setup.intrinsics
     v = np.mgrid[0 : k.height_px, 0 : k.width_px][0]
     rng = np.random.default_rng(0)
     texture = rng.integers(0, 255, (k.height_px, k.width_px, 3), dtype=np.uint8)
+    register = None
+    if setup.color_model is not None:
+        from graph_slam.session.adapters.align_compiled import Registration
+
+        register = Registration(setup.depth_model, setup.color_model, setup.color_T_depth)
+        c = setup.color_model
+        register(np.ones((k.height_px, k.width_px), np.float32),
+                 np.zeros((c.height_px, c.width_px, 3), np.uint8))  # fmt: skip
     for i in range(n):
         t = 0.011 * i
         t_imu = t - 0.01 + np.arange(5) * 0.0025
         pipe.add_imu(t_imu, np.zeros((5, 3)), np.tile([0.0, -9.81, 0.0], (5, 1)))
+        t_joints = t - 0.01 + np.arange(6) * 0.002  # the leg's kinematics at a foot strike
+        pipe.add_joints(t_joints, np.full(6, 0.1), np.zeros(6))
         if i == 1:
             pipe.foot_strike(t - 0.005)
         depth = (1.0 + 0.2 * v / k.height_px + 0.01 * i).astype(np.float32)
-        color = np.roll(texture, i, axis=1) if setup.color_model is not None else None
+        color = np.roll(texture, i, axis=1) if register is not None and i % 3 == 0 else None
         pipe.add_frame(RgbdFrame(t, depth, color, i), True)
     pipe.finish()
+
+
+@contextlib.contextmanager
+def _gil_switch(interval_s: float | None):
+    """Python's thread switch interval for the run (None: left as it is). The estimator's
+    thread holds the GIL in Python code; librealsense's callbacks (the IMU samples a waiting
+    frame needs) get it after at most this long (Python's default, 5 ms, delayed them
+    by that much)."""
+    if interval_s is None:
+        yield
+        return
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(interval_s)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(before)
 
 
 class LiveRunner:
@@ -104,23 +139,27 @@ class LiveRunner:
         keep_frames: bool = True,
         pipeline_factory: Callable | None = None,
         session_path: Path | None = None,
+        gil_switch_s: float | None = 0.0005,
     ) -> None:
         self.source, self.prosthesis, self.config = source, prosthesis, config
         self.mount_pitch_deg = mount_pitch_deg
         self.status, self.status_interval_s = status, status_interval_s
         self.viewer, self.imu_wait_s, self.keep_frames = viewer, imu_wait_s, keep_frames
         self.pipeline_factory = pipeline_factory
+        self.gil_switch_s = gil_switch_s
         self.session_path = None if session_path is None else Path(session_path)
         self._writer = None
         self._writer_thread: threading.Thread | None = None
         self._to_write: queue.Queue = queue.Queue()
         self.rec = _Recorded()
-        self._imu_t: list[float] = []
         self._imu_pending: list[ImuItem] = []
         self._latency: list[float] = []
         self.compute_s: list[float] = []
-        self._arrived = self._skipped = 0
+        self.timing = Timing()
+        self.frames: FrameQueue | None = None
         self._loaded = False
+        self._events_pending: list[tuple[float, str]] = []  # known, stamped after the frame
+        self._t0 = self.warm_up_s = 0.0
 
     def run(self, max_s: float | None = None) -> LiveResult:
         from graph_slam.pipelines.replay import frozen_heap
@@ -138,66 +177,97 @@ class LiveRunner:
                            leg_model(self.mount_pitch_deg),
                            setup.color_model is not None)  # fmt: skip
 
+        w0 = time.perf_counter()
         warm_up(make(), setup)  # imports, compiled kernels, thread pools: not per-frame work
         self.pipe = make()
+        self.warm_up_s = time.perf_counter() - w0
+        self.frames = FrameQueue(self.imu_wait_s, needs_imu=setup.has_imu)
         if self.session_path is not None:
             self._start_writer(self.session_path)
         self.source.discard()
+        prep = Preparer(self.source)
+        prep.start()
         self.source.resume()
         reason = "stopped"
-        t_start = time.perf_counter()
-        with frozen_heap():
+        t_start = self._t0 = time.perf_counter()
+        with frozen_heap(), _gil_switch(self.gil_switch_s):
             try:
-                reason = self._loop(t_start, max_s)
+                reason = self._loop(prep.items, t_start, max_s)
             except KeyboardInterrupt:
                 reason = "interrupted (Ctrl-C)"
             finally:
                 self.source.stop()
+                prep.stop()
                 self.prosthesis.close()
         results = self.pipe.finish()
         results.config["mount_pitch"] = {"source": "config", "pitch_deg": self.mount_pitch_deg}
         counts = {"camera": dict(self.source.counts), "imu": dict(self.source.merger.counts),
-                  "prosthesis": dict(self.prosthesis.counts)}  # fmt: skip
-        return LiveResult(results, np.asarray(self._latency), self._arrived, self._skipped,
-                          reason, counts)  # fmt: skip
+                  "prosthesis": dict(self.prosthesis.counts),
+                  "skipped": dict(self.frames.skips)}  # fmt: skip
+        return LiveResult(results, np.asarray(self._latency), self.frames.n_arrived,
+                          self.frames.n_skipped, reason, counts, timing=self.timing,
+                          warm_up_s=self.warm_up_s)  # fmt: skip
 
     # ------------------------------------------------------------------ the loop
-    def _loop(self, t_start: float, max_s: float | None) -> str:
-        newest: FrameItem | None = None
+    def _loop(self, inbox: queue.Queue, t_start: float, max_s: float | None) -> str:
+        """Book what arrived, take a ready frame (the rule: graph_slam.live.handoff), process
+        it; wait on the inbox in between (never longer than the next IMU deadline)."""
+        frames, timing = self.frames, self.timing
         next_status = t_start + self.status_interval_s
         ended: str | None = None
+        busy = False  # a frame was processed since the last update
         while True:
-            item = self.source.get(0.002 if newest is None else 0.0005)
-            while item is not None:
-                if isinstance(item, FrameItem):
-                    self._arrived += 1
-                    if newest is not None:
-                        self._skipped += 1
-                    newest = item
-                elif isinstance(item, ImuItem):
-                    self._imu_pending.append(item)
-                    self._imu_t.append(float(item.t_s[-1]))
-                elif isinstance(item, EndItem):
-                    ended = item.reason
-                item = self.source.items.get_nowait() if not self.source.items.empty() else None
             now = time.perf_counter()
-            if newest is not None and (ended or self._covered(newest, now)):
-                self._process(newest)
-                newest = None
+            if not busy and ended is None:
+                deadline = frames.deadline_s()
+                wait = min(next_status, deadline if deadline is not None else math.inf) - now
+                item = self._get(inbox, min(max(wait, 0.0), 0.05))
+            else:
+                item = self._get(inbox, 0.0)
+            c0 = time.thread_time()
+            while item is not None:
+                ended = self._book(item) or ended
+                item = self._get(inbox, 0.0)
+            now = time.perf_counter()
+            frames.update(now, busy=busy)
+            if ended is not None:
+                frames.end()
+            taken = frames.take()
+            timing.book_cpu_s += time.thread_time() - c0
+            busy = taken is not None
+            if busy:
+                self._process(taken.item, taken.ready_s)
+                now = time.perf_counter()
             if self.status is not None and now >= next_status:
                 self.status(self.status_line(now - t_start))
-                next_status += self.status_interval_s
-            if ended and newest is None:
+                next_status += self.status_interval_s * max(1, math.ceil((now - next_status)
+                                                                          / self.status_interval_s))  # fmt: skip
+            if ended is not None and not busy and not frames.waiting:
                 return ended
             if max_s is not None and now - t_start > max_s:
                 return f"time limit {max_s:g} s"
 
-    def _covered(self, item: FrameItem, now: float) -> bool:
-        """The IMU has a sample at or after the frame (or waited long enough for it)."""
-        if not self.setup.has_imu:
-            return True
-        last = self._imu_t[-1] if self._imu_t else -math.inf
-        return last >= item.t_s or now - item.arrival_s > self.imu_wait_s
+    @staticmethod
+    def _get(inbox: queue.Queue, timeout_s: float):
+        try:
+            return inbox.get(timeout=timeout_s) if timeout_s > 0 else inbox.get_nowait()
+        except queue.Empty:
+            return None
+
+    def _book(self, item) -> str | None:
+        """One item from the preparing thread into the queues; the reason when it ends."""
+        if isinstance(item, PreparedFrame):
+            self.frames.frame(item, item.t_s, item.arrival_s)
+            self.timing.prepare_cpu_s.append(item.cpu_s)
+            self.timing.prepare_color.append(item.with_color)
+        elif isinstance(item, UnreadableFrame):
+            self.frames.unreadable(item.t_s)
+        elif isinstance(item, ImuItem):
+            self._imu_pending.append(item)
+            self.frames.imu(float(item.t_s[-1]))
+        elif isinstance(item, EndItem):
+            return item.reason
+        return None
 
     def _feed_imu(self, t_s: float) -> None:
         """IMU chunks up to and including the first sample at or after ``t_s``."""
@@ -215,8 +285,10 @@ class LiveRunner:
             if chunk.t_s[-1] >= t_s:
                 return
 
-    def _process(self, item: FrameItem) -> None:
-        frame = item.rgbd()  # colour registered to depth now: only for the frames taken
+    def _process(self, item: PreparedFrame, ready_s: float) -> None:
+        c0 = time.thread_time()
+        w0 = time.perf_counter()
+        frame = item.frame
         self._feed_imu(frame.t_s)
         known = self.prosthesis.until(frame.t_s)
         if known.joints_t_s:
@@ -224,15 +296,18 @@ class LiveRunner:
                                  np.asarray(known.ankle_rad))  # fmt: skip
             self.rec.joints += list(zip(known.joints_t_s, known.knee_rad, known.ankle_rad,
                                         strict=True))  # fmt: skip
-        for t_event, kind in known.events:
-            self.rec.events.append((t_event, kind))
-            if kind == "foot_strike" and t_event <= frame.t_s:
+        self.rec.events += known.events
+        self._events_pending = sorted(self._events_pending + known.events)
+        while self._events_pending and self._events_pending[0][0] <= frame.t_s:
+            t_event, kind = self._events_pending.pop(0)  # stamped at or before the frame
+            if kind == "foot_strike":
                 self.pipe.foot_strike(t_event)
             self._loaded = kind == "foot_strike"
         index = len(self._latency)
         frame = RgbdFrame(frame.t_s, frame.depth_m, frame.color_rgb, index)
-        w0 = time.perf_counter()
+        c1 = time.thread_time()
         out = self.pipe.add_frame(frame, self._loaded)
+        c2 = time.thread_time()
         now = time.perf_counter()
         self._latency.append(now - item.arrival_s)
         self.compute_s.append(now - w0)
@@ -242,6 +317,10 @@ class LiveRunner:
             self.rec.frames.append(frame)
         if self.viewer is not None:
             self.viewer.frame(out)
+        c3 = time.thread_time()
+        self.timing.frame(wait_s=w0 - item.arrival_s, ready_s=ready_s - item.arrival_s,
+                          feed_cpu_s=c1 - c0, pipeline_cpu_s=c2 - c1, after_cpu_s=c3 - c2,
+                          since_start_s=now - self._t0)  # fmt: skip
 
     def status_line(self, elapsed_s: float) -> str:
         lat = np.asarray(self._latency[-200:]) * 1e3
@@ -250,9 +329,15 @@ class LiveRunner:
         rate = n / elapsed_s if elapsed_s > 0 else 0.0
         p = self.prosthesis.counts
         extra = ", ".join(f"{k} {v}" for k, v in p.items() if v and k != "received")
+        skips = self.frames.skips if self.frames is not None else {}
+        why = ", ".join(f"{k} {v}" for k, v in skips.items() if v)
+        m = self.source.merger.counts
+        lost = m.get("gyro missing", 0) + m.get("accel missing", 0)
+        missing = f" ({lost} samples never arrived)" if lost else ""
         return (
-            f"{elapsed_s:6.1f} s  {rate:5.1f} frames/s  processed {n}  skipped {self._skipped}  "
-            f"latency p95 {p95} ms  imu {self.source.merger.counts['used']}  {extra}"
+            f"{elapsed_s:6.1f} s  {rate:5.1f} frames/s  processed {n}  skipped "
+            f"{sum(skips.values())}{f' ({why})' if why else ''}  "
+            f"latency p95 {p95} ms  imu {m['used']}{missing}  {extra}"
         )
 
     # ------------------------------------------------------------------ outputs
@@ -325,4 +410,7 @@ def write_outputs(runner: LiveRunner, result: LiveResult, out: Path, *, overwrit
     report = run([session], out / "run", cfg, overwrite=overwrite,
                  precomputed={"live": {Variant(variant): result.results}})  # fmt: skip
     result.session, result.outputs = session, report.out
+    tmp = out / ".live.json.tmp"  # written whole or not at all
+    tmp.write_text(json.dumps(result.summary(), indent=2) + "\n")
+    tmp.replace(out / "live.json")
     return report

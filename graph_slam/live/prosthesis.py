@@ -115,8 +115,10 @@ class LogReplay:
         self.counts = {"joints": 0, "events": 0}
 
     def until(self, t_s: float) -> Known:
-        """Samples stamped up to and including the first at or after ``t_s`` (the frame's
-        time is covered, as a replay delivers them) and the events they made known."""
+        """Samples (joints and load) stamped up to and including the first at or after
+        ``t_s`` (the frame's time is covered, as a replay delivers them) and the events they
+        made known (a load crossing is known from the sample after it: an event stamped at or
+        before ``t_s`` is known by then)."""
         out = Known()
         j = min(int(np.searchsorted(self.t_s, t_s, side="left")) + 1, self.t_s.size)
         if j > self._i:
@@ -127,7 +129,7 @@ class LogReplay:
             self._i = j
         if self.load is not None:
             lt, lv = self.load
-            k = int(np.searchsorted(lt, t_s, side="right"))
+            k = min(int(np.searchsorted(lt, t_s, side="left")) + 1, lt.size)
             for i in range(self._j, k):
                 event = self._events.add(float(lt[i]), float(lv[i]))
                 if event is not None:

@@ -1,0 +1,83 @@
+"""The live loop's preparing thread: between the camera's callbacks and the estimator.
+
+It takes the source's items in arrival order and passes them on in the same order; a depth
+frame is decoded to metres and its colour image (when paired) registered to it here, as the
+frame arrives (the compiled registration releases the GIL: it runs beside the estimator), so
+the estimator's thread only books the frame. librealsense's frames are released as soon as
+they are decoded. The CPU time of each frame's preparation is kept (``cpu_s``).
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from dataclasses import dataclass
+
+from graph_slam.live.camera import EndItem, FrameItem
+from graph_slam.session.records import RgbdFrame
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class UnreadableFrame:
+    """A frame librealsense gave that could not be decoded (skipped, counted)."""
+
+    t_s: float
+    index: int
+    error: str
+
+
+@dataclass(frozen=True)
+class PreparedFrame:
+    """A frame decoded (and its colour registered): what the estimator takes."""
+
+    frame: RgbdFrame
+    t_s: float
+    arrival_s: float
+    prepared_s: float
+    cpu_s: float
+    with_color: bool
+
+
+class Preparer:
+    """Runs ``source.get`` on its own thread; items for the loop on :attr:`items`."""
+
+    def __init__(self, source, poll_s: float = 0.05) -> None:
+        self.source, self.poll_s = source, poll_s
+        self.items: queue.Queue = queue.Queue()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="live-prepare", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            item = self.source.get(self.poll_s)
+            if item is None:
+                continue
+            if isinstance(item, FrameItem):
+                try:
+                    item = self._prepare(item)
+                except Exception as err:  # a frame librealsense gave that cannot be read
+                    log.warning("frame %d (t %.6f s) skipped: %s", item.index, item.t_s, err)
+                    item = UnreadableFrame(item.t_s, item.index, str(err))
+            self.items.put(item)
+            if isinstance(item, EndItem):
+                return
+
+    @staticmethod
+    def _prepare(item: FrameItem) -> PreparedFrame:
+        c0 = time.thread_time()
+        frame = item.rgbd()
+        cpu = time.thread_time() - c0
+        return PreparedFrame(frame, item.t_s, item.arrival_s, time.perf_counter(), cpu,
+                             item.color is not None)  # fmt: skip
