@@ -45,6 +45,7 @@ import numpy as np
 
 from kinematics.errors import GaitInputError
 from kinematics.gait_first_strike import FirstStrikes
+from kinematics.gait_phase_angle import ThighAnglePhase
 from kinematics.gait_phase_config import (
     COUNT_NAMES,
     GaitPhaseConfig,
@@ -112,6 +113,8 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
         self.prosthesis_sign = ProsthesisSign(self.cfg.prosthesis)
         self._knee_rad: float | None = None
         self._strides: deque[float] = deque(maxlen=3)
+        sp = self.cfg.stride_phase
+        self.stride_phase = ThighAnglePhase(sp) if sp is not None else None
         self._buffer_stride_s: float | None = None
         self._armed_for: int | None = None
         self._recent_angles: deque[tuple[float, float]] = deque()
