@@ -78,7 +78,12 @@ class ThighAnglePhase:
         if self._strike_s is not None and 0.0 < t_s - self._strike_s <= self.cfg.max_stride_s:
             self._calibrate(self._strike_s, t_s)
         self._strike_s = t_s
-        self._low, self._ext_s, self._mid_s, self._out = (math.inf, math.nan), math.nan, math.nan, 0.0
+        self._low, self._ext_s, self._mid_s, self._out = (
+            (math.inf, math.nan),
+            math.nan,
+            math.nan,
+            0.0,
+        )
         for t, a in self._samples:
             if t >= t_s:
                 self._track(t, a)
@@ -121,9 +126,9 @@ class ThighAnglePhase:
             extended = self._low[0] < 0.5 * (lo + hi)  # past the middle: not a contact wobble
             if extended and angle - self._low[0] > self.cfg.rise_fraction * (hi - lo):
                 self._ext_s = self._low[1]
-        if math.isfinite(self._ext_s) and not math.isfinite(self._mid_s):
-            if angle >= 0.5 * (self._low[0] + hi):
-                self._mid_s = t_s
+        passed_mid = angle >= 0.5 * (self._low[0] + hi)
+        if math.isfinite(self._ext_s) and not math.isfinite(self._mid_s) and passed_mid:
+            self._mid_s = t_s
 
     def _calibrate(self, t0: float, t1: float) -> None:
         seg = [(t, a) for t, a in self._samples if t0 <= t <= t1]
