@@ -11,9 +11,10 @@ stride's length.
 :class:`ThighAnglePhase` keeps the phase ``d / (d + r)``: ``d`` the time since the last strike,
 ``r`` the time still to come before the next one:
 
-* **stance** (before the largest extension) — ``r`` is the predicted stride minus ``d``, but at
-  least the time the last strides took from their largest extension to the strike (the swing
-  is still to come: a stance that lasts longer than predicted holds the phase back);
+* **stance** (before the largest extension is confirmed) — ``r`` is the predicted stride minus
+  ``d``, but at least the time the last strides took from their largest extension to the
+  strike, less the time since the lowest angle so far (the swing is still to come: a stance
+  that lasts longer than predicted holds the phase back);
 * **after the largest extension** (confirmed once the angle, having extended past the middle
   of the last stride's range, rose ``rise_fraction`` of that range above its running minimum:
   the wobble of the thigh at contact is not the swing) — ``r`` is the last strides' time from the largest
@@ -109,8 +110,9 @@ class ThighAnglePhase:
             rest = float(np.median(self._from_mid)) - (t_s - self._mid_s)
         elif math.isfinite(self._ext_s) and self._from_ext:
             rest = float(np.median(self._from_ext)) - (t_s - self._ext_s)
-        elif self._from_ext:  # still in stance: the swing is still to come
-            rest = max(rest, float(np.median(self._from_ext)))
+        elif self._from_ext:  # the swing is still to come after the lowest angle so far
+            since_low = t_s - self._low[1] if math.isfinite(self._low[1]) else 0.0
+            rest = max(rest, float(np.median(self._from_ext)) - since_low)
         phase = d / (d + rest) if rest > 0.0 else 0.999
         self._out = min(max(self._out, phase), 0.999)
         return self._out
