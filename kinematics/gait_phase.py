@@ -26,6 +26,9 @@ Per sample (:meth:`OnlineGaitEstimator.update`):
    bias is learned from them (:mod:`kinematics.gait_phase_impact`); with a prosthesis's load
    cell its events are emitted and give that bias (:mod:`kinematics.gait_prosthesis`); the
    axis sign is re-examined from where the shocks fall, or from the load cell or knee encoder.
+   With impacts the phase reported is the time since the strike over the stride time
+   expected, re-timed within the stride by the thigh's landmarks (largest extension,
+   mid-swing: :mod:`kinematics.gait_phase_angle`).
 
 :func:`kinematics.gait_online.estimate_online` runs a whole series through the estimator one
 sample at a time (a loop; no look-ahead by construction).
