@@ -55,6 +55,9 @@ class AnglePhaseConfig:
     """A stride whose angle range is smaller gives no calibration."""
     max_stride_s: float = 2.5
     """Strikes further apart are different walks (no stride between them)."""
+    max_sample_gap_s: float = 0.1
+    """A stride with a longer gap between its samples (the walk stopped, the lock was lost)
+    gives no calibration."""
 
 
 class ThighAnglePhase:
@@ -138,6 +141,8 @@ class ThighAnglePhase:
             return
         t = np.array([s[0] for s in seg])
         a = np.array([s[1] for s in seg])
+        if np.max(np.diff(np.concatenate([[t0], t, [t1]]))) > self.cfg.max_sample_gap_s:
+            return  # samples missing (a stop in between): not a stride to learn from
         k_lo = int(np.argmin(a))
         k_hi = k_lo + int(np.argmax(a[k_lo:]))
         lo, hi = float(a[k_lo]), float(a[k_hi])
