@@ -26,6 +26,9 @@ Per sample (:meth:`OnlineGaitEstimator.update`):
    bias is learned from them (:mod:`kinematics.gait_phase_impact`); with a prosthesis's load
    cell its events are emitted and give that bias (:mod:`kinematics.gait_prosthesis`); the
    axis sign is re-examined from where the shocks fall, or from the load cell or knee encoder.
+   With impacts the phase reported is the time since the strike over the stride time
+   expected, re-timed within the stride by the thigh's landmarks (largest extension,
+   mid-swing: :mod:`kinematics.gait_phase_angle`).
 
 :func:`kinematics.gait_online.estimate_online` runs a whole series through the estimator one
 sample at a time (a loop; no look-ahead by construction).
@@ -45,6 +48,7 @@ import numpy as np
 
 from kinematics.errors import GaitInputError
 from kinematics.gait_first_strike import FirstStrikes
+from kinematics.gait_phase_angle import ThighAnglePhase
 from kinematics.gait_phase_config import (
     COUNT_NAMES,
     GaitPhaseConfig,
@@ -112,6 +116,8 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
         self.prosthesis_sign = ProsthesisSign(self.cfg.prosthesis)
         self._knee_rad: float | None = None
         self._strides: deque[float] = deque(maxlen=3)
+        sp = self.cfg.stride_phase
+        self.stride_phase = ThighAnglePhase(sp) if sp is not None else None
         self._buffer_stride_s: float | None = None
         self._armed_for: int | None = None
         self._recent_angles: deque[tuple[float, float]] = deque()

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from kinematics.gait_first_strike import FirstStrikeConfig
+from kinematics.gait_phase_angle import AnglePhaseConfig
 from kinematics.gait_phase_impact import StrikeTimingConfig
 from kinematics.gait_prosthesis import ProsthesisConfig
 from kinematics.thigh_attitude import ThighAttitudeConfig
@@ -96,6 +97,9 @@ class GaitPhaseConfig:
     (:mod:`kinematics.gait_first_strike`)."""
     prosthesis: ProsthesisConfig = field(default_factory=ProsthesisConfig)
     attitude: ThighAttitudeConfig = field(default_factory=ThighAttitudeConfig)
+    stride_phase: AnglePhaseConfig | None = field(default_factory=AnglePhaseConfig)
+    """With impacts, the phase within a stride is re-timed by the thigh's landmarks
+    (:mod:`kinematics.gait_phase_angle`); None: linear in time over the recent stride time."""
 
 
 @dataclass(frozen=True)

@@ -130,6 +130,8 @@ class EventEmission:
             self._stride_s = t_event - self._last_event_t[kind]
             self._strides.append(self._stride_s)
         self._last_event_t[kind] = t_event
+        if kind == "foot_strike" and self.stride_phase is not None:
+            self.stride_phase.strike(t_event)
         return [OnlineEvent(kind, t_event, detected_t_s, sigma)]
 
     def _load_cell_event(self, kind: str, t_event: float, t_s: float) -> list[OnlineEvent]:
@@ -157,11 +159,14 @@ class EventEmission:
         self.events += out
         return out
 
-    def _phase_out(self, t_s: float) -> float:
-        """The phase reported: with impacts, linear in time from the last strike over the
-        median of the last three strides (the latest before three are known, the cycle seen
-        while learning the axis before one is) (the phase's definition; the reference curve's
-        shape does not bend it); else the EKF's, shifted by the learned strike bias.
+    def _phase_out(self, t_s: float, angle_rad: float) -> float:
+        """The phase reported: with impacts, the time since the last strike over the stride
+        time expected, the median of the last three strides (the latest before three are known,
+        the cycle seen while learning the axis before one is), re-timed within the stride by
+        the thigh's landmarks (:mod:`kinematics.gait_phase_angle`: the time still to come from
+        the largest extension or mid-swing to the strike, as in the last strides) (the phase's
+        definition is linear in time between strikes; the reference curve's shape does not
+        bend it); else the EKF's, shifted by the learned strike bias.
 
         With impacts but no stride measured yet (the first stride after a start, when the
         learning buffer held no whole cycle) the two estimates at hand err in opposite senses:
@@ -173,8 +178,6 @@ class EventEmission:
         ekf = self._ekf
         last = self._last_event_t["foot_strike"]
         own = float((ekf.x[0] - self.timing.bias_s * max(float(ekf.x[1]), 1e-3)) % 1.0)
-        if not (self.timing.impact_mode and t_s - last < 2.5):
-            return own
         if len(self._strides) >= 3:
             stride = float(np.median(self._strides))
         elif self._strides:  # the first strides after a start shorten: the latest
@@ -182,19 +185,29 @@ class EventEmission:
         elif self._buffer_stride_s is not None:  # the cycle seen while learning the axis
             stride = self._buffer_stride_s
         else:
+            stride = None
+        retimed = None
+        if self.stride_phase is not None:
+            retimed = self.stride_phase.update(t_s, angle_rad, stride or 1.0 / max(ekf.x[1], 0.3))
+        if not (self.timing.impact_mode and t_s - last < 2.5):
+            return own
+        if stride is None and not (self.stride_phase is not None and self.stride_phase.calibrated):
             linear = min((t_s - last) * max(float(ekf.x[1]), 0.3), 0.999)
             return float(min((linear + 0.5 * (math.remainder(own - linear, 1.0))) % 1.0, 0.999))
+        if retimed is not None and math.isfinite(retimed):
+            return float(retimed)
         return float(min((t_s - last) / stride, 0.999))
 
     def _set_state(self, t_s: float, thigh: ThighState | None, flags: int) -> None:
         ekf = self._ekf if self._walking else None
+        angle = thigh.angle_rad if thigh is not None else math.nan
         self.state = GaitState(
             t_s=t_s,
             walking=ekf is not None,
-            phase_cyc=self._phase_out(t_s) if ekf is not None else math.nan,
+            phase_cyc=self._phase_out(t_s, angle) if ekf is not None else math.nan,
             phase_sigma_cyc=math.sqrt(float(ekf.P[0, 0])) if ekf is not None else math.nan,
             rate_cyc_s=float(ekf.x[1]) if ekf is not None else math.nan,
-            angle_rad=thigh.angle_rad if thigh is not None else math.nan,
+            angle_rad=angle,
             rate_rad_s=thigh.rate_rad_s if thigh is not None else math.nan,
             flags=flags,
         )
