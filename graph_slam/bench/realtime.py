@@ -119,6 +119,9 @@ class RealtimeRow:
     machine: dict = field(default_factory=dict)
     scored: bool = True
     """False for a long run that kept only its latest frame records (``--minutes``)."""
+    frames_imu_only: int = 0
+    """Processed frames flagged ``imu_only`` (their stride had no accepted registration yet:
+    :mod:`graph_slam.pipelines.bridge`); their poses are not registered ones."""
 
 
 #: the frame records a ``--minutes`` run keeps (10 s at 90 Hz)
@@ -188,6 +191,9 @@ def run_row(
         wall_s=wall,
         machine=machine(),
         scored=cfg.keep_frames is None,
+        frames_imu_only=sum(
+            any(flag.startswith("imu_only:") for flag in f.flags) for f in res.results.frames
+        ),
     )
 
 
@@ -262,7 +268,8 @@ def row_lines(r: RealtimeRow) -> list[str]:
         lines.append(
             f"    accuracy of the processed frames: {r.strides_scored} complete strides, "
             f"stride-frame RMSE median online {r.online_rmse_mm:.1f} mm, smoothed "
-            f"{r.smoothed_rmse_mm:.1f} mm; frames without pose {r.frames_without_pose}"
+            f"{r.smoothed_rmse_mm:.1f} mm; frames without pose {r.frames_without_pose}, "
+            f"IMU-only (flagged) {r.frames_imu_only}"
         )
     else:
         lines.append(

@@ -17,6 +17,7 @@ from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import Registration, make_registration
 from graph_slam.frontend.result import RegistrationResult
+from graph_slam.pipelines.bridge import UnregisteredStride
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.pipelines.keyframe import Keyframes
 from graph_slam.pipelines.protocol import PipelineBase, sensor_registration, with_camera_floor
@@ -117,6 +118,7 @@ class GraphPipeline(PipelineBase):
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.anchor = make_anchor(config, self.camera_T_imu, self.gravity, self.slam.up_estimate)
         self.keys = Keyframes(config.graph.keyframe)
+        self.unregistered = UnregisteredStride()
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None
         self._pending_strike: float | None = None
@@ -281,6 +283,9 @@ class GraphPipeline(PipelineBase):
                     est.covariance,
                 )  # fmt: skip
         icp_flag = (f"icp:{est.gate.reason}",) if est.gate is not None else ()
+        icp_flag += self.unregistered.frame(
+            frame.t_s, est.stride_start, est.gate is not None and est.gate.accepted
+        )
         out = FrameOutput(
             frame_index=index,
             stride_index=est.stride_index,

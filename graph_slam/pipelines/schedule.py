@@ -73,3 +73,31 @@ def schedule(arrival_s: Sequence[float], compute_s: Sequence[float]) -> Schedule
         finish_s=np.array(finish),
         latency_s=np.array(finish) - arrival[p] if p.size else np.zeros(0),
     )
+
+
+def subset_cost(arrival_s: Sequence[float], keep: Sequence[int]):
+    """A ``compute_cost`` for ``replay_session``'s virtual clock under which the replay
+    processes exactly the frames ``keep`` (indices from 0, the first frame; the
+    session's last frame is always processed): each kept frame's work ends between the
+    arrival of the next kept frame and the one after it, so :func:`pick_frame` takes that
+    frame and skips the ones between. A deterministic stand-in for an estimator too slow for
+    the camera (a sparse-frame test)."""
+    arrival = np.asarray(arrival_s, float)
+    kept = np.unique(np.asarray(keep, int))
+    if kept.size == 0 or kept[0] != 0 or kept[-1] >= arrival.size:
+        raise EstimationError(
+            f"subset_cost: keep must start at frame 0 and index 0..{arrival.size - 1}"
+        )
+    following = dict(zip(kept[:-1].tolist(), kept[1:].tolist(), strict=True))
+    state = {"start_s": float(arrival[kept[0]])}
+
+    def cost(frame_index: int, _measured_s: float) -> float:
+        k = following.get(int(frame_index))
+        if k is None:  # the last kept frame: the rest is skipped up to the session's last
+            return float(arrival[-1] - state["start_s"]) + 1.0
+        after = arrival[k + 1] if k + 1 < arrival.size else arrival[k] + 1.0
+        finish = float(arrival[k] + 0.5 * (after - arrival[k]))
+        spent, state["start_s"] = finish - state["start_s"], finish
+        return spent
+
+    return cost
