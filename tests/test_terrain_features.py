@@ -191,3 +191,61 @@ def test_box_depth_with_flying_pixels_in_its_shadow():
     (b,) = features(*grid(scene, 0.001, seed=10, unknown=shadow)).boxes
     assert abs(b.depth_m - 0.2032) <= 0.008
     assert b.leading.occluded is False
+
+
+def _box_top(x, y):
+    on = (y >= -0.4) & (y < -0.1333)
+    return np.where((x >= 0.903) & (x < 1.1062) & on, 0.1905, 0.0)
+
+
+@pytest.mark.parametrize("shadow_m", [0.40, 2.0])
+def test_a_box_seen_in_part_is_no_stair(shadow_m):
+    """A 19 cm box whose top is seen but the floor behind it is not (a long shadow, or the
+    view's end): one up-edge and a 20 cm top is no one-step flight."""
+
+    def shadow(x, y):
+        return (x >= 1.1062) & (x < 1.1062 + shadow_m) & (y >= -0.4) & (y < -0.1333)
+
+    f = features(*grid(_box_top, 0.001, seed=11, unknown=shadow))
+    assert not f.stairs and not f.curbs, f
+
+
+def test_a_box_trailing_drop_onto_a_short_floor_is_no_stair():
+    """The box's leading edge not seen, the floor beyond its trailing edge seen in short pieces
+    between holes: one down-edge to a short terrace that goes on at its level is no
+    descending flight."""
+
+    def holes(x, y):
+        return ((x >= 0.65) & (x < 0.95)) | ((x >= 1.4) & (x < 1.45)) | (x >= 1.6)
+
+    f = features(*grid(_box_top, 0.001, seed=12, unknown=holes))
+    assert not f.stairs, f
+
+
+@pytest.mark.parametrize("rise", [0.17, -0.16])
+def test_one_step_seen_with_the_next_riser_beyond_it_is_a_stair(rise):
+    """Seen up to 4 cm past the second nosing: the cells there are no terrace of their own,
+    but they lie a further rise on, so the first tread is a tread and its nosing a step."""
+    h, var = grid(stairs_surface(rise=rise), 0.001, seed=13,
+                  unknown=lambda x, y: x > 0.513 + 0.28 + 0.04)  # fmt: skip
+    f = features(h, var)
+    assert len(f.stairs) == 1 and not f.curbs, f
+    (step,) = f.stairs[0].steps
+    assert abs(step.rise_m - rise) <= RISE_TOL
+    assert abs(step.nosing.x_m - 0.513) <= NOSING_TOL
+
+
+def test_the_floor_behind_a_box_in_two_pieces_gives_one_box_and_no_curb():
+    """Unseen cells wall off the floor behind the box and split it in two along x: the box's
+    trailing edge meets two floor terraces. One closes the box; the other is the same box's
+    edge, not a curb down."""
+
+    def unseen(x, y):
+        behind = x >= 1.1062
+        walls = ((y >= -0.42) & (y < -0.4)) | ((y >= -0.1333) & (y < -0.1133))
+        split = (y >= -0.28) & (y < -0.26)
+        return behind & (walls | split) | ((x >= 1.6) & (x < 1.64))
+
+    f = features(*grid(_box_top, 0.001, seed=14, unknown=unseen))
+    assert len(f.boxes) == 1 and not f.curbs and not f.stairs, f
+    assert abs(f.boxes[0].depth_m - 0.2032) <= 0.008

@@ -8,14 +8,11 @@ import numba
 import numpy as np
 
 from graph_slam.errors import MappingError
+from graph_slam.terrain.features.kinds import boxes_of, chains_of
 from graph_slam.terrain.features.model import (
-    BoxFeature,
-    Curb,
     EdgeLine,
     FeatureConfig,
     Ramp,
-    Stairs,
-    Step,
     TerrainFeatures,
     _Grid,
 )
@@ -70,9 +67,9 @@ def extract_features(
     )
     labels, terraces = _terraces(g, level, cfg)
     edges = _edges(g, labels, terraces, cfg)
-    boxes, used = _boxes(edges, terraces, cfg)
+    boxes, used = boxes_of(edges, terraces, cfg)
     rest = [e for k, e in enumerate(edges) if k not in used]
-    stairs, curbs = _chains(rest, g, labels, terraces, cfg)
+    stairs, curbs = chains_of(rest, g, labels, terraces, cfg)
     ramps = _ramps(g, sloped, labels, terraces, cfg)
     return TerrainFeatures(
         stride_index, float(t_s), source, tuple(stairs), tuple(ramps), tuple(curbs), tuple(boxes)
@@ -258,97 +255,6 @@ def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
         })  # fmt: skip
     out.sort(key=lambda e: e["line"].x_m)
     return out
-
-
-def _boxes(edges: list[dict], terraces: dict, cfg: FeatureConfig):
-    """A terrace entered by a rise and left by a drop to the same level: a box."""
-    boxes, used = [], set()
-    for k, up in enumerate(edges):
-        if up["rise"] <= 0:
-            continue
-        for m, down in enumerate(edges):
-            if m in used or down["a"] != up["b"] or down["rise"] >= 0:
-                continue
-            base = (terraces[up["a"]]["h"], terraces[down["b"]]["h"])
-            if abs(base[0] - base[1]) > cfg.box_same_level_m:
-                continue
-            top = terraces[up["b"]]
-            floor_ind = math.hypot(terraces[up["a"]]["ind"], terraces[down["b"]]["ind"]) / 2
-            floor_corr = (terraces[up["a"]]["corr"] + terraces[down["b"]]["corr"]) / 2
-            lead, trail = up["line"], down["line"]
-            boxes.append(
-                BoxFeature(
-                    height_m=top["h"] - (base[0] + base[1]) / 2,
-                    height_sigma_m=math.hypot(top["ind"], floor_ind, top["corr"] - floor_corr),
-                    leading=lead,
-                    depth_m=trail.x_at(lead.y_m) - lead.x_m,
-                    depth_sigma_m=math.hypot(lead.sigma_m, trail.sigma_m),
-                    floor_height_m=(base[0] + base[1]) / 2,
-                )
-            )
-            used.update((k, m))
-            break
-    return boxes, used
-
-
-def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, ascending_x: bool) -> float:
-    """How far the terrace runs on beyond the edge (m, along x in the edge's rows)."""
-    i, j = np.nonzero(labels == terrace)
-    y = g.y_of(j)
-    rows = (y >= line.y_range_m[0] - 1e-9) & (y <= line.y_range_m[1] + 1e-9)
-    if not rows.any():
-        return 0.0
-    x = g.x_of(i[rows]) + g.cell / 2
-    return float(x.max() - line.x_at(float(np.median(y[rows]))))
-
-
-def _chains(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureConfig):
-    """Edges linked through shared terraces with the same sign of rise: stairs or a curb."""
-    starts = {e["a"]: e for e in edges}
-    ends = {e["b"] for e in edges}
-    stairs, curbs, seen = [], [], set()
-    for e in edges:
-        if id(e) in seen:
-            continue
-        if e["a"] in ends and any(
-            x["b"] == e["a"] and np.sign(x["rise"]) == np.sign(e["rise"]) for x in edges
-        ):
-            continue  # not the chain's first edge
-        chain = [e]
-        while (
-            (nxt := starts.get(chain[-1]["b"])) is not None
-            and np.sign(nxt["rise"]) == np.sign(e["rise"])
-            and id(nxt) not in seen
-            and nxt not in chain
-        ):
-            chain.append(nxt)
-        seen.update(id(c) for c in chain)
-        if len(chain) == 1:
-            run_on = _far_extent(g, labels, e["b"], e["line"], True)
-            if run_on >= cfg.curb_min_depth_m:
-                curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"], terraces[e["a"]]["h"]))
-                continue
-        steps = []
-        for k, c in enumerate(chain):
-            tread, tread_sigma = float("nan"), float("nan")
-            if k + 1 < len(chain):
-                nxt = chain[k + 1]["line"]
-                here = c["line"]
-                tread = (nxt.x_at(here.y_m) - here.x_m) * math.cos(here.yaw_rad)
-                tread_sigma = math.hypot(here.sigma_m, nxt.sigma_m)
-            steps.append(
-                Step(
-                    rise_m=c["rise"],
-                    rise_sigma_m=c["rise_sigma"],
-                    nosing=c["line"],
-                    tread_m=tread,
-                    tread_sigma_m=tread_sigma,
-                    lower_height_m=min(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
-                    upper_height_m=max(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
-                )
-            )
-        stairs.append(Stairs(tuple(steps)))
-    return stairs, curbs
 
 
 def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list[Ramp]:

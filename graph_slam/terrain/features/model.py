@@ -21,7 +21,11 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
 4. **Kinds**: a terrace entered by a rise and left by a drop to the same level (within
    ``box_same_level_m``) is a **box**; chains of edges through shared terraces with the same
    sign of rise are **stairs** (two or more edges), a single edge whose far terrace runs at
-   least ``curb_min_depth_m`` on is a **curb**, otherwise a stair of one step seen.
+   least ``curb_min_depth_m`` on is a **curb**; a single edge whose short far terrace is a
+   tread (a further rise the same way within ``max_gap_cells`` past its end, in at least
+   ``min_edge_rows`` rows) is a stair of one step seen; any other single edge is left out (a
+   box whose far side is not seen yet: :meth:`TerrainView.obstacles_ahead` reports it in
+   part). The other edges between a box's top and its floor level are that box's.
    Components of cells sloped between ``ramp_min_deg`` and ``ramp_max_deg`` are **ramps**:
    one plane fitted to them (slope, uphill direction, σ from the fit) and their start line, the
    plane's intersection with the terrace they are entered from (the one nearest the heel
