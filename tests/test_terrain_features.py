@@ -249,3 +249,54 @@ def test_the_floor_behind_a_box_in_two_pieces_gives_one_box_and_no_curb():
     f = features(*grid(_box_top, 0.001, seed=14, unknown=unseen))
     assert len(f.boxes) == 1 and not f.curbs and not f.stairs, f
     assert abs(f.boxes[0].depth_m - 0.2032) <= 0.008
+
+
+def test_a_long_smear_behind_each_nosing_still_gives_every_step():
+    """Beyond each nosing of a descent: 4 cm not seen, then 14 cm of cells at heights between
+    the treads (the fused edge of the lower tread), then the lower tread. Its cells by that
+    smear are not level (their window holds it), so the level cells of two treads lie more
+    than ``max_gap_cells`` apart; each terrace grows back over the cells still on its surface,
+    and every step is found."""
+    rise, first, tread = -0.16, 0.52, 0.36
+    down = stairs_surface(first=first, rise=rise, tread=tread, n=3)
+
+    def surface(x, y):
+        u = (x - first) % tread
+        k = np.floor((x - first) / tread)
+        smear = (x > first) & (x < first + tread * 3) & (u >= 0.04) & (u < 0.18)
+        return np.where(smear, k * rise + rise * (u - 0.04) / 0.14 * 0.8, down(x, y))
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.04)
+
+    (st,) = features(*grid(surface, 0.001, seed=15, unknown=shadow)).stairs
+    assert st.n_steps == 3
+    for k, step in enumerate(st.steps):
+        assert abs(step.nosing.x_m - (first + tread * k)) <= NOSING_TOL
+
+
+def test_flying_pixels_beyond_a_nosing_are_not_the_tread():
+    """Beyond each nosing of a descent, the first cell is held only by the depth edge's flying
+    pixels (heights near the upper tread's, depth-noise σ 10 cm) and the next 3 cm not at
+    all: given the noise σ, those cells are not seen and the nosing is not put a cell late."""
+    rise, first, tread = -0.17, 0.52, 0.28
+    down = stairs_surface(first=first, rise=rise, tread=tread, n=3)
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.05)
+
+    h, var = grid(down, 0.001, seed=16, unknown=shadow)
+    noise = np.full(h.shape, 0.001)
+    for k in range(3):  # the cell just past nosing k: flying pixels at the upper tread's height
+        i = round((first + tread * k - X0) / CELL)
+        h[i, :], var[i, :], noise[i, :] = k * rise - 0.004, 0.1**2, 0.1
+    args = (h, var, (X0, Y0), CELL)
+    seen_all = extract_features(*args).stairs[0].steps
+    masked = extract_features(*args, noise_sigma_m=noise).stairs[0].steps
+    assert len(masked) == 3
+    for k, step in enumerate(masked):
+        assert abs(step.nosing.x_m - (first + tread * k)) <= NOSING_TOL
+        assert step.nosing.sigma_m >= 0.2 * CELL  # the shadow's start within the last cell
+    assert all(s.nosing.x_m - (first + tread * k) > 0.012 for k, s in enumerate(seen_all))

@@ -25,10 +25,11 @@ def features_of_view(view, config: FeatureConfig | None = None, source: str = "o
     s = view.sums
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = (s.b / s.w).reshape(view.shape)
+        noise = (np.sqrt(s.a) / s.w).reshape(view.shape)
     return extract_features(
         view.height_m, view.variance_m2, view.origin_xy_m, view.cell_m,
-        corr_sigma_m=corr, config=config, t_s=view.t_s, stride_index=view.stride_index,
-        source=source,
+        corr_sigma_m=corr, noise_sigma_m=noise, config=config, t_s=view.t_s,
+        stride_index=view.stride_index, source=source,
     )  # fmt: skip
 
 
@@ -39,6 +40,7 @@ def extract_features(
     cell_m: float,
     *,
     corr_sigma_m: np.ndarray | None = None,
+    noise_sigma_m: np.ndarray | None = None,
     config: FeatureConfig | None = None,
     t_s: float = float("nan"),
     stride_index: int = -1,
@@ -46,14 +48,20 @@ def extract_features(
 ) -> TerrainFeatures:
     """Stairs, ramps, curbs and boxes of a height grid (NaN: unknown). ``variance_m2``: each
     cell's height variance; ``corr_sigma_m``: the part of its σ common to the grid (the pose's;
-    zero when None)."""
+    zero when None); ``noise_sigma_m``: the part from its points' depth noise (a cell where it
+    exceeds ``max_noise_sigma_m`` is taken as not seen; None: every cell with a height)."""
     cfg = config or _DEFAULT
     h = np.asarray(height_m, dtype=np.float64)
     var = np.asarray(variance_m2, dtype=np.float64)
     if h.ndim != 2 or var.shape != h.shape:
         raise MappingError(f"features: height {h.shape} and variance {var.shape} grids differ")
     corr = np.zeros_like(h) if corr_sigma_m is None else np.asarray(corr_sigma_m, np.float64)
-    g = _Grid(h, var, np.nan_to_num(corr), float(origin_xy_m[0]), float(origin_xy_m[1]), cell_m)
+    noisy = None
+    if noise_sigma_m is not None:
+        with np.errstate(invalid="ignore"):  # held only by a depth edge's flying pixels
+            noisy = np.isfinite(h) & ~(np.asarray(noise_sigma_m) <= cfg.max_noise_sigma_m)
+    g = _Grid(h, var, np.nan_to_num(corr), float(origin_xy_m[0]), float(origin_xy_m[1]), cell_m,
+              noisy)  # fmt: skip
     out = TerrainFeatures(stride_index, float(t_s), source)
     if g.known.sum() < cfg.min_window_cells:
         return out
@@ -145,6 +153,7 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
     keep = sizes >= cfg.min_terrace_cells
     keep[0] = False
     labels = np.where(keep[labels], labels, 0)
+    labels = _grow(g, labels, height, cfg)
     objs = ndimage.find_objects(labels)
     out = {}
     for k in np.flatnonzero(keep):
@@ -154,6 +163,30 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
             "i": (sx.start, sx.stop - 1), "j": (sy.start, sy.stop - 1), "n": int(sizes[k]),
         }  # fmt: skip
     return labels, out
+
+
+def _grow(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
+    """Each terrace grown by up to ``grow_cells`` cells (4-neighbours) into the known cells
+    within ``grow_tol_m`` of its height: the cells by an edge are not level (their window
+    holds the step) but those still on the surface are the terrace's, so that it ends at the
+    edge (its height stays that of its level cells)."""
+    lab = labels.copy()
+    nx, ny = lab.shape
+    h = np.where(g.known, g.h, np.nan)
+    for _ in range(cfg.grow_cells):
+        free = g.known & (lab == 0)
+        if not free.any():
+            break
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            nb = np.zeros_like(lab)
+            nb[max(di, 0) : nx + min(di, 0), max(dj, 0) : ny + min(dj, 0)] = lab[
+                max(-di, 0) : nx + min(-di, 0), max(-dj, 0) : ny + min(-dj, 0)
+            ]
+            with np.errstate(invalid="ignore"):
+                take = free & (nb > 0) & (np.abs(h - height[nb]) <= cfg.grow_tol_m)
+            lab[take] = nb[take]
+            free &= ~take
+    return lab
 
 
 def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfig):
@@ -181,7 +214,10 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     idx = np.minimum(idx, g.h.shape[0] - 1)
     hw = g.h[idx, j[:, None]]
     vw = g.var[idx, j[:, None]]
-    unknown = inside & ~np.isfinite(hw)
+    # beyond a drop, a cell of flying pixels is not seen; up a riser, the cells across it are
+    # mixtures of the two surfaces and of the riser, whatever their noise
+    flying = g.noisy[idx, j[:, None]] & (rise < 0)[:, None]
+    unknown = inside & (~np.isfinite(hw) | flying)
     f = np.clip((hw - ha[:, None]) / rise[:, None], 0.0, 1.0)
     f = np.where(unknown, 1.0, np.where(inside, f, 0.0))
     occluded = unknown.any(axis=1)
@@ -193,9 +229,10 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     near = inside & ~unknown & (f < 0.5) & (pos < first_unknown)
     last_near = np.max(np.where(near, pos, 0), axis=1)[:, None]
     f = np.where(occluded[:, None] & (pos > last_near) & inside, 1.0, f)
-    x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1) - np.where(occluded, g.cell / 2, 0.0)
+    x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1)
+    x = x - np.where(occluded, 1.0 - cfg.shadow_cell_seen, 0.0) * g.cell
     noise = np.where(inside & ~unknown, np.nan_to_num(vw) / rise[:, None] ** 2, 0.0).sum(axis=1)
-    sigma = g.cell * np.sqrt(noise + np.where(occluded, 1 / 12, 0.0))
+    sigma = g.cell * np.sqrt(noise)
     return [
         (int(a), int(b), float(yy), float(xx), float(ss), bool(oc))
         for a, b, yy, xx, ss, oc in zip(
@@ -204,9 +241,16 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     ]
 
 
-def _fit_line(y: np.ndarray, x: np.ndarray, s: np.ndarray, occluded: bool, y_ref: float = 0.0):
+def _fit_line(
+    y: np.ndarray,
+    x: np.ndarray,
+    s: np.ndarray,
+    occluded: bool,
+    y_ref: float = 0.0,
+    common_sigma_m: float = 0.0,
+):
     """x = x̄ + b (y - ȳ) through the rows (3σ outliers out), reported at ``y_ref`` clipped into
-    the rows seen."""
+    the rows seen; ``common_sigma_m``: an error every row shares (it does not average out)."""
     keep = np.ones(len(y), bool)
     for _ in range(2):
         yy, xx = y[keep], x[keep]
@@ -229,7 +273,7 @@ def _fit_line(y: np.ndarray, x: np.ndarray, s: np.ndarray, occluded: bool, y_ref
     sb = math.sqrt(var / syy) if syy > 0 else math.inf
     lo, hi = float(yy.min()), float(yy.max())
     yr = min(max(y_ref, lo), hi)
-    sigma = math.sqrt(var / n + ((yr - ym) * sb) ** 2)
+    sigma = math.sqrt(var / n + ((yr - ym) * sb) ** 2 + common_sigma_m**2)
     yaw = math.atan(-b)
     return EdgeLine(
         x_m=xm + b * (yr - ym), y_m=yr, yaw_rad=yaw, sigma_m=sigma * math.cos(yaw),
@@ -247,7 +291,10 @@ def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
         if len(rows) < cfg.min_edge_rows:
             continue
         y, x, s, oc = (np.array(v) for v in zip(*rows, strict=True))
-        line = _fit_line(y, x, s, bool(oc.mean() > 0.5))
+        occluded = bool(oc.mean() > 0.5)
+        # where the shadow begins inside the last cell seen is the same guess in every row
+        common = g.cell * cfg.shadow_cell_sigma if occluded else 0.0
+        line = _fit_line(y, x, s, occluded, common_sigma_m=common)
         ta, tb = terraces[a], terraces[b]
         out.append({
             "a": a, "b": b, "line": line, "rise": tb["h"] - ta["h"],
