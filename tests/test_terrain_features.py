@@ -300,3 +300,18 @@ def test_flying_pixels_beyond_a_nosing_are_not_the_tread():
         assert abs(step.nosing.x_m - (first + tread * k)) <= NOSING_TOL
         assert step.nosing.sigma_m >= 0.2 * CELL  # the shadow's start within the last cell
     assert all(s.nosing.x_m - (first + tread * k) > 0.012 for k, s in enumerate(seen_all))
+
+
+def test_a_ramp_slope_sigma_carries_the_pose_tilt():
+    """The pose part of the cells' σ growing 2 mm per metre along x (a tilt σ of 2 mrad):
+    the slope's σ is at least that; without it, the plane fit's alone (far smaller)."""
+    g = math.tan(math.radians(8.0))
+    h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=17)
+    xs = X0 + (np.arange(NX) + 0.5) * CELL
+    corr = np.repeat((0.004 + 0.002 * xs)[:, None], NY, axis=1)
+    (fit,) = extract_features(h, var, (X0, Y0), CELL).ramps
+    (ramp,) = extract_features(h, var + corr**2, (X0, Y0), CELL, corr_sigma_m=corr).ramps
+    assert fit.slope_sigma_rad < 0.0005
+    cos2 = math.cos(math.radians(8.0)) ** 2
+    assert ramp.slope_sigma_rad >= 0.002 * cos2 * 0.95
+    assert ramp.slope_sigma_rad <= math.hypot(0.002, fit.slope_sigma_rad * 3)

@@ -333,7 +333,13 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         if grad < math.tan(math.radians(cfg.ramp_min_deg)) or np.ptp(along) < cfg.min_ramp_length_m:
             continue  # the flanks of an edge, not a ramp
         jac = np.array([gx, gy]) / max(grad, 1e-12)
-        slope_sigma = math.sqrt(float(jac @ cov[1:, 1:] @ jac)) / (1 + grad * grad)
+        # a pose's tilt tilts the whole plane: the pose part of the cells' σ (correlated, it
+        # does not average) changes along the slope by about that tilt's σ per metre
+        c = g.corr[i, j]
+        tilt = abs(float(np.polyfit(along, c, 1)[0])) if np.ptp(c) > 0 else 0.0
+        slope_sigma = math.hypot(math.sqrt(float(jac @ cov[1:, 1:] @ jac)), tilt) / (
+            1 + grad * grad
+        )
         perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
         yaw_sigma = math.sqrt(max(float(perp @ cov[1:, 1:] @ perp), 0.0))
         start = _ramp_start(g, comp == k, labels, terraces, coef, (xm, ym), cov)

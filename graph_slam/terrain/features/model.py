@@ -31,7 +31,8 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
    box whose far side is not seen yet: :meth:`TerrainView.obstacles_ahead` reports it in
    part). The other edges between a box's top and its floor level are that box's.
    Components of cells sloped between ``ramp_min_deg`` and ``ramp_max_deg`` are **ramps**:
-   one plane fitted to them (slope, uphill direction, σ from the fit) and their start line, the
+   one plane fitted to them (slope, uphill direction, σ from the fit and a pose tilt's: the
+   change of the cells' pose part of σ per metre up the slope) and their start line, the
    plane's intersection with the terrace they are entered from (the one nearest the heel
    among those before them along x; none in view: no start line).
 
