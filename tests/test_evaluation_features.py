@@ -176,3 +176,21 @@ def test_truth_of_a_box_stepped_onto_and_a_changed_scene():
     changed = SceneTruth("step-onto", (SceneObject(moved.name, pose, moved.size_m, moved.kind),))
     (box,) = feature_truth_from_scene(changed, _stride(0.3, 0.0)).boxes
     assert math.isclose(box.leading.x_m, 1.4 - depth / 2 - 0.3, abs_tol=1e-9)
+
+
+def test_a_deadline_edge_is_known_where_the_final_one_is_reported():
+    """Online, the flight is seen only on y < −0.1 m, so each nosing is reported at y = −0.1 m;
+    the final grid reports it at y = 0 (the foot's line). The same edge line is known; one 3 cm
+    off along x is not."""
+    from graph_slam.evaluation.features import feature_deadlines
+
+    final = extract_features(*grid(stairs_surface(), 0.0), (X0, Y0), CELL)
+    side = extract_features(
+        *grid(stairs_surface(), 0.0, unknown=lambda x, y: y > -0.1), (X0, Y0), CELL
+    )
+    off = extract_features(
+        *grid(stairs_surface(first=0.543), 0.0, unknown=lambda x, y: y > -0.1), (X0, Y0), CELL
+    )
+    assert all(abs(s.nosing.y_m + 0.11) < 0.02 for s in side.stairs[0].steps)
+    rows = feature_deadlines([0.0, 0.1], [off, side], final, toe_off_s=0.5)
+    assert [r["known_t_s"] for r in rows] == [0.1] * 4

@@ -191,3 +191,127 @@ def test_box_depth_with_flying_pixels_in_its_shadow():
     (b,) = features(*grid(scene, 0.001, seed=10, unknown=shadow)).boxes
     assert abs(b.depth_m - 0.2032) <= 0.008
     assert b.leading.occluded is False
+
+
+def _box_top(x, y):
+    on = (y >= -0.4) & (y < -0.1333)
+    return np.where((x >= 0.903) & (x < 1.1062) & on, 0.1905, 0.0)
+
+
+@pytest.mark.parametrize("shadow_m", [0.40, 2.0])
+def test_a_box_seen_in_part_is_no_stair(shadow_m):
+    """A 19 cm box whose top is seen but the floor behind it is not (a long shadow, or the
+    view's end): one up-edge and a 20 cm top is no one-step flight."""
+
+    def shadow(x, y):
+        return (x >= 1.1062) & (x < 1.1062 + shadow_m) & (y >= -0.4) & (y < -0.1333)
+
+    f = features(*grid(_box_top, 0.001, seed=11, unknown=shadow))
+    assert not f.stairs and not f.curbs, f
+
+
+def test_a_box_trailing_drop_onto_a_short_floor_is_no_stair():
+    """The box's leading edge not seen, the floor beyond its trailing edge seen in short pieces
+    between holes: one down-edge to a short terrace that goes on at its level is no
+    descending flight."""
+
+    def holes(x, y):
+        return ((x >= 0.65) & (x < 0.95)) | ((x >= 1.4) & (x < 1.45)) | (x >= 1.6)
+
+    f = features(*grid(_box_top, 0.001, seed=12, unknown=holes))
+    assert not f.stairs, f
+
+
+@pytest.mark.parametrize("rise", [0.17, -0.16])
+def test_one_step_seen_with_the_next_riser_beyond_it_is_a_stair(rise):
+    """Seen up to 4 cm past the second nosing: the cells there are no terrace of their own,
+    but they lie a further rise on, so the first tread is a tread and its nosing a step."""
+    h, var = grid(stairs_surface(rise=rise), 0.001, seed=13,
+                  unknown=lambda x, y: x > 0.513 + 0.28 + 0.04)  # fmt: skip
+    f = features(h, var)
+    assert len(f.stairs) == 1 and not f.curbs, f
+    (step,) = f.stairs[0].steps
+    assert abs(step.rise_m - rise) <= RISE_TOL
+    assert abs(step.nosing.x_m - 0.513) <= NOSING_TOL
+
+
+def test_the_floor_behind_a_box_in_two_pieces_gives_one_box_and_no_curb():
+    """Unseen cells wall off the floor behind the box and split it in two along x: the box's
+    trailing edge meets two floor terraces. One closes the box; the other is the same box's
+    edge, not a curb down."""
+
+    def unseen(x, y):
+        behind = x >= 1.1062
+        walls = ((y >= -0.42) & (y < -0.4)) | ((y >= -0.1333) & (y < -0.1133))
+        split = (y >= -0.28) & (y < -0.26)
+        return behind & (walls | split) | ((x >= 1.6) & (x < 1.64))
+
+    f = features(*grid(_box_top, 0.001, seed=14, unknown=unseen))
+    assert len(f.boxes) == 1 and not f.curbs and not f.stairs, f
+    assert abs(f.boxes[0].depth_m - 0.2032) <= 0.008
+
+
+def test_a_long_smear_behind_each_nosing_still_gives_every_step():
+    """Beyond each nosing of a descent: 4 cm not seen, then 14 cm of cells at heights between
+    the treads (the fused edge of the lower tread), then the lower tread. Its cells by that
+    smear are not level (their window holds it), so the level cells of two treads lie more
+    than ``max_gap_cells`` apart; each terrace grows back over the cells still on its surface,
+    and every step is found."""
+    rise, first, tread = -0.16, 0.52, 0.36
+    down = stairs_surface(first=first, rise=rise, tread=tread, n=3)
+
+    def surface(x, y):
+        u = (x - first) % tread
+        k = np.floor((x - first) / tread)
+        smear = (x > first) & (x < first + tread * 3) & (u >= 0.04) & (u < 0.18)
+        return np.where(smear, k * rise + rise * (u - 0.04) / 0.14 * 0.8, down(x, y))
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.04)
+
+    (st,) = features(*grid(surface, 0.001, seed=15, unknown=shadow)).stairs
+    assert st.n_steps == 3
+    for k, step in enumerate(st.steps):
+        assert abs(step.nosing.x_m - (first + tread * k)) <= NOSING_TOL
+
+
+def test_flying_pixels_beyond_a_nosing_are_not_the_tread():
+    """Beyond each nosing of a descent, the first cell is held only by the depth edge's flying
+    pixels (heights near the upper tread's, depth-noise σ 10 cm) and the next 3 cm not at
+    all: given the noise σ, those cells are not seen and the nosing is not put a cell late."""
+    rise, first, tread = -0.17, 0.52, 0.28
+    down = stairs_surface(first=first, rise=rise, tread=tread, n=3)
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.05)
+
+    h, var = grid(down, 0.001, seed=16, unknown=shadow)
+    noise = np.full(h.shape, 0.001)
+    for k in range(3):  # the cell just past nosing k: flying pixels at the upper tread's height
+        i = round((first + tread * k - X0) / CELL)
+        h[i, :], var[i, :], noise[i, :] = k * rise - 0.004, 0.1**2, 0.1
+    args = (h, var, (X0, Y0), CELL)
+    seen_all = extract_features(*args).stairs[0].steps
+    masked = extract_features(*args, noise_sigma_m=noise).stairs[0].steps
+    assert len(masked) == 3
+    for k, step in enumerate(masked):
+        assert abs(step.nosing.x_m - (first + tread * k)) <= NOSING_TOL
+        assert step.nosing.sigma_m >= 0.2 * CELL  # the shadow's start within the last cell
+    assert all(s.nosing.x_m - (first + tread * k) > 0.012 for k, s in enumerate(seen_all))
+
+
+def test_a_ramp_slope_sigma_carries_the_pose_tilt():
+    """The pose part of the cells' σ growing 2 mm per metre along x (a tilt σ of 2 mrad):
+    the slope's σ is at least that; without it, the plane fit's alone (far smaller)."""
+    g = math.tan(math.radians(8.0))
+    h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=17)
+    xs = X0 + (np.arange(NX) + 0.5) * CELL
+    corr = np.repeat((0.004 + 0.002 * xs)[:, None], NY, axis=1)
+    (fit,) = extract_features(h, var, (X0, Y0), CELL).ramps
+    (ramp,) = extract_features(h, var + corr**2, (X0, Y0), CELL, corr_sigma_m=corr).ramps
+    assert fit.slope_sigma_rad < 0.0005
+    cos2 = math.cos(math.radians(8.0)) ** 2
+    assert ramp.slope_sigma_rad >= 0.002 * cos2 * 0.95
+    assert ramp.slope_sigma_rad <= math.hypot(0.002, fit.slope_sigma_rad * 3)

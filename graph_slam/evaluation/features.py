@@ -228,6 +228,9 @@ DEADLINE_TOLERANCE = {"step": 0.01, "curb": 0.01, "box": 0.01, "ramp": math.radi
 """How close a feature's value (rise, height; a ramp's slope) must be to the final one to count
 as known; its edge must also be within ``DEADLINE_EDGE_M`` of the final edge."""
 DEADLINE_EDGE_M = 0.02
+DEADLINE_REACH_M = 0.2
+"""How far beyond the rows it was seen in an online edge line may be followed to the final
+edge's reported point."""
 
 
 def feature_marks(features: TerrainFeatures) -> list[tuple[str, float, float, float]]:
@@ -242,36 +245,53 @@ def feature_marks(features: TerrainFeatures) -> list[tuple[str, float, float, fl
     return out
 
 
-def _mark_y_ranges(features: TerrainFeatures) -> list:
-    """The y range of each :func:`feature_marks` entry's edge line (None: a ramp without a
-    start line), in the same order."""
-    out = [s.nosing.y_range_m for st in features.stairs for s in st.steps]
-    out += [c.edge.y_range_m for c in features.curbs]
-    out += [None if r.start is None else r.start.y_range_m for r in features.ramps]
-    out += [b.leading.y_range_m for b in features.boxes]
+def _mark_lines(features: TerrainFeatures) -> list:
+    """The edge line of each :func:`feature_marks` entry (None: a ramp without a start line),
+    in the same order."""
+    out = [s.nosing for st in features.stairs for s in st.steps]
+    out += [c.edge for c in features.curbs]
+    out += [r.start for r in features.ramps]
+    out += [b.leading for b in features.boxes]
     return out
+
+
+def _same_edge(line, x: float, y: float, final_line, tol_m: float) -> bool:
+    """Whether an online edge line lies within ``tol_m`` of the final mark (x, y): along x at
+    that y, with y within ``DEADLINE_REACH_M`` of the line's rows. Its reported point (the
+    foot's line when seen there, else the nearest end of the part seen) may lie elsewhere on
+    the same edge."""
+    if line is None or final_line is None:
+        return False
+    lo, hi = line.y_range_m
+    reach = DEADLINE_REACH_M
+    return lo - reach <= y <= hi + reach and abs(line.x_at(y) - x) <= tol_m
 
 
 def feature_deadlines(t_s: Sequence[float], online: Sequence, final: TerrainFeatures,
                       toe_off_s: float | None) -> list[dict]:  # fmt: skip
     """Per feature of the stride's final grid: the first time an online grid (``online[k]``
-    at ``t_s[k]``, None: not searched) had the same kind within ``DEADLINE_EDGE_M`` of its edge
-    and ``DEADLINE_TOLERANCE`` of its value; ``lead_s`` = toe-off − that time."""
+    at ``t_s[k]``, None: not searched) had the same kind with its edge within
+    ``DEADLINE_EDGE_M`` of the final edge where that one is reported (:func:`_same_edge`; a
+    ramp without a start line by its nearest point, 5 cm more) and its value within
+    ``DEADLINE_TOLERANCE``; ``lead_s`` = toe-off − that time."""
     out = []
-    y_ranges = _mark_y_ranges(final)
-    for kind, x, y, value in feature_marks(final):
+    finals = _mark_lines(final)
+    for (kind, x, y, value), fline in zip(feature_marks(final), finals, strict=True):
         known = float("nan")
         for t, feats in zip(t_s, online, strict=True):
             if feats is None:
                 continue
-            if any(k == kind and math.hypot(xx - x, yy - y) <= DEADLINE_EDGE_M + 0.05 * (k == "ramp")
-                   and abs(xx - x) <= DEADLINE_EDGE_M and abs(v - value) <= DEADLINE_TOLERANCE[k]
-                   for k, xx, yy, v in feature_marks(feats)):  # fmt: skip
+            marks = zip(feature_marks(feats), _mark_lines(feats), strict=True)
+            if any(k == kind and abs(v - value) <= DEADLINE_TOLERANCE[k]
+                   and (_same_edge(line, x, y, fline, DEADLINE_EDGE_M) or (
+                       (line is None or fline is None) and abs(xx - x) <= DEADLINE_EDGE_M
+                       and math.hypot(xx - x, yy - y) <= DEADLINE_EDGE_M + 0.05))
+                   for (k, xx, yy, v), line in marks):  # fmt: skip
                 known = float(t)
                 break
         lead = (toe_off_s - known) if toe_off_s is not None and math.isfinite(known) else math.nan
-        out.append({"kind": kind, "edge_x_m": x, "value": value, "known_t_s": known,
-                    "lead_s": lead, "edge_y_range_m": y_ranges[len(out)]})  # fmt: skip
+        out.append({"kind": kind, "edge_x_m": x, "value": value, "known_t_s": known, "lead_s": lead,
+                    "edge_y_range_m": None if fline is None else fline.y_range_m})  # fmt: skip
     return out
 
 

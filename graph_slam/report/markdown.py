@@ -132,7 +132,7 @@ def features_section(features: dict) -> list[str]:
         "",
         "Features known before toe-off: each feature of a stride's final grid is known at the "
         "first searched frame whose online grid had one of its kind with its edge within 2 cm "
-        "and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then; "
+        "(along x, where the final edge is reported) and its rise or height within 1 cm (a ramp's slope within 1°); lead = toe-off − then; "
         "the swing's own: those whose edge lies within the measured toe's x range in "
         "mid-swing (the features that swing must clear). "
         "Warnings: a swing is flagged when a stance frame's predicted edge clearance (the "

@@ -25,7 +25,8 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
   box's leading or trailing edge), from the toe path to the edge's profile (its vertical face
   and the higher surface at its top; the lower surface is floor), over the path's points within
   ``edge_band_m`` of the edge line inside its y range; negative when the toe is below the
-  profile. Level floor has no edge: a swing over it has no edge clearance, and raises no
+  profile. Its σ: the edge's position σ and the higher surface's height σ (the step's rise
+  σ) through the distance's derivatives by them, and ``toe_sigma_m``. Level floor has no edge: a swing over it has no edge clearance, and raises no
   warning however close the toe passes to the floor. The path is resampled every
   ``resample_m`` first, so the same toe motion sampled at other times gives the same value.
 """
@@ -60,6 +61,12 @@ class ClearanceConfig(ConfigModel):
         0.05, gt=0, description="the reference swing's peak toe lift over the ground"
     )
     stride_length_m: float = Field(1.3, gt=0, description="the reference swing's length")
+    toe_sigma_m: float = Field(
+        0.0,
+        ge=0,
+        description="σ of the toe path relative to the grid (poses, encoders, leg model) in an "
+        "edge clearance's σ, beside the edge's position and height σ",
+    )
     resample_m: float = Field(
         0.005, gt=0, description="the edge clearance resamples the toe path this finely"
     )
@@ -292,13 +299,27 @@ def _profile_distance(d: np.ndarray, z: np.ndarray, near: float, far: float) -> 
     """Signed distance of points (d along the edge normal, z) to an edge's profile: its
     vertical face at d = 0 between the two heights and the higher surface on its side (the
     lower surface is floor, not the edge); negative below the profile."""
+    return _profile(d, z, near, far)[0]
+
+
+def _profile(d: np.ndarray, z: np.ndarray, near: float, far: float):
+    """:func:`_profile_distance` and its derivatives by the edge's position along its normal
+    and by the higher surface's height (the σ of a clearance from the edge's σ)."""
     lo, hi = min(near, far), max(near, far)
     high_side = d >= 0 if far >= near else d <= 0
     to_high = np.where(high_side, np.abs(z - hi), np.inf)
-    to_face = np.hypot(d, z - np.clip(z, lo, hi))
+    dz = z - np.clip(z, lo, hi)
+    to_face = np.hypot(d, dz)
     dist = np.minimum(to_high, to_face)
     below = np.where(high_side, z < hi, z < lo)
-    return np.where(below, -dist, dist)
+    sign = np.where(below, -1.0, 1.0)
+    on_high = to_high <= to_face
+    with np.errstate(invalid="ignore", divide="ignore"):
+        by_x = np.where(on_high, 0.0, -d / np.maximum(to_face, 1e-9))
+        by_h = np.where(
+            on_high, -np.sign(z - hi), np.where(z > hi, -dz / np.maximum(to_face, 1e-9), 0.0)
+        )
+    return sign * dist, sign * by_x, sign * by_h
 
 
 def edge_clearances(
@@ -316,10 +337,11 @@ def edge_clearances(
         band = (np.abs(d) <= cfg.edge_band_m) & (p[:, 1] >= lo - 0.02) & (p[:, 1] <= hi + 0.02)
         if not band.any() or not (math.isfinite(near) and math.isfinite(far)):
             continue
-        dist = _profile_distance(d[band], p[band, 2], near, far)
+        dist, by_x, by_h = _profile(d[band], p[band, 2], near, far)
         k = int(np.argmin(dist))
         i = int(np.flatnonzero(band)[k])
-        out.append((line, Clearance(float(dist[k]), float(rise_sigma), float(p[i, 0]),
+        sigma = math.hypot(by_x[k] * line.sigma_m, by_h[k] * rise_sigma, cfg.toe_sigma_m)
+        out.append((line, Clearance(float(dist[k]), sigma, float(p[i, 0]),
                                     float(p[i, 1]), i, label, "edge", edge_m=float(dist[k]))))  # fmt: skip
     return out
 

@@ -8,14 +8,11 @@ import numba
 import numpy as np
 
 from graph_slam.errors import MappingError
+from graph_slam.terrain.features.kinds import boxes_of, chains_of
 from graph_slam.terrain.features.model import (
-    BoxFeature,
-    Curb,
     EdgeLine,
     FeatureConfig,
     Ramp,
-    Stairs,
-    Step,
     TerrainFeatures,
     _Grid,
 )
@@ -28,10 +25,11 @@ def features_of_view(view, config: FeatureConfig | None = None, source: str = "o
     s = view.sums
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = (s.b / s.w).reshape(view.shape)
+        noise = (np.sqrt(s.a) / s.w).reshape(view.shape)
     return extract_features(
         view.height_m, view.variance_m2, view.origin_xy_m, view.cell_m,
-        corr_sigma_m=corr, config=config, t_s=view.t_s, stride_index=view.stride_index,
-        source=source,
+        corr_sigma_m=corr, noise_sigma_m=noise, config=config, t_s=view.t_s,
+        stride_index=view.stride_index, source=source,
     )  # fmt: skip
 
 
@@ -42,6 +40,7 @@ def extract_features(
     cell_m: float,
     *,
     corr_sigma_m: np.ndarray | None = None,
+    noise_sigma_m: np.ndarray | None = None,
     config: FeatureConfig | None = None,
     t_s: float = float("nan"),
     stride_index: int = -1,
@@ -49,14 +48,20 @@ def extract_features(
 ) -> TerrainFeatures:
     """Stairs, ramps, curbs and boxes of a height grid (NaN: unknown). ``variance_m2``: each
     cell's height variance; ``corr_sigma_m``: the part of its σ common to the grid (the pose's;
-    zero when None)."""
+    zero when None); ``noise_sigma_m``: the part from its points' depth noise (a cell where it
+    exceeds ``max_noise_sigma_m`` is taken as not seen; None: every cell with a height)."""
     cfg = config or _DEFAULT
     h = np.asarray(height_m, dtype=np.float64)
     var = np.asarray(variance_m2, dtype=np.float64)
     if h.ndim != 2 or var.shape != h.shape:
         raise MappingError(f"features: height {h.shape} and variance {var.shape} grids differ")
     corr = np.zeros_like(h) if corr_sigma_m is None else np.asarray(corr_sigma_m, np.float64)
-    g = _Grid(h, var, np.nan_to_num(corr), float(origin_xy_m[0]), float(origin_xy_m[1]), cell_m)
+    noisy = None
+    if noise_sigma_m is not None:
+        with np.errstate(invalid="ignore"):  # held only by a depth edge's flying pixels
+            noisy = np.isfinite(h) & ~(np.asarray(noise_sigma_m) <= cfg.max_noise_sigma_m)
+    g = _Grid(h, var, np.nan_to_num(corr), float(origin_xy_m[0]), float(origin_xy_m[1]), cell_m,
+              noisy)  # fmt: skip
     out = TerrainFeatures(stride_index, float(t_s), source)
     if g.known.sum() < cfg.min_window_cells:
         return out
@@ -70,9 +75,9 @@ def extract_features(
     )
     labels, terraces = _terraces(g, level, cfg)
     edges = _edges(g, labels, terraces, cfg)
-    boxes, used = _boxes(edges, terraces, cfg)
+    boxes, used = boxes_of(edges, terraces, cfg)
     rest = [e for k, e in enumerate(edges) if k not in used]
-    stairs, curbs = _chains(rest, g, labels, terraces, cfg)
+    stairs, curbs = chains_of(rest, g, labels, terraces, cfg)
     ramps = _ramps(g, sloped, labels, terraces, cfg)
     return TerrainFeatures(
         stride_index, float(t_s), source, tuple(stairs), tuple(ramps), tuple(curbs), tuple(boxes)
@@ -148,6 +153,7 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
     keep = sizes >= cfg.min_terrace_cells
     keep[0] = False
     labels = np.where(keep[labels], labels, 0)
+    labels = _grow(g, labels, height, cfg)
     objs = ndimage.find_objects(labels)
     out = {}
     for k in np.flatnonzero(keep):
@@ -157,6 +163,30 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
             "i": (sx.start, sx.stop - 1), "j": (sy.start, sy.stop - 1), "n": int(sizes[k]),
         }  # fmt: skip
     return labels, out
+
+
+def _grow(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
+    """Each terrace grown by up to ``grow_cells`` cells (4-neighbours) into the known cells
+    within ``grow_tol_m`` of its height: the cells by an edge are not level (their window
+    holds the step) but those still on the surface are the terrace's, so that it ends at the
+    edge (its height stays that of its level cells)."""
+    lab = labels.copy()
+    nx, ny = lab.shape
+    h = np.where(g.known, g.h, np.nan)
+    for _ in range(cfg.grow_cells):
+        free = g.known & (lab == 0)
+        if not free.any():
+            break
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            nb = np.zeros_like(lab)
+            nb[max(di, 0) : nx + min(di, 0), max(dj, 0) : ny + min(dj, 0)] = lab[
+                max(-di, 0) : nx + min(-di, 0), max(-dj, 0) : ny + min(-dj, 0)
+            ]
+            with np.errstate(invalid="ignore"):
+                take = free & (nb > 0) & (np.abs(h - height[nb]) <= cfg.grow_tol_m)
+            lab[take] = nb[take]
+            free &= ~take
+    return lab
 
 
 def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfig):
@@ -184,7 +214,10 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     idx = np.minimum(idx, g.h.shape[0] - 1)
     hw = g.h[idx, j[:, None]]
     vw = g.var[idx, j[:, None]]
-    unknown = inside & ~np.isfinite(hw)
+    # beyond a drop, a cell of flying pixels is not seen; up a riser, the cells across it are
+    # mixtures of the two surfaces and of the riser, whatever their noise
+    flying = g.noisy[idx, j[:, None]] & (rise < 0)[:, None]
+    unknown = inside & (~np.isfinite(hw) | flying)
     f = np.clip((hw - ha[:, None]) / rise[:, None], 0.0, 1.0)
     f = np.where(unknown, 1.0, np.where(inside, f, 0.0))
     occluded = unknown.any(axis=1)
@@ -196,9 +229,10 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     near = inside & ~unknown & (f < 0.5) & (pos < first_unknown)
     last_near = np.max(np.where(near, pos, 0), axis=1)[:, None]
     f = np.where(occluded[:, None] & (pos > last_near) & inside, 1.0, f)
-    x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1) - np.where(occluded, g.cell / 2, 0.0)
+    x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1)
+    x = x - np.where(occluded, 1.0 - cfg.shadow_cell_seen, 0.0) * g.cell
     noise = np.where(inside & ~unknown, np.nan_to_num(vw) / rise[:, None] ** 2, 0.0).sum(axis=1)
-    sigma = g.cell * np.sqrt(noise + np.where(occluded, 1 / 12, 0.0))
+    sigma = g.cell * np.sqrt(noise)
     return [
         (int(a), int(b), float(yy), float(xx), float(ss), bool(oc))
         for a, b, yy, xx, ss, oc in zip(
@@ -207,9 +241,16 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     ]
 
 
-def _fit_line(y: np.ndarray, x: np.ndarray, s: np.ndarray, occluded: bool, y_ref: float = 0.0):
+def _fit_line(
+    y: np.ndarray,
+    x: np.ndarray,
+    s: np.ndarray,
+    occluded: bool,
+    y_ref: float = 0.0,
+    common_sigma_m: float = 0.0,
+):
     """x = x̄ + b (y - ȳ) through the rows (3σ outliers out), reported at ``y_ref`` clipped into
-    the rows seen."""
+    the rows seen; ``common_sigma_m``: an error every row shares (it does not average out)."""
     keep = np.ones(len(y), bool)
     for _ in range(2):
         yy, xx = y[keep], x[keep]
@@ -232,7 +273,7 @@ def _fit_line(y: np.ndarray, x: np.ndarray, s: np.ndarray, occluded: bool, y_ref
     sb = math.sqrt(var / syy) if syy > 0 else math.inf
     lo, hi = float(yy.min()), float(yy.max())
     yr = min(max(y_ref, lo), hi)
-    sigma = math.sqrt(var / n + ((yr - ym) * sb) ** 2)
+    sigma = math.sqrt(var / n + ((yr - ym) * sb) ** 2 + common_sigma_m**2)
     yaw = math.atan(-b)
     return EdgeLine(
         x_m=xm + b * (yr - ym), y_m=yr, yaw_rad=yaw, sigma_m=sigma * math.cos(yaw),
@@ -250,7 +291,10 @@ def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
         if len(rows) < cfg.min_edge_rows:
             continue
         y, x, s, oc = (np.array(v) for v in zip(*rows, strict=True))
-        line = _fit_line(y, x, s, bool(oc.mean() > 0.5))
+        occluded = bool(oc.mean() > 0.5)
+        # where the shadow begins inside the last cell seen is the same guess in every row
+        common = g.cell * cfg.shadow_cell_sigma if occluded else 0.0
+        line = _fit_line(y, x, s, occluded, common_sigma_m=common)
         ta, tb = terraces[a], terraces[b]
         out.append({
             "a": a, "b": b, "line": line, "rise": tb["h"] - ta["h"],
@@ -258,97 +302,6 @@ def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
         })  # fmt: skip
     out.sort(key=lambda e: e["line"].x_m)
     return out
-
-
-def _boxes(edges: list[dict], terraces: dict, cfg: FeatureConfig):
-    """A terrace entered by a rise and left by a drop to the same level: a box."""
-    boxes, used = [], set()
-    for k, up in enumerate(edges):
-        if up["rise"] <= 0:
-            continue
-        for m, down in enumerate(edges):
-            if m in used or down["a"] != up["b"] or down["rise"] >= 0:
-                continue
-            base = (terraces[up["a"]]["h"], terraces[down["b"]]["h"])
-            if abs(base[0] - base[1]) > cfg.box_same_level_m:
-                continue
-            top = terraces[up["b"]]
-            floor_ind = math.hypot(terraces[up["a"]]["ind"], terraces[down["b"]]["ind"]) / 2
-            floor_corr = (terraces[up["a"]]["corr"] + terraces[down["b"]]["corr"]) / 2
-            lead, trail = up["line"], down["line"]
-            boxes.append(
-                BoxFeature(
-                    height_m=top["h"] - (base[0] + base[1]) / 2,
-                    height_sigma_m=math.hypot(top["ind"], floor_ind, top["corr"] - floor_corr),
-                    leading=lead,
-                    depth_m=trail.x_at(lead.y_m) - lead.x_m,
-                    depth_sigma_m=math.hypot(lead.sigma_m, trail.sigma_m),
-                    floor_height_m=(base[0] + base[1]) / 2,
-                )
-            )
-            used.update((k, m))
-            break
-    return boxes, used
-
-
-def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, ascending_x: bool) -> float:
-    """How far the terrace runs on beyond the edge (m, along x in the edge's rows)."""
-    i, j = np.nonzero(labels == terrace)
-    y = g.y_of(j)
-    rows = (y >= line.y_range_m[0] - 1e-9) & (y <= line.y_range_m[1] + 1e-9)
-    if not rows.any():
-        return 0.0
-    x = g.x_of(i[rows]) + g.cell / 2
-    return float(x.max() - line.x_at(float(np.median(y[rows]))))
-
-
-def _chains(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureConfig):
-    """Edges linked through shared terraces with the same sign of rise: stairs or a curb."""
-    starts = {e["a"]: e for e in edges}
-    ends = {e["b"] for e in edges}
-    stairs, curbs, seen = [], [], set()
-    for e in edges:
-        if id(e) in seen:
-            continue
-        if e["a"] in ends and any(
-            x["b"] == e["a"] and np.sign(x["rise"]) == np.sign(e["rise"]) for x in edges
-        ):
-            continue  # not the chain's first edge
-        chain = [e]
-        while (
-            (nxt := starts.get(chain[-1]["b"])) is not None
-            and np.sign(nxt["rise"]) == np.sign(e["rise"])
-            and id(nxt) not in seen
-            and nxt not in chain
-        ):
-            chain.append(nxt)
-        seen.update(id(c) for c in chain)
-        if len(chain) == 1:
-            run_on = _far_extent(g, labels, e["b"], e["line"], True)
-            if run_on >= cfg.curb_min_depth_m:
-                curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"], terraces[e["a"]]["h"]))
-                continue
-        steps = []
-        for k, c in enumerate(chain):
-            tread, tread_sigma = float("nan"), float("nan")
-            if k + 1 < len(chain):
-                nxt = chain[k + 1]["line"]
-                here = c["line"]
-                tread = (nxt.x_at(here.y_m) - here.x_m) * math.cos(here.yaw_rad)
-                tread_sigma = math.hypot(here.sigma_m, nxt.sigma_m)
-            steps.append(
-                Step(
-                    rise_m=c["rise"],
-                    rise_sigma_m=c["rise_sigma"],
-                    nosing=c["line"],
-                    tread_m=tread,
-                    tread_sigma_m=tread_sigma,
-                    lower_height_m=min(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
-                    upper_height_m=max(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
-                )
-            )
-        stairs.append(Stairs(tuple(steps)))
-    return stairs, curbs
 
 
 def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list[Ramp]:
@@ -380,7 +333,13 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         if grad < math.tan(math.radians(cfg.ramp_min_deg)) or np.ptp(along) < cfg.min_ramp_length_m:
             continue  # the flanks of an edge, not a ramp
         jac = np.array([gx, gy]) / max(grad, 1e-12)
-        slope_sigma = math.sqrt(float(jac @ cov[1:, 1:] @ jac)) / (1 + grad * grad)
+        # a pose's tilt tilts the whole plane: the pose part of the cells' σ (correlated, it
+        # does not average) changes along the slope by about that tilt's σ per metre
+        c = g.corr[i, j]
+        tilt = abs(float(np.polyfit(along, c, 1)[0])) if np.ptp(c) > 0 else 0.0
+        slope_sigma = math.hypot(math.sqrt(float(jac @ cov[1:, 1:] @ jac)), tilt) / (
+            1 + grad * grad
+        )
         perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
         yaw_sigma = math.sqrt(max(float(perp @ cov[1:, 1:] @ perp), 0.0))
         start = _ramp_start(g, comp == k, labels, terraces, coef, (xm, ym), cov)

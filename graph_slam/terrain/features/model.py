@@ -10,20 +10,29 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
 2. **Terraces**: 4-connected components of *level* cells (slope under ``level_max_deg``,
    residual under ``fit_rms_max_m``); the cells by a height jump are not level (a step inside
    the window leaves a residual of about a third of its rise), so every tread, the floor and a
-   box top fall apart. A terrace's height is the inverse-variance mean of its cells.
+   box top fall apart. A terrace's height is the inverse-variance mean of its cells; it then
+   grows by up to ``grow_cells`` into the known cells within ``grow_tol_m`` of that height, so
+   that it reaches its edges. A cell whose depth-noise σ exceeds ``max_noise_sigma_m`` (held
+   only by a depth edge's flying pixels) belongs to no terrace.
 3. **Edges across x**: along each grid row, two terraces met within ``max_gap_cells`` whose
    heights differ by at least ``min_rise_m``; the edge lies where the area between them says
    (a cell holding the far surface over a fraction f of its length is about f of the way
    between the two heights: ``x = x_end - cell · Σ f``). Cells not seen between them (the
-   shadow behind a nosing seen from above) are taken as the far surface and the edge put at the
-   middle of the last near cell (±cell/√12). Per terrace pair, a line ``x = x̄ + b (y - ȳ)`` is
+   shadow behind a nosing seen from above, and beyond a drop the cells of flying pixels) are
+   taken as the far surface and the edge put ``shadow_cell_seen`` of the way through the last
+   near cell (±``shadow_cell_sigma`` cell, common to all rows). Per terrace pair, a line ``x = x̄ + b (y - ȳ)`` is
    fitted to the rows (3σ outliers rejected): position, yaw and their σ.
 4. **Kinds**: a terrace entered by a rise and left by a drop to the same level (within
    ``box_same_level_m``) is a **box**; chains of edges through shared terraces with the same
    sign of rise are **stairs** (two or more edges), a single edge whose far terrace runs at
-   least ``curb_min_depth_m`` on is a **curb**, otherwise a stair of one step seen.
+   least ``curb_min_depth_m`` on is a **curb**; a single edge whose short far terrace is a
+   tread (a further rise the same way within ``max_gap_cells`` past its end, in at least
+   ``min_edge_rows`` rows) is a stair of one step seen; any other single edge is left out (a
+   box whose far side is not seen yet: :meth:`TerrainView.obstacles_ahead` reports it in
+   part). The other edges between a box's top and its floor level are that box's.
    Components of cells sloped between ``ramp_min_deg`` and ``ramp_max_deg`` are **ramps**:
-   one plane fitted to them (slope, uphill direction, σ from the fit) and their start line, the
+   one plane fitted to them (slope, uphill direction, σ from the fit and a pose tilt's: the
+   change of the cells' pose part of σ per metre up the slope) and their start line, the
    plane's intersection with the terrace they are entered from (the one nearest the heel
    among those before them along x; none in view: no start line).
 
@@ -49,6 +58,25 @@ from graph_slam.config import ConfigModel
 class FeatureConfig(ConfigModel):
     """Thresholds of :func:`extract_features` (metres, degrees)."""
 
+    max_noise_sigma_m: float = Field(
+        0.02,
+        gt=0,
+        description="a cell whose depth-noise σ exceeds this is not seen: beyond a down-step's "
+        "nosing the cells hold only the flying pixels of the depth edge (their σ 5-12 cm "
+        "against 0.3-2.5 mm on a surface, their heights near the upper tread's), which put "
+        "the nosing a cell late",
+    )
+    shadow_cell_seen: float = Field(
+        0.65,
+        ge=0,
+        le=1,
+        description="where a nosing's shadow begins: this part of the last cell seen before it "
+        "(a cell is seen once about a quarter of it lies before the shadow: the edge lies in "
+        "its last 0.25-1, 0.625 on average)",
+    )
+    shadow_cell_sigma: float = Field(
+        0.22, ge=0, description="σ of that part (uniform over 0.25-1 of a cell: 0.75/√12)"
+    )
     window_cells: int = Field(5, ge=3, le=11, description="local plane window (odd)")
     min_window_cells: int = Field(12, ge=3, description="known cells a local plane needs")
     level_max_deg: float = Field(3.0, gt=0, description="steepest level cell")
@@ -58,6 +86,8 @@ class FeatureConfig(ConfigModel):
     min_terrace_cells: int = Field(6, ge=1)
     min_ramp_cells: int = Field(20, ge=3)
     min_ramp_length_m: float = Field(0.2, gt=0, description="a ramp's extent up its slope")
+    grow_cells: int = Field(3, ge=0, description="cells a terrace grows by towards its edges")
+    grow_tol_m: float = Field(0.01, gt=0, description="height of a cell a terrace grows into")
     min_rise_m: float = Field(0.03, gt=0, description="smallest step, curb or box")
     max_gap_cells: int = Field(10, ge=0, description="most cells between two terraces")
     min_edge_rows: int = Field(3, ge=2, description="rows an edge must be seen in")
@@ -289,10 +319,15 @@ class _Grid:
     x0: float
     y0: float
     cell: float
+    noisy: np.ndarray | None = None
+    """Cells held only by a depth edge's flying pixels (None: none): on no surface, and not
+    seen beyond a drop."""
     known: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
-        self.known = np.isfinite(self.h) & np.isfinite(self.var)
+        if self.noisy is None:
+            self.noisy = np.zeros(self.h.shape, dtype=bool)
+        self.known = np.isfinite(self.h) & np.isfinite(self.var) & ~self.noisy
 
     def x_of(self, i):
         return self.x0 + (np.asarray(i) + 0.5) * self.cell

@@ -1,0 +1,146 @@
+"""Step 4 of :mod:`graph_slam.terrain.features.model`: the edges of a grid (each a dict:
+terraces ``a`` → ``b``, its ``line``, ``rise`` and ``rise_sigma``) sorted into boxes, stairs and
+curbs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from graph_slam.terrain.features.model import (
+    BoxFeature,
+    Curb,
+    EdgeLine,
+    FeatureConfig,
+    Stairs,
+    Step,
+    _Grid,
+)
+
+
+def boxes_of(edges: list[dict], terraces: dict, cfg: FeatureConfig):
+    """A terrace entered by a rise and left by a drop to the same level: a box."""
+    boxes, used = [], set()
+    for k, up in enumerate(edges):
+        if up["rise"] <= 0:
+            continue
+        for m, down in enumerate(edges):
+            if m in used or down["a"] != up["b"] or down["rise"] >= 0:
+                continue
+            base = (terraces[up["a"]]["h"], terraces[down["b"]]["h"])
+            if abs(base[0] - base[1]) > cfg.box_same_level_m:
+                continue
+            top = terraces[up["b"]]
+            floor_ind = math.hypot(terraces[up["a"]]["ind"], terraces[down["b"]]["ind"]) / 2
+            floor_corr = (terraces[up["a"]]["corr"] + terraces[down["b"]]["corr"]) / 2
+            lead, trail = up["line"], down["line"]
+            boxes.append(
+                BoxFeature(
+                    height_m=top["h"] - (base[0] + base[1]) / 2,
+                    height_sigma_m=math.hypot(top["ind"], floor_ind, top["corr"] - floor_corr),
+                    leading=lead,
+                    depth_m=trail.x_at(lead.y_m) - lead.x_m,
+                    depth_sigma_m=math.hypot(lead.sigma_m, trail.sigma_m),
+                    floor_height_m=(base[0] + base[1]) / 2,
+                )
+            )
+            used.update((k, m))
+            used.update(_same_box(edges, up["b"], boxes[-1].floor_height_m, terraces, cfg))
+            break
+    return boxes, used
+
+
+def _same_box(edges: list[dict], top: int, floor_m: float, terraces: dict, cfg: FeatureConfig):
+    """The other edges between a box's top and its floor level (the floor around a box falls
+    apart into several terraces where cells go unseen): parts of that box, not curbs."""
+    for n, e in enumerate(edges):
+        other = e["a"] if e["b"] == top else e["b"] if e["a"] == top else None
+        if other is not None and abs(terraces[other]["h"] - floor_m) <= cfg.box_same_level_m:
+            yield n
+
+
+def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, ascending_x: bool) -> float:
+    """How far the terrace runs on beyond the edge (m, along x in the edge's rows)."""
+    i, j = np.nonzero(labels == terrace)
+    y = g.y_of(j)
+    rows = (y >= line.y_range_m[0] - 1e-9) & (y <= line.y_range_m[1] + 1e-9)
+    if not rows.any():
+        return 0.0
+    x = g.x_of(i[rows]) + g.cell / 2
+    return float(x.max() - line.x_at(float(np.median(y[rows]))))
+
+
+def _further_rise(g: _Grid, labels, edge: dict, terraces: dict, cfg: FeatureConfig) -> bool:
+    """Whether the short terrace beyond a single edge is a tread: in at least
+    ``min_edge_rows`` of the edge's rows, a known cell within ``max_gap_cells + 1`` past the
+    terrace's far end lies a further ``min_rise_m`` on in the edge's direction (up beyond an
+    up-step, down beyond a down-step). A box top ends in its shadow or a drop back to the floor."""
+    b, line = edge["b"], edge["line"]
+    sign = math.copysign(1.0, edge["rise"])
+    lo, hi = line.y_range_m
+    j0 = max(math.floor((lo - g.y0) / g.cell), 0)
+    j1 = min(math.floor((hi - g.y0) / g.cell), g.h.shape[1] - 1)
+    look = cfg.max_gap_cells + 1
+    h_top = terraces[b]["h"]
+    rows = 0
+    for j in range(j0, j1 + 1):
+        ii = np.flatnonzero(labels[:, j] == b)
+        if ii.size == 0:
+            continue
+        beyond = g.h[ii[-1] + 1 : ii[-1] + 1 + look, j]
+        beyond = beyond[np.isfinite(beyond)]
+        if beyond.size and (sign * (beyond - h_top)).max() >= cfg.min_rise_m:
+            rows += 1
+    return rows >= cfg.min_edge_rows
+
+
+def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureConfig):
+    """Edges linked through shared terraces with the same sign of rise: stairs or a curb."""
+    starts = {e["a"]: e for e in edges}
+    ends = {e["b"] for e in edges}
+    stairs, curbs, seen = [], [], set()
+    for e in edges:
+        if id(e) in seen:
+            continue
+        if e["a"] in ends and any(
+            x["b"] == e["a"] and np.sign(x["rise"]) == np.sign(e["rise"]) for x in edges
+        ):
+            continue  # not the chain's first edge
+        chain = [e]
+        while (
+            (nxt := starts.get(chain[-1]["b"])) is not None
+            and np.sign(nxt["rise"]) == np.sign(e["rise"])
+            and id(nxt) not in seen
+            and nxt not in chain
+        ):
+            chain.append(nxt)
+        seen.update(id(c) for c in chain)
+        if len(chain) == 1:
+            run_on = _far_extent(g, labels, e["b"], e["line"], True)
+            if run_on >= cfg.curb_min_depth_m:
+                curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"], terraces[e["a"]]["h"]))
+                continue
+            if not _further_rise(g, labels, e, terraces, cfg):
+                continue  # one edge and a short top: a box seen in part, not a flight
+        steps = []
+        for k, c in enumerate(chain):
+            tread, tread_sigma = float("nan"), float("nan")
+            if k + 1 < len(chain):
+                nxt = chain[k + 1]["line"]
+                here = c["line"]
+                tread = (nxt.x_at(here.y_m) - here.x_m) * math.cos(here.yaw_rad)
+                tread_sigma = math.hypot(here.sigma_m, nxt.sigma_m)
+            steps.append(
+                Step(
+                    rise_m=c["rise"],
+                    rise_sigma_m=c["rise_sigma"],
+                    nosing=c["line"],
+                    tread_m=tread,
+                    tread_sigma_m=tread_sigma,
+                    lower_height_m=min(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
+                    upper_height_m=max(terraces[c["a"]]["h"], terraces[c["b"]]["h"]),
+                )
+            )
+        stairs.append(Stairs(tuple(steps)))
+    return stairs, curbs
