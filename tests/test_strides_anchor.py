@@ -166,3 +166,22 @@ def test_a_first_strike_finds_the_floor_under_the_heel_far_from_a_poor_up():
                             rng.uniform(0.0, 1.2, 4000)])  # fmt: skip
     w = anchor.at_strike(0.0, 0.05, _in_camera(wall), heel)
     assert w.case == "imu" and w.fit.reason.startswith("not_under_camera")
+
+
+def test_a_ramp_ahead_of_the_heel_leaves_the_contact_level():
+    """The plane is the ground's slope ahead; the contact factors take it only when it passes
+    under the stance heel: a heel 0.3 m before an 8° ramp (4.2 cm below its plane) stands
+    on the level floor, a heel on the ramp takes its slope. The frame's up is the IMU's in
+    both (a sloped plane is never fused)."""
+    points = ramp_points(8.0)
+    on = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points, _in_camera([0.02, 0.0, 0.0028]))
+    before = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points, _in_camera([-0.3, 0, 0]))
+    assert on.case == before.case == "slope"
+    assert math.degrees(on.contact_slope_rad) == pytest.approx(8.0, abs=0.1)
+    assert on.heel_off_m < 0.002 and not any(f.startswith("heel_off") for f in on.flags)
+    assert before.heel_off_m == pytest.approx(0.3 * math.sin(math.radians(8.0)), abs=0.002)
+    assert before.contact_slope_rad == 0.0 and math.degrees(before.slope_rad) > 7.9
+    assert "heel_off_slope:0.042" in before.flags
+    assert np.allclose(on.up_in_imu, before.up_in_imu)
+    no_heel = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points)  # not known: as before
+    assert math.degrees(no_heel.contact_slope_rad) == pytest.approx(8.0, abs=0.1)

@@ -94,6 +94,14 @@ class FloorConfig(ConfigModel):
         "as the ground only when the stance heel (from the encoders) lies within this of it: "
         "on stairs ahead a plane through the nosings, 30° off, was fused as the floor",
     )
+    contact_heel_m: float = Field(
+        0.01,
+        gt=0,
+        description="a sloped plane gives the stance contact its slope only when the stance "
+        "heel (from the encoders) lies within this of it: a ramp seen ahead of a heel on the "
+        "level floor is not the ground under the foot (contact taken as level, flag "
+        "heel_off_slope)",
+    )
     first_strike_search_rad: float = Field(
         math.radians(60.0),
         gt=0,

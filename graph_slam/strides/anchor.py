@@ -64,6 +64,9 @@ class AnchorUp:
     """How the graph's own up entered (:mod:`graph_slam.strides.up_fusion`): ``fused``,
     ``gated`` (disagreed with the accelerometer's: not used) or empty (none asked or none
     available)."""
+    heel_off_m: float = float("nan")
+    """The stance heel's distance from a sloped plane (NaN: not checked, no heel known)."""
+    heel_limit_m: float = float("inf")
 
     @property
     def assumed(self) -> bool:
@@ -71,9 +74,15 @@ class AnchorUp:
         return self.case == "floor" and self.imu_sigma_unknown
 
     @property
+    def heel_on_slope(self) -> bool:
+        """The sloped plane passes under the stance heel (or no heel was known to test it)."""
+        return not self.heel_off_m > self.heel_limit_m
+
+    @property
     def contact_slope_rad(self) -> float:
-        """The slope the stance contact factors use: the plane's where it was not fused."""
-        return self.slope_rad if self.case == "slope" else 0.0
+        """The slope the stance contact factors use: the plane's where it was not fused and
+        it passes under the heel; level otherwise (a ramp that starts ahead of the foot)."""
+        return self.slope_rad if self.case == "slope" and self.heel_on_slope else 0.0
 
     @property
     def flags(self) -> tuple[str, ...]:
@@ -84,6 +93,8 @@ class AnchorUp:
             out.append(f"slope_deg:{math.degrees(self.slope_rad):.2f}")
         if self.graph:
             out.append(f"up_graph:{self.graph}")
+        if self.case == "slope" and not self.heel_on_slope:
+            out.append(f"heel_off_slope:{self.heel_off_m:.3f}")
         return tuple(out)
 
 
@@ -184,7 +195,12 @@ class StrideAnchor:
             gate = cfg.level_gate_sigmas * math.hypot(sigma_imu, fit.sigma_rad)
             consistent = tilt <= max(gate, cfg.level_gate_min_rad)
         if not consistent:
-            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit)
+            heel_off = float("nan")
+            if heel_in_camera_m is not None:
+                heel = np.asarray(heel_in_camera_m, float)
+                heel_off = abs(float(fit.normal @ heel) + fit.offset_m)
+            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit, heel_off_m=heel_off,
+                            heel_limit_m=cfg.contact_heel_m)  # fmt: skip
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
         return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None)
 
