@@ -185,3 +185,37 @@ def test_a_ramp_ahead_of_the_heel_leaves_the_contact_level():
     assert np.allclose(on.up_in_imu, before.up_in_imu)
     no_heel = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points)  # not known: as before
     assert math.degrees(no_heel.contact_slope_rad) == pytest.approx(8.0, abs=0.1)
+
+
+class MovingGravity(FakeGravity):
+    """The accelerometer's rotated mean over a window: gravity plus a mean acceleration."""
+
+    def __init__(self, up_world, accel_world) -> None:
+        super().__init__(up_world)
+        self.accel = WORLD_R_CAMERA.T @ np.asarray(accel_world, float)
+        self.windows: list[float] = []
+
+    def up_at(self, t_s: float, window_s: float) -> np.ndarray:
+        self.windows.append(window_s)
+        return self.up + self.accel
+
+
+def test_the_strides_velocity_change_is_taken_out_of_the_accelerometers_up():
+    """Known answer: a stride that speeds up by 0.35 m/s along the heading and 0.2 m/s
+    downwards over 1.0 s (a stair descent's first stride) tilts the plain mean 2.4°; with
+    the velocity change given (IMU frame = camera frame here) the up is exact, over the
+    open stride's own span; a span under ``min_window_s`` keeps the plain window."""
+    accel = np.array([0.35, 0.0, -0.2])  # m/s², world, over 1.0 s
+    plain = StrideAnchor(MovingGravity([0, 0, 1.0], accel), FloorConfig(enabled=False),
+                         np.eye(4), 0.01, 0.8, 0.2)  # fmt: skip
+    assert tilt_deg(plain.at_strike(0.0, 1.0, None).up_in_imu) > 2.0
+    gravity = MovingGravity([0, 0, 1.0], accel)
+    dv = WORLD_R_CAMERA.T @ accel * 1.0
+    anchor = StrideAnchor(gravity, FloorConfig(enabled=False), np.eye(4), 0.01, 0.8, 0.2,
+                          velocity_change=lambda t: (t - 1.0, dv))  # fmt: skip
+    a = anchor.at_strike(0.0, 1.0, None)
+    assert tilt_deg(a.up_in_imu) < 1e-5 and gravity.windows == [1.0]
+    short = StrideAnchor(MovingGravity([0, 0, 1.0], accel), FloorConfig(enabled=False),
+                         np.eye(4), 0.01, 0.8, 0.2,
+                         velocity_change=lambda t: (t - 0.5, dv * 0.5))  # fmt: skip
+    assert tilt_deg(short.at_strike(0.0, 1.0, None).up_in_imu) > 2.0

@@ -152,6 +152,21 @@ class StrideSLAM:
         cov = last_R_now.T @ cov_last @ last_R_now + np.asarray(seg.pim.preintMeasCov())[:3, :3]
         return GraphUp(float(t_s), now_R_stride[:, 2], cov, now_R_stride[:, 1])
 
+    def velocity_change(self, t_s: float) -> tuple[float, np.ndarray] | None:
+        """``(t0_s, Δv)``: the open stride's first state's time and the IMU's velocity change
+        from it to ``t_s`` (online estimate, carried by the IMU), in the IMU frame at ``t_s``
+        (m/s): what the accelerometer's mean over ``[t0_s, t_s]`` holds besides gravity and
+        its bias (:class:`graph_slam.strides.anchor.StrideAnchor`). None as
+        :meth:`up_estimate`."""
+        carried = self._carried_to(t_s)
+        if carried is None:
+            return None
+        g, last, seg = carried
+        now = seg.pim.predict(gtsam.NavState(last.stride_T_imu, last.velocity_m_s), last.bias)
+        dv_stride = np.asarray(now.velocity()) - g.nav(0).velocity_m_s
+        now_R_stride = now.pose().rotation().matrix().T
+        return float(g.t_s[0]), now_R_stride @ dv_stride
+
     def smooth_deferred(self, keep: int = 0) -> list[StrideSummary]:
         """Batch-smooth the strides closed with ``defer_smoothing`` (off the real-time path:
         at the end of a run, or when the host is idle), oldest first, until ``keep`` wait;

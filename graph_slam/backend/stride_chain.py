@@ -191,7 +191,7 @@ class StrideChain:
                 s.anchor,
                 s.unloaded_first,
                 s.loose_tilt_before,
-                self.cfg.imu.gravity_m_s2 if s.tilt_known else None,
+                gravity_m_s2=self.cfg.imu.gravity_m_s2 if s.tilt_known else None,
             )
         return priors, flags + priors.flags
 

@@ -266,6 +266,13 @@ class PipelineConfig(ConfigModel):
         "came within 0.2° on the terrain walker but the poses did not follow "
         "(docs/benchmarks.md). False: the accelerometer's alone",
     )
+    gravity_mean_acceleration: bool = Field(
+        True,
+        description="the accelerometer's up at a foot strike averaged over the open stride "
+        "with the stride's estimated velocity change removed (its mean acceleration, "
+        "StrideSLAM.velocity_change): over a stride that starts or ends a climb or a "
+        "descent it is not zero (graph_slam.strides.anchor)",
+    )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
     deterministic: bool = Field(
         True,

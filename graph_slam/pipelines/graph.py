@@ -115,7 +115,10 @@ class GraphPipeline(PipelineBase):
         self._uncoloured: set[int] = set()
         self.imu_guess = imu_guess_on(config, self.registration)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
-        self.anchor = make_anchor(config, self.camera_T_imu, self.gravity, self.slam.up_estimate)
+        self.anchor = make_anchor(
+            config, self.camera_T_imu, self.gravity, self.slam.up_estimate,
+            self.slam.velocity_change,
+        )  # fmt: skip
         self.keys = Keyframes(config.graph.keyframe)
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame
         self._prev2: tuple[np.ndarray, float] | None = None

@@ -110,6 +110,7 @@ class StrideAnchor:
         min_window_s: float,
         short_sigma_rad: float,
         graph_up: Callable[[float], GraphUp | None] | None = None,
+        velocity_change: Callable[[float], tuple[float, np.ndarray] | None] | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -118,12 +119,20 @@ class StrideAnchor:
         self.min_window_s = float(min_window_s)
         self.short_sigma_rad = float(short_sigma_rad)
         self.graph_up = graph_up
+        self.velocity_change = velocity_change
 
     def imu_up(self, t_strike_s: float, t_s: float) -> tuple[np.ndarray | None, float | None]:
         """The IMU's up at ``t_s`` over about the last stride, and its σ (None: the first
         strike's short window, which keeps the back end's looser anchor covariance)."""
         window = self.gravity.window_before(t_strike_s)
+        change = None if self.velocity_change is None else self.velocity_change(t_s)
+        if change is not None and t_s - change[0] < self.min_window_s:
+            change = None
+        if change is not None:
+            window = t_s - change[0]  # the open stride's span, whose velocity change is known
         up = self.gravity.up_at(t_s, window)
+        if up is not None and change is not None:
+            up = up - change[1] / window  # the window's mean acceleration is not gravity
         sigma = None
         long_enough = min(window, self.gravity.history_s(t_s)) >= self.min_window_s
         if up is not None and self.sigma_rad is not None and long_enough:
@@ -229,10 +238,14 @@ class StrideAnchor:
         return float(math.atan2(-(n @ ahead), n @ u))
 
 
-def make_anchor(config, camera_T_imu: np.ndarray, gravity, graph_up=None) -> StrideAnchor:
+def make_anchor(
+    config, camera_T_imu: np.ndarray, gravity, graph_up=None, velocity_change=None
+) -> StrideAnchor:
     """The stride anchor of a graph pipeline from its :class:`PipelineConfig`; ``graph_up``
     (e.g. :meth:`graph_slam.backend.StrideSLAM.up_estimate`) is used when
-    ``gravity_from_graph`` is on."""
+    ``gravity_from_graph`` is on, ``velocity_change``
+    (:meth:`graph_slam.backend.StrideSLAM.velocity_change`) when
+    ``gravity_mean_acceleration`` is."""
     return StrideAnchor(
         gravity,
         config.graph.floor,
@@ -241,4 +254,5 @@ def make_anchor(config, camera_T_imu: np.ndarray, gravity, graph_up=None) -> Str
         config.gravity_min_window_s,
         config.gravity_short_sigma_rad,
         graph_up if config.gravity_from_graph else None,
+        velocity_change if config.gravity_mean_acceleration else None,
     )
