@@ -170,8 +170,8 @@ def test_a_first_strike_finds_the_floor_under_the_heel_far_from_a_poor_up():
 
 def test_a_ramp_ahead_of_the_heel_leaves_the_contact_level():
     """The plane is the ground's slope ahead; the contact factors take it only when it passes
-    under the stance heel: a heel 0.3 m before an 8° ramp (4.2 cm below its plane) stands
-    on the level floor, a heel on the ramp takes its slope. The frame's up is the IMU's in
+    under the stance heel: a heel 0.3 m before an 8° ramp (4.2 cm below its plane) keeps
+    the last stride's contact (level here), a heel on the ramp takes its slope. The frame's up is the IMU's in
     both (a sloped plane is never fused)."""
     points = ramp_points(8.0)
     on = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points, _in_camera([0.02, 0.0, 0.0028]))
@@ -179,9 +179,10 @@ def test_a_ramp_ahead_of_the_heel_leaves_the_contact_level():
     assert on.case == before.case == "slope"
     assert math.degrees(on.contact_slope_rad) == pytest.approx(8.0, abs=0.1)
     assert on.heel_off_m < 0.002 and not any(f.startswith("heel_off") for f in on.flags)
+    assert on.previous_slope_rad == 0.0  # a fresh anchor: the last stride's contact level
     assert before.heel_off_m == pytest.approx(0.3 * math.sin(math.radians(8.0)), abs=0.002)
     assert before.contact_slope_rad == 0.0 and math.degrees(before.slope_rad) > 7.9
-    assert "heel_off_slope:0.042" in before.flags
+    assert "heel_off_plane:0.042" in before.flags
     assert np.allclose(on.up_in_imu, before.up_in_imu)
     no_heel = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points)  # not known: as before
     assert math.degrees(no_heel.contact_slope_rad) == pytest.approx(8.0, abs=0.1)
@@ -219,3 +220,17 @@ def test_the_strides_velocity_change_is_taken_out_of_the_accelerometers_up():
                          np.eye(4), 0.01, 0.8, 0.2,
                          velocity_change=lambda t: (t - 0.5, dv * 0.5))  # fmt: skip
     assert tilt_deg(short.at_strike(0.0, 1.0, None).up_in_imu) > 2.0
+
+
+def test_a_heel_still_on_the_ramp_keeps_its_slope_under_a_level_plane_ahead():
+    """At a ramp's foot the plane ahead is the level floor: fused (it is level), but the heel,
+    3 cm above it, still stands on the ramp: the contact keeps the last stride's slope."""
+    anchor = anchor_for([0.0, 0.0, 1.0])
+    anchor.last_contact_slope_rad = math.radians(-8.0)  # the last stride was on the ramp
+    a = anchor.at_strike(0.0, 0.05, ramp_points(0.0), _in_camera([0.0, 0.0, 0.03]))
+    assert a.case == "floor" and a.heel_off_m == pytest.approx(0.03, abs=0.002)
+    assert math.degrees(a.contact_slope_rad) == pytest.approx(-8.0)
+    assert "heel_off_plane:0.030" in a.flags
+    on_floor = anchor.at_strike(1.0, 1.05, ramp_points(0.0), _in_camera([0.0, 0.0, 0.001]))
+    assert on_floor.case == "floor" and on_floor.contact_slope_rad == 0.0
+    assert anchor.last_contact_slope_rad == 0.0  # remembered for the next strike

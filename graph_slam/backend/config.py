@@ -182,8 +182,8 @@ class PriorConfig(ConfigModel):
         "(graph_slam.backend.priors.bias_with_tilt: across the sagittal plane the "
         "accelerometer fixes gravity plus bias, not each). On the stairs it turned the second "
         "stride's roll from -0.66° to +0.87° (seed 3) and from -0.29° to +0.89° (seed 4): the "
-        "stride's own factors set the roll as much as the prior (docs/benchmarks.md, "
-        "'the stairs' roll'); off by default",
+        "stride's own factors set the roll as much as the prior (docs/pipelines.md, "
+        "'The stairs' roll'); off by default",
     )
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"

@@ -65,8 +65,10 @@ class AnchorUp:
     ``gated`` (disagreed with the accelerometer's: not used) or empty (none asked or none
     available)."""
     heel_off_m: float = float("nan")
-    """The stance heel's distance from a sloped plane (NaN: not checked, no heel known)."""
+    """The stance heel's distance from the plane (NaN: not checked, no heel known)."""
     heel_limit_m: float = float("inf")
+    previous_slope_rad: float = 0.0
+    """The previous stride's contact slope: the ground under a heel the plane misses."""
 
     @property
     def assumed(self) -> bool:
@@ -74,15 +76,19 @@ class AnchorUp:
         return self.case == "floor" and self.imu_sigma_unknown
 
     @property
-    def heel_on_slope(self) -> bool:
-        """The sloped plane passes under the stance heel (or no heel was known to test it)."""
+    def heel_on_plane(self) -> bool:
+        """The plane passes under the stance heel (or no heel was known to test it)."""
         return not self.heel_off_m > self.heel_limit_m
 
     @property
     def contact_slope_rad(self) -> float:
-        """The slope the stance contact factors use: the plane's where it was not fused and
-        it passes under the heel; level otherwise (a ramp that starts ahead of the foot)."""
-        return self.slope_rad if self.case == "slope" and self.heel_on_slope else 0.0
+        """The slope the stance contact factors use: the plane's where it was not fused
+        (a slope) and level where it was, when it passes under the heel; where it does not
+        (a ramp that starts ahead of the foot, the level floor ahead of a heel still on the
+        ramp), the previous stride's contact slope."""
+        if self.case in ("slope", "floor") and not self.heel_on_plane:
+            return self.previous_slope_rad
+        return self.slope_rad if self.case == "slope" else 0.0
 
     @property
     def flags(self) -> tuple[str, ...]:
@@ -93,8 +99,8 @@ class AnchorUp:
             out.append(f"slope_deg:{math.degrees(self.slope_rad):.2f}")
         if self.graph:
             out.append(f"up_graph:{self.graph}")
-        if self.case == "slope" and not self.heel_on_slope:
-            out.append(f"heel_off_slope:{self.heel_off_m:.3f}")
+        if self.case in ("slope", "floor") and not self.heel_on_plane:
+            out.append(f"heel_off_plane:{self.heel_off_m:.3f}")
         return tuple(out)
 
 
@@ -120,6 +126,8 @@ class StrideAnchor:
         self.short_sigma_rad = float(short_sigma_rad)
         self.graph_up = graph_up
         self.velocity_change = velocity_change
+        self.last_contact_slope_rad = 0.0
+        """The contact slope of the last stride anchored (0 before the first)."""
 
     def imu_up(self, t_strike_s: float, t_s: float) -> tuple[np.ndarray | None, float | None]:
         """The IMU's up at ``t_s`` over about the last stride, and its σ (None: the first
@@ -169,8 +177,11 @@ class StrideAnchor:
             return AnchorUp(t_s, None, None, "none")
         up, sigma, how = self.with_graph(t_s, up, sigma)
         if points_m is None or not self.floor.enabled:
-            return AnchorUp(t_s, up, sigma, "imu", graph=how)
-        return replace(self.with_plane(t_s, up, sigma, points_m, heel_in_camera_m), graph=how)
+            out = AnchorUp(t_s, up, sigma, "imu", graph=how)
+        else:
+            out = replace(self.with_plane(t_s, up, sigma, points_m, heel_in_camera_m), graph=how)
+        self.last_contact_slope_rad = out.contact_slope_rad
+        return out
 
     def with_plane(
         self, t_s: float, up: np.ndarray, sigma: float | None, points_m, heel_in_camera_m=None
@@ -203,15 +214,15 @@ class StrideAnchor:
         else:
             gate = cfg.level_gate_sigmas * math.hypot(sigma_imu, fit.sigma_rad)
             consistent = tilt <= max(gate, cfg.level_gate_min_rad)
+        heel_off = float("nan")
+        if heel_in_camera_m is not None:
+            heel_off = abs(float(fit.normal @ np.asarray(heel_in_camera_m, float)) + fit.offset_m)
+        heel = {"heel_off_m": heel_off, "heel_limit_m": cfg.contact_heel_m,
+                "previous_slope_rad": self.last_contact_slope_rad}  # fmt: skip
         if not consistent:
-            heel_off = float("nan")
-            if heel_in_camera_m is not None:
-                heel = np.asarray(heel_in_camera_m, float)
-                heel_off = abs(float(fit.normal @ heel) + fit.offset_m)
-            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit, heel_off_m=heel_off,
-                            heel_limit_m=cfg.contact_heel_m)  # fmt: skip
+            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit, **heel)
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
-        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None)
+        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None, **heel)
 
     def _not_ground(self, fit: FloorFit, heel_in_camera_m) -> str | None:
         """Why a first strike's plane is not the ground the heel stands on (None: it is): the
