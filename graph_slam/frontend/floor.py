@@ -97,10 +97,11 @@ class FloorConfig(ConfigModel):
     contact_heel_m: float = Field(
         0.01,
         gt=0,
-        description="a sloped plane gives the stance contact its slope only when the stance "
-        "heel (from the encoders) lies within this of it: a ramp seen ahead of a heel on the "
-        "level floor is not the ground under the foot (contact taken as level, flag "
-        "heel_off_slope)",
+        description="the plane sets the stance contact's slope (its own, or level where fused) "
+        "only when the stance heel (from the encoders) lies within this of it: a ramp seen "
+        "ahead of a heel on the level floor, or the floor ahead of a heel still on the ramp, "
+        "is not the ground under the foot (the previous stride's contact slope, flag "
+        "heel_off_plane)",
     )
     first_strike_search_rad: float = Field(
         math.radians(60.0),
