@@ -234,3 +234,25 @@ def test_a_heel_still_on_the_ramp_keeps_its_slope_under_a_level_plane_ahead():
     on_floor = anchor.at_strike(1.0, 1.05, ramp_points(0.0), _in_camera([0.0, 0.0, 0.001]))
     assert on_floor.case == "floor" and on_floor.contact_slope_rad == 0.0
     assert anchor.last_contact_slope_rad == 0.0  # remembered for the next strike
+
+
+def test_a_known_lateral_bias_is_not_a_roll():
+    """Known answer: the accelerometer's up read through a 0.1 m/s² lateral bias is 0.58° off
+    in roll; with the graph's lateral bias at σ 0.02 (≤ the limit) it is removed exactly, at
+    σ 0.2 (a bias the stride could not tell from a roll) it is not."""
+    lateral = WORLD_R_CAMERA.T @ np.array([0.0, 1.0, 0.0])  # the stride's y, IMU = camera
+    bias = 0.1 * lateral
+
+    class Biased(FakeGravity):
+        def up_at(self, t_s, window_s):
+            return self.up + bias
+
+    def anchor(sigma):
+        return StrideAnchor(Biased(np.array([0.0, 0.0, 1.0])), FloorConfig(enabled=False),
+                            np.eye(4), 0.01, 0.8, 0.2, lateral_bias=lambda t: (bias, sigma),
+                            lateral_bias_max_sigma=0.05)  # fmt: skip
+
+    assert tilt_deg(anchor(0.2).at_strike(0.0, 1.0, None).up_in_imu) == pytest.approx(
+        math.degrees(math.atan(0.1 / 9.81)), abs=1e-3
+    )
+    assert tilt_deg(anchor(0.02).at_strike(0.0, 1.0, None).up_in_imu) < 1e-5

@@ -117,7 +117,7 @@ class GraphPipeline(PipelineBase):
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.anchor = make_anchor(
             config, self.camera_T_imu, self.gravity, self.slam.up_estimate,
-            self.slam.velocity_change,
+            self.slam.velocity_change, self.slam.lateral_bias,
         )  # fmt: skip
         self.keys = Keyframes(config.graph.keyframe)
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame

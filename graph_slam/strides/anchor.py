@@ -117,6 +117,8 @@ class StrideAnchor:
         short_sigma_rad: float,
         graph_up: Callable[[float], GraphUp | None] | None = None,
         velocity_change: Callable[[float], tuple[float, np.ndarray] | None] | None = None,
+        lateral_bias: Callable[[float], tuple[np.ndarray, float] | None] | None = None,
+        lateral_bias_max_sigma: float | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -126,6 +128,8 @@ class StrideAnchor:
         self.short_sigma_rad = float(short_sigma_rad)
         self.graph_up = graph_up
         self.velocity_change = velocity_change
+        self.lateral_bias = lateral_bias
+        self.lateral_bias_max_sigma = lateral_bias_max_sigma
         self.last_contact_slope_rad = 0.0
         """The contact slope of the last stride anchored (0 before the first)."""
 
@@ -141,6 +145,10 @@ class StrideAnchor:
         up = self.gravity.up_at(t_s, window)
         if up is not None and change is not None:
             up = up - change[1] / window  # the window's mean acceleration is not gravity
+        if up is not None and self.lateral_bias is not None:
+            bias = self.lateral_bias(t_s)
+            if bias is not None and bias[1] <= (self.lateral_bias_max_sigma or 0.0):
+                up = up - bias[0]  # a known lateral bias is not a roll
         sigma = None
         long_enough = min(window, self.gravity.history_s(t_s)) >= self.min_window_s
         if up is not None and self.sigma_rad is not None and long_enough:
@@ -250,13 +258,20 @@ class StrideAnchor:
 
 
 def make_anchor(
-    config, camera_T_imu: np.ndarray, gravity, graph_up=None, velocity_change=None
+    config,
+    camera_T_imu: np.ndarray,
+    gravity,
+    graph_up=None,
+    velocity_change=None,
+    lateral_bias=None,
 ) -> StrideAnchor:
     """The stride anchor of a graph pipeline from its :class:`PipelineConfig`; ``graph_up``
     (e.g. :meth:`graph_slam.backend.StrideSLAM.up_estimate`) is used when
     ``gravity_from_graph`` is on, ``velocity_change``
     (:meth:`graph_slam.backend.StrideSLAM.velocity_change`) when
-    ``gravity_mean_acceleration`` is."""
+    ``gravity_mean_acceleration`` is, ``lateral_bias``
+    (:meth:`graph_slam.backend.StrideSLAM.lateral_bias`) when
+    ``gravity_lateral_bias_max_sigma_m_s2`` is set."""
     return StrideAnchor(
         gravity,
         config.graph.floor,
@@ -266,4 +281,6 @@ def make_anchor(
         config.gravity_short_sigma_rad,
         graph_up if config.gravity_from_graph else None,
         velocity_change if config.gravity_mean_acceleration else None,
+        lateral_bias if config.gravity_lateral_bias_max_sigma_m_s2 is not None else None,
+        config.gravity_lateral_bias_max_sigma_m_s2,
     )
