@@ -95,3 +95,36 @@ def test_out_of_a_loose_tilt_stride_the_accel_bias_can_restart_from_the_first_pr
     np.testing.assert_allclose(p.cov_bias[3:, 3:], cov_b[3:, 3:])
     kept = carried_priors(*args)  # out of a stride with a known up: carried as it is
     np.testing.assert_allclose(kept.bias.vector(), bias.vector())
+
+
+def test_lateral_bias_moves_with_the_anchors_roll_the_sagittal_bias_stays():
+    """Known answer: a stride ending rolled by 2° with a lateral bias of g·sin 2° reads, at
+    rest, the same accelerometer lateral component as a level anchor with no lateral bias;
+    a pitch correction leaves the bias alone (the stride separates it from gravity)."""
+    from graph_slam.backend.priors import bias_with_tilt
+
+    g = 9.81
+    roll = np.radians(2.0)
+    old_R = gtsam.Rot3.Rx(roll).matrix()  # stride_R_imu; the IMU's y is the stride's lateral
+    bias = gtsam.imuBias.ConstantBias(np.array([0.05, 0.3, -0.02]), np.array([0.01, 0, 0]))
+    new = bias_with_tilt(bias, old_R, np.eye(3), g)
+    reading_old = g * old_R[2] + bias.accelerometer()
+    reading_new = g * np.eye(3)[2] + new.accelerometer()
+    assert abs(reading_new[1] - reading_old[1]) < 1e-12  # the lateral reading kept
+    np.testing.assert_allclose(new.accelerometer()[[0, 2]], [0.05, -0.02], atol=1e-15)
+    np.testing.assert_allclose(new.gyroscope(), [0.01, 0, 0])
+    assert abs(new.accelerometer()[1] - (0.3 + g * np.sin(roll))) < 1e-12
+    pitched = bias_with_tilt(bias, gtsam.Rot3.Ry(0.03).matrix(), np.eye(3), g)
+    np.testing.assert_allclose(pitched.accelerometer(), bias.accelerometer(), atol=1e-15)
+
+
+def test_carried_priors_move_the_bias_only_when_asked_and_given_gravity():
+    tilted = gtsam.NavState(gtsam.Pose3(gtsam.Rot3.Rx(0.02), np.zeros(3)), np.zeros(3))
+    bias = gtsam.imuBias.ConstantBias(np.array([0.0, 0.4, 0.0]), np.zeros(3))
+    args = (np.eye(4), "foot_strike", tilted, COV_X, COV_V, bias, COV_B, ANCHOR, False, False)
+    on = PriorConfig(carry_bias_with_tilt=True)
+    moved = carried_priors(on, *args, 9.81).bias.accelerometer()
+    assert abs(moved[1] - (0.4 + 9.81 * np.sin(0.02))) < 1e-12
+    for pc, gravity in ((on, None), (PriorConfig(), 9.81)):  # no known up σ / off
+        kept = carried_priors(pc, *args, gravity).bias.accelerometer()
+        np.testing.assert_allclose(kept, [0.0, 0.4, 0.0])

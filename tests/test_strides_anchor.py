@@ -166,3 +166,93 @@ def test_a_first_strike_finds_the_floor_under_the_heel_far_from_a_poor_up():
                             rng.uniform(0.0, 1.2, 4000)])  # fmt: skip
     w = anchor.at_strike(0.0, 0.05, _in_camera(wall), heel)
     assert w.case == "imu" and w.fit.reason.startswith("not_under_camera")
+
+
+def test_a_ramp_ahead_of_the_heel_leaves_the_contact_level():
+    """The plane is the ground's slope ahead; the contact factors take it only when it passes
+    under the stance heel: a heel 0.3 m before an 8° ramp (4.2 cm below its plane) keeps
+    the last stride's contact (level here), a heel on the ramp takes its slope. The frame's up is the IMU's in
+    both (a sloped plane is never fused)."""
+    points = ramp_points(8.0)
+    on = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points, _in_camera([0.02, 0.0, 0.0028]))
+    before = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points, _in_camera([-0.3, 0, 0]))
+    assert on.case == before.case == "slope"
+    assert math.degrees(on.contact_slope_rad) == pytest.approx(8.0, abs=0.1)
+    assert on.heel_off_m < 0.002 and not any(f.startswith("heel_off") for f in on.flags)
+    assert on.previous_slope_rad == 0.0  # a fresh anchor: the last stride's contact level
+    assert before.heel_off_m == pytest.approx(0.3 * math.sin(math.radians(8.0)), abs=0.002)
+    assert before.contact_slope_rad == 0.0 and math.degrees(before.slope_rad) > 7.9
+    assert "heel_off_plane:0.042" in before.flags
+    assert np.allclose(on.up_in_imu, before.up_in_imu)
+    no_heel = anchor_for([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, points)  # not known: as before
+    assert math.degrees(no_heel.contact_slope_rad) == pytest.approx(8.0, abs=0.1)
+
+
+class MovingGravity(FakeGravity):
+    """The accelerometer's rotated mean over a window: gravity plus a mean acceleration."""
+
+    def __init__(self, up_world, accel_world) -> None:
+        super().__init__(up_world)
+        self.accel = WORLD_R_CAMERA.T @ np.asarray(accel_world, float)
+        self.windows: list[float] = []
+
+    def up_at(self, t_s: float, window_s: float) -> np.ndarray:
+        self.windows.append(window_s)
+        return self.up + self.accel
+
+
+def test_the_strides_velocity_change_is_taken_out_of_the_accelerometers_up():
+    """Known answer: a stride that speeds up by 0.35 m/s along the heading and 0.2 m/s
+    downwards over 1.0 s (a stair descent's first stride) tilts the plain mean 2.4°; with
+    the velocity change given (IMU frame = camera frame here) the up is exact, over the
+    open stride's own span; a span under ``min_window_s`` keeps the plain window."""
+    accel = np.array([0.35, 0.0, -0.2])  # m/s², world, over 1.0 s
+    plain = StrideAnchor(MovingGravity([0, 0, 1.0], accel), FloorConfig(enabled=False),
+                         np.eye(4), 0.01, 0.8, 0.2)  # fmt: skip
+    assert tilt_deg(plain.at_strike(0.0, 1.0, None).up_in_imu) > 2.0
+    gravity = MovingGravity([0, 0, 1.0], accel)
+    dv = WORLD_R_CAMERA.T @ accel * 1.0
+    anchor = StrideAnchor(gravity, FloorConfig(enabled=False), np.eye(4), 0.01, 0.8, 0.2,
+                          velocity_change=lambda t: (t - 1.0, dv))  # fmt: skip
+    a = anchor.at_strike(0.0, 1.0, None)
+    assert tilt_deg(a.up_in_imu) < 1e-5 and gravity.windows == [1.0]
+    short = StrideAnchor(MovingGravity([0, 0, 1.0], accel), FloorConfig(enabled=False),
+                         np.eye(4), 0.01, 0.8, 0.2,
+                         velocity_change=lambda t: (t - 0.5, dv * 0.5))  # fmt: skip
+    assert tilt_deg(short.at_strike(0.0, 1.0, None).up_in_imu) > 2.0
+
+
+def test_a_heel_still_on_the_ramp_keeps_its_slope_under_a_level_plane_ahead():
+    """At a ramp's foot the plane ahead is the level floor: fused (it is level), but the heel,
+    3 cm above it, still stands on the ramp: the contact keeps the last stride's slope."""
+    anchor = anchor_for([0.0, 0.0, 1.0])
+    anchor.last_contact_slope_rad = math.radians(-8.0)  # the last stride was on the ramp
+    a = anchor.at_strike(0.0, 0.05, ramp_points(0.0), _in_camera([0.0, 0.0, 0.03]))
+    assert a.case == "floor" and a.heel_off_m == pytest.approx(0.03, abs=0.002)
+    assert math.degrees(a.contact_slope_rad) == pytest.approx(-8.0)
+    assert "heel_off_plane:0.030" in a.flags
+    on_floor = anchor.at_strike(1.0, 1.05, ramp_points(0.0), _in_camera([0.0, 0.0, 0.001]))
+    assert on_floor.case == "floor" and on_floor.contact_slope_rad == 0.0
+    assert anchor.last_contact_slope_rad == 0.0  # remembered for the next strike
+
+
+def test_a_known_lateral_bias_is_not_a_roll():
+    """Known answer: the accelerometer's up read through a 0.1 m/s² lateral bias is 0.58° off
+    in roll; with the graph's lateral bias at σ 0.02 (≤ the limit) it is removed exactly, at
+    σ 0.2 (a bias the stride could not tell from a roll) it is not."""
+    lateral = WORLD_R_CAMERA.T @ np.array([0.0, 1.0, 0.0])  # the stride's y, IMU = camera
+    bias = 0.1 * lateral
+
+    class Biased(FakeGravity):
+        def up_at(self, t_s, window_s):
+            return self.up + bias
+
+    def anchor(sigma):
+        return StrideAnchor(Biased(np.array([0.0, 0.0, 1.0])), FloorConfig(enabled=False),
+                            np.eye(4), 0.01, 0.8, 0.2, lateral_bias=lambda t: (bias, sigma),
+                            lateral_bias_max_sigma=0.05)  # fmt: skip
+
+    assert tilt_deg(anchor(0.2).at_strike(0.0, 1.0, None).up_in_imu) == pytest.approx(
+        math.degrees(math.atan(0.1 / 9.81)), abs=1e-3
+    )
+    assert tilt_deg(anchor(0.02).at_strike(0.0, 1.0, None).up_in_imu) < 1e-5

@@ -175,6 +175,16 @@ class PriorConfig(ConfigModel):
         "session's first strike, an assumption) the accelerometer bias restarts from the "
         "session's first prior (zero, first_accel_bias_sigma_m_s2) instead of being carried",
     )
+    carry_bias_with_tilt: bool = Field(
+        False,
+        description="the lateral accelerometer bias carried into a stride whose anchor has a "
+        "known up σ moves with the anchor's roll correction, g·Δroll "
+        "(graph_slam.backend.priors.bias_with_tilt: across the sagittal plane the "
+        "accelerometer fixes gravity plus bias, not each). On the stairs it turned the second "
+        "stride's roll from -0.66° to +0.87° (seed 3) and from -0.29° to +0.89° (seed 4): the "
+        "stride's own factors set the roll as much as the prior (docs/pipelines.md, "
+        "'The stairs' roll'); off by default",
+    )
     missed_strike_inflation: float = Field(
         4.0, ge=1, description="multiplies carried covariances when a foot strike was missed"
     )

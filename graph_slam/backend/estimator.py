@@ -26,7 +26,7 @@ import numpy as np
 from graph_slam.backend.config import BackendConfig
 from graph_slam.backend.gating import GateDecision, make_registration_gate
 from graph_slam.backend.imu import ImuCheck
-from graph_slam.backend.keys import X
+from graph_slam.backend.keys import B, X
 from graph_slam.backend.measurements import IcpMeasurement, KinematicMeasurement
 from graph_slam.backend.prediction import StrikeUp, make_imu_predictor
 from graph_slam.backend.results import FrameEstimate, Results, StrideSummary
@@ -151,6 +151,40 @@ class StrideSLAM:
         now_R_stride = (last.stride_T_imu.rotation().matrix() @ last_R_now).T
         cov = last_R_now.T @ cov_last @ last_R_now + np.asarray(seg.pim.preintMeasCov())[:3, :3]
         return GraphUp(float(t_s), now_R_stride[:, 2], cov, now_R_stride[:, 1])
+
+    def velocity_change(self, t_s: float) -> tuple[float, np.ndarray] | None:
+        """``(t0_s, Δv)``: the open stride's first state's time and the IMU's velocity change
+        from it to ``t_s`` (online estimate, carried by the IMU), in the IMU frame at ``t_s``
+        (m/s): what the accelerometer's mean over ``[t0_s, t_s]`` holds besides gravity and
+        its bias (:class:`graph_slam.strides.anchor.StrideAnchor`). None as
+        :meth:`up_estimate`."""
+        carried = self._carried_to(t_s)
+        if carried is None:
+            return None
+        g, last, seg = carried
+        now = seg.pim.predict(gtsam.NavState(last.stride_T_imu, last.velocity_m_s), last.bias)
+        dv_stride = np.asarray(now.velocity()) - g.nav(0).velocity_m_s
+        now_R_stride = now.pose().rotation().matrix().T
+        return float(g.t_s[0]), now_R_stride @ dv_stride
+
+    def lateral_bias(self, t_s: float) -> tuple[np.ndarray, float] | None:
+        """The open stride's accelerometer bias across the sagittal plane (along the stride
+        frame's y axis) at ``t_s``, as a vector in the IMU frame at ``t_s`` (m/s²), and its
+        marginal σ: a lateral bias reads as a roll to the accelerometer's up
+        (:class:`graph_slam.strides.anchor.StrideAnchor`). None as :meth:`up_estimate`."""
+        carried = self._carried_to(t_s)
+        if carried is None:
+            return None
+        g, last, seg = carried
+        try:
+            cov = g.marginal_covariance(B(g.n_states - 1))[:3, :3]
+        except RuntimeError as err:
+            log.info("t=%.3f s: no bias marginal for the lateral bias (%s)", t_s, err)
+            return None
+        now_R_stride = (last.stride_T_imu.rotation().matrix() @ seg.pim.deltaRij().matrix()).T
+        lateral = now_R_stride[:, 1]
+        b = np.asarray(last.bias.accelerometer())
+        return float(b @ lateral) * lateral, float(np.sqrt(max(lateral @ cov @ lateral, 0.0)))
 
     def smooth_deferred(self, keep: int = 0) -> list[StrideSummary]:
         """Batch-smooth the strides closed with ``defer_smoothing`` (off the real-time path:

@@ -87,6 +87,30 @@ def _accel_bias_reset(pc: PriorConfig, bias, cov_b: np.ndarray):
     return gtsam.imuBias.ConstantBias(np.zeros(3), np.asarray(bias.gyroscope())), cov
 
 
+def bias_with_tilt(
+    bias: gtsam.imuBias.ConstantBias,
+    old_R_imu: np.ndarray,
+    new_R_imu: np.ndarray,
+    gravity_m_s2: float,
+) -> gtsam.imuBias.ConstantBias:
+    """The accelerometer's bias carried into a stride whose anchor rolls the IMU's up from
+    ``old_R_imu``'s (the previous stride's end state, predicted to the strike) to
+    ``new_R_imu``'s (both ``stride_R_imu``: z up, y the new stride's lateral axis).
+
+    An accelerometer measures gravity plus its bias. Along the sagittal plane a stride
+    separates the two (the thigh pitches through ±30°, turning gravity against a fixed
+    bias), across it they are one: a lateral bias reads as a roll while the thigh swings
+    about its lateral axis, so the previous stride fixed ``g·up_lateral + b_lateral``, not
+    each. An anchor that rolls the up by Δ therefore implies the lateral bias moved by
+    ``g·Δ``; carried unchanged, the bias prior pulls the new stride's roll back towards the
+    old stride's. Only the lateral component moves (the anchor's pitch carries the window's
+    mean acceleration, which the sagittal bias estimate does not)."""
+    lateral = np.asarray(new_R_imu, float)[1]  # the stride's y axis in IMU coordinates
+    d_up = np.asarray(old_R_imu, float)[2] - np.asarray(new_R_imu, float)[2]
+    accel = np.asarray(bias.accelerometer()) + gravity_m_s2 * float(d_up @ lateral) * lateral
+    return gtsam.imuBias.ConstantBias(accel, np.asarray(bias.gyroscope()))
+
+
 def carried_priors(
     pc: PriorConfig,
     camera_T_imu: np.ndarray,
@@ -99,12 +123,16 @@ def carried_priors(
     anchor: KinematicMeasurement | None,
     out_of_unloaded_first: bool = False,
     out_of_loose_tilt: bool = False,
+    gravity_m_s2: float | None = None,
 ) -> StartPriors:
     """The previous stride's end state ``pred`` (propagated to this frame, covariances incl.
     preintegration) as the new stride's priors; see the module docstring for the inflation.
     ``out_of_loose_tilt``: that stride's anchor had no known up σ (the session's first
     strike): its bias covariance is also × ``loose_tilt_bias_inflation`` (and with
-    ``loose_tilt_bias_reset`` the accelerometer's bias restarts from the first prior)."""
+    ``loose_tilt_bias_reset`` the accelerometer's bias restarts from the first prior).
+    ``gravity_m_s2`` (with ``carry_bias_with_tilt``; None where the new anchor's up has no
+    known σ, a session's first strike): the accelerometer's bias moves with the anchor's
+    tilt correction (:func:`bias_with_tilt`)."""
     infl = pc.carry_inflation if reason == "foot_strike" else pc.missed_strike_inflation
     if out_of_unloaded_first:
         infl *= pc.first_carry_inflation
@@ -116,6 +144,10 @@ def carried_priors(
         pose, cov_pose = factors.camera_pose_to_imu(
             anchor.stride_T_camera, anchor.covariance, camera_T_imu
         )
+        if pc.carry_bias_with_tilt and gravity_m_s2 is not None:
+            bias = bias_with_tilt(
+                bias, pred.pose().rotation().matrix(), pose.rotation().matrix(), gravity_m_s2
+            )
         new_R_old = pose.rotation().matrix() @ pred.pose().rotation().matrix().T
         vel = new_R_old @ np.asarray(pred.velocity())
         cov_vel = new_R_old @ cov_v @ new_R_old.T * infl

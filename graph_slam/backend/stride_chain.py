@@ -63,6 +63,8 @@ class _StartInputs:
     world_T_old: np.ndarray
     loose_tilt_before: bool = False
     """The stride carried from had an anchor without a known up σ, this one has one."""
+    tilt_known: bool = True
+    """This stride's anchor came with its up's σ."""
 
 
 @dataclass(eq=False)
@@ -153,6 +155,7 @@ class StrideChain:
         inputs = _StartInputs(t_s, anchor, reason, unloaded_first, self.world_T_stride.copy())
         # out of a stride anchored without a known up σ into one with: its bias is loosened
         inputs.loose_tilt_before = not self._tilt_known and tilt_known and anchor is not None
+        inputs.tilt_known = bool(tilt_known)
         self._tilt_known = bool(tilt_known)
         priors, flags = self._priors(inputs)
         self.first.strike(reason, anchor, self.imu, self._last_nav, t_s)
@@ -188,6 +191,7 @@ class StrideChain:
                 s.anchor,
                 s.unloaded_first,
                 s.loose_tilt_before,
+                gravity_m_s2=self.cfg.imu.gravity_m_s2 if s.tilt_known else None,
             )
         return priors, flags + priors.flags
 

@@ -94,6 +94,15 @@ class FloorConfig(ConfigModel):
         "as the ground only when the stance heel (from the encoders) lies within this of it: "
         "on stairs ahead a plane through the nosings, 30° off, was fused as the floor",
     )
+    contact_heel_m: float = Field(
+        0.01,
+        gt=0,
+        description="the plane sets the stance contact's slope (its own, or level where fused) "
+        "only when the stance heel (from the encoders) lies within this of it: a ramp seen "
+        "ahead of a heel on the level floor, or the floor ahead of a heel still on the ramp, "
+        "is not the ground under the foot (the previous stride's contact slope, flag "
+        "heel_off_plane)",
+    )
     first_strike_search_rad: float = Field(
         math.radians(60.0),
         gt=0,

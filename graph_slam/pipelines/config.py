@@ -266,6 +266,22 @@ class PipelineConfig(ConfigModel):
         "came within 0.2° on the terrain walker but the poses did not follow "
         "(docs/benchmarks.md). False: the accelerometer's alone",
     )
+    gravity_mean_acceleration: bool = Field(
+        True,
+        description="the accelerometer's up at a foot strike averaged over the open stride "
+        "with the stride's estimated velocity change removed (its mean acceleration, "
+        "StrideSLAM.velocity_change): over a stride that starts or ends a climb or a "
+        "descent it is not zero (graph_slam.strides.anchor)",
+    )
+    gravity_lateral_bias_max_sigma_m_s2: float | None = Field(
+        0.05,
+        gt=0,
+        description="the open stride's lateral accelerometer bias (StrideSLAM.lateral_bias) "
+        "is removed from the accelerometer's up at a foot strike when its marginal σ is at "
+        "most this (a lateral bias reads as a roll): 0.021 m/s² out of strides since a level "
+        "plane was fused, 0.06-0.25 where none was (the stairs, whose estimate was off by "
+        "0.1-0.5 m/s²). None: never",
+    )
     max_frames: int | None = Field(None, ge=1, description="stop after this many frames")
     deterministic: bool = Field(
         True,

@@ -116,7 +116,10 @@ class GraphPipeline(PipelineBase):
         self._uncoloured: set[int] = set()
         self.imu_guess = imu_guess_on(config, self.registration)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
-        self.anchor = make_anchor(config, self.camera_T_imu, self.gravity, self.slam.up_estimate)
+        self.anchor = make_anchor(
+            config, self.camera_T_imu, self.gravity, self.slam.up_estimate,
+            self.slam.velocity_change, self.slam.lateral_bias,
+        )  # fmt: skip
         self.keys = Keyframes(config.graph.keyframe)
         self.unregistered = UnregisteredStride()
         self._prev: tuple[np.ndarray, float] | None = None  # online pose, t: the last frame

@@ -64,6 +64,11 @@ class AnchorUp:
     """How the graph's own up entered (:mod:`graph_slam.strides.up_fusion`): ``fused``,
     ``gated`` (disagreed with the accelerometer's: not used) or empty (none asked or none
     available)."""
+    heel_off_m: float = float("nan")
+    """The stance heel's distance from the plane (NaN: not checked, no heel known)."""
+    heel_limit_m: float = float("inf")
+    previous_slope_rad: float = 0.0
+    """The previous stride's contact slope: the ground under a heel the plane misses."""
 
     @property
     def assumed(self) -> bool:
@@ -71,8 +76,18 @@ class AnchorUp:
         return self.case == "floor" and self.imu_sigma_unknown
 
     @property
+    def heel_on_plane(self) -> bool:
+        """The plane passes under the stance heel (or no heel was known to test it)."""
+        return not self.heel_off_m > self.heel_limit_m
+
+    @property
     def contact_slope_rad(self) -> float:
-        """The slope the stance contact factors use: the plane's where it was not fused."""
+        """The slope the stance contact factors use: the plane's where it was not fused
+        (a slope) and level where it was, when it passes under the heel; where it does not
+        (a ramp that starts ahead of the foot, the level floor ahead of a heel still on the
+        ramp), the previous stride's contact slope."""
+        if self.case in ("slope", "floor") and not self.heel_on_plane:
+            return self.previous_slope_rad
         return self.slope_rad if self.case == "slope" else 0.0
 
     @property
@@ -84,6 +99,8 @@ class AnchorUp:
             out.append(f"slope_deg:{math.degrees(self.slope_rad):.2f}")
         if self.graph:
             out.append(f"up_graph:{self.graph}")
+        if self.case in ("slope", "floor") and not self.heel_on_plane:
+            out.append(f"heel_off_plane:{self.heel_off_m:.3f}")
         return tuple(out)
 
 
@@ -99,6 +116,9 @@ class StrideAnchor:
         min_window_s: float,
         short_sigma_rad: float,
         graph_up: Callable[[float], GraphUp | None] | None = None,
+        velocity_change: Callable[[float], tuple[float, np.ndarray] | None] | None = None,
+        lateral_bias: Callable[[float], tuple[np.ndarray, float] | None] | None = None,
+        lateral_bias_max_sigma: float | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -107,12 +127,28 @@ class StrideAnchor:
         self.min_window_s = float(min_window_s)
         self.short_sigma_rad = float(short_sigma_rad)
         self.graph_up = graph_up
+        self.velocity_change = velocity_change
+        self.lateral_bias = lateral_bias
+        self.lateral_bias_max_sigma = lateral_bias_max_sigma
+        self.last_contact_slope_rad = 0.0
+        """The contact slope of the last stride anchored (0 before the first)."""
 
     def imu_up(self, t_strike_s: float, t_s: float) -> tuple[np.ndarray | None, float | None]:
         """The IMU's up at ``t_s`` over about the last stride, and its σ (None: the first
         strike's short window, which keeps the back end's looser anchor covariance)."""
         window = self.gravity.window_before(t_strike_s)
+        change = None if self.velocity_change is None else self.velocity_change(t_s)
+        if change is not None and t_s - change[0] < self.min_window_s:
+            change = None
+        if change is not None:
+            window = t_s - change[0]  # the open stride's span, whose velocity change is known
         up = self.gravity.up_at(t_s, window)
+        if up is not None and change is not None:
+            up = up - change[1] / window  # the window's mean acceleration is not gravity
+        if up is not None and self.lateral_bias is not None:
+            bias = self.lateral_bias(t_s)
+            if bias is not None and bias[1] <= (self.lateral_bias_max_sigma or 0.0):
+                up = up - bias[0]  # a known lateral bias is not a roll
         sigma = None
         long_enough = min(window, self.gravity.history_s(t_s)) >= self.min_window_s
         if up is not None and self.sigma_rad is not None and long_enough:
@@ -149,8 +185,11 @@ class StrideAnchor:
             return AnchorUp(t_s, None, None, "none")
         up, sigma, how = self.with_graph(t_s, up, sigma)
         if points_m is None or not self.floor.enabled:
-            return AnchorUp(t_s, up, sigma, "imu", graph=how)
-        return replace(self.with_plane(t_s, up, sigma, points_m, heel_in_camera_m), graph=how)
+            out = AnchorUp(t_s, up, sigma, "imu", graph=how)
+        else:
+            out = replace(self.with_plane(t_s, up, sigma, points_m, heel_in_camera_m), graph=how)
+        self.last_contact_slope_rad = out.contact_slope_rad
+        return out
 
     def with_plane(
         self, t_s: float, up: np.ndarray, sigma: float | None, points_m, heel_in_camera_m=None
@@ -183,10 +222,15 @@ class StrideAnchor:
         else:
             gate = cfg.level_gate_sigmas * math.hypot(sigma_imu, fit.sigma_rad)
             consistent = tilt <= max(gate, cfg.level_gate_min_rad)
+        heel_off = float("nan")
+        if heel_in_camera_m is not None:
+            heel_off = abs(float(fit.normal @ np.asarray(heel_in_camera_m, float)) + fit.offset_m)
+        heel = {"heel_off_m": heel_off, "heel_limit_m": cfg.contact_heel_m,
+                "previous_slope_rad": self.last_contact_slope_rad}  # fmt: skip
         if not consistent:
-            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit)
+            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit, **heel)
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
-        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None)
+        return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None, **heel)
 
     def _not_ground(self, fit: FloorFit, heel_in_camera_m) -> str | None:
         """Why a first strike's plane is not the ground the heel stands on (None: it is): the
@@ -213,10 +257,21 @@ class StrideAnchor:
         return float(math.atan2(-(n @ ahead), n @ u))
 
 
-def make_anchor(config, camera_T_imu: np.ndarray, gravity, graph_up=None) -> StrideAnchor:
+def make_anchor(
+    config,
+    camera_T_imu: np.ndarray,
+    gravity,
+    graph_up=None,
+    velocity_change=None,
+    lateral_bias=None,
+) -> StrideAnchor:
     """The stride anchor of a graph pipeline from its :class:`PipelineConfig`; ``graph_up``
     (e.g. :meth:`graph_slam.backend.StrideSLAM.up_estimate`) is used when
-    ``gravity_from_graph`` is on."""
+    ``gravity_from_graph`` is on, ``velocity_change``
+    (:meth:`graph_slam.backend.StrideSLAM.velocity_change`) when
+    ``gravity_mean_acceleration`` is, ``lateral_bias``
+    (:meth:`graph_slam.backend.StrideSLAM.lateral_bias`) when
+    ``gravity_lateral_bias_max_sigma_m_s2`` is set."""
     return StrideAnchor(
         gravity,
         config.graph.floor,
@@ -225,4 +280,7 @@ def make_anchor(config, camera_T_imu: np.ndarray, gravity, graph_up=None) -> Str
         config.gravity_min_window_s,
         config.gravity_short_sigma_rad,
         graph_up if config.gravity_from_graph else None,
+        velocity_change if config.gravity_mean_acceleration else None,
+        lateral_bias if config.gravity_lateral_bias_max_sigma_m_s2 is not None else None,
+        config.gravity_lateral_bias_max_sigma_m_s2,
     )
