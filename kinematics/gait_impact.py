@@ -116,7 +116,13 @@ def onset_near(
     """Time the envelope rises through ``threshold_fraction * peak`` in the search window
     around ``t_guess_s`` (interpolated); nan if it does not."""
     level = cfg.threshold_fraction * peak
-    m = np.flatnonzero((t_s >= t_guess_s + cfg.window_s[0]) & (t_s <= t_guess_s + cfg.window_s[1]))
+    return first_rise(t_s, env, level, t_guess_s + cfg.window_s[0], t_guess_s + cfg.window_s[1])
+
+
+def first_rise(t_s: np.ndarray, env: np.ndarray, level: float, lo_s: float, hi_s: float) -> float:
+    """First time in [lo_s, hi_s] the envelope rises through ``level`` (interpolated); nan if
+    it does not."""
+    m = np.flatnonzero((t_s >= lo_s) & (t_s <= hi_s))
     if m.size < 2:
         return math.nan
     above = env[m] >= level

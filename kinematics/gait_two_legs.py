@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinematics.errors import GaitInputError
-from kinematics.gait_impact import ImpactConfig
+from kinematics.gait_impact import ImpactConfig, first_rise
 
 
 @dataclass(frozen=True)
@@ -131,19 +131,6 @@ def _peaks(x: np.ndarray, prominence: float, t_s: np.ndarray) -> np.ndarray:
     return k
 
 
-def _rise(t_s, env, level, lo_s, hi_s) -> float:
-    m = np.flatnonzero((t_s >= lo_s) & (t_s <= hi_s))
-    if m.size < 2:
-        return math.nan
-    above = env[m] >= level
-    up = np.flatnonzero(~above[:-1] & above[1:])
-    if up.size == 0:
-        return math.nan
-    k = m[up[0]]
-    e0, e1 = env[k], env[k + 1]
-    return float(t_s[k] + (level - e0) / (e1 - e0) * (t_s[k + 1] - t_s[k]))
-
-
 @dataclass(frozen=True)
 class Leg:
     """One thigh of the walk: times, inclination (rad) and impact envelope, on one clock."""
@@ -187,7 +174,7 @@ def derive_strikes(own: Leg, other: Leg, config: TwoLegConfig | None = None) -> 
         if not math.isfinite(onset):
             empty.append((tf, hi))
             continue
-        early = _rise(t, env, cfg.early_fraction * typical, tf, onset)
+        early = first_rise(t, env, cfg.early_fraction * typical, tf, onset)
         gap = onset - early if math.isfinite(early) and onset - early >= cfg.min_gap_s else 0.0
         out.append(onset - cfg.lag_s)
         gaps.append(gap)
@@ -228,7 +215,7 @@ def _onset(t, env, env_o, typical, lo, hi, cfg: TwoLegConfig) -> float:
     m = (t >= lo) & (t <= hi)
     if not m.any():
         return math.nan
-    onset = _rise(t, env, cfg.threshold_fraction * typical, lo, hi)
+    onset = first_rise(t, env, cfg.threshold_fraction * typical, lo, hi)
     if not math.isfinite(onset):
         return math.nan
     k = np.flatnonzero((t >= onset) & (t <= onset + 0.1))
