@@ -72,16 +72,11 @@ def read_png(
 
 
 def write_png(path: Path, array: np.ndarray, *, compress_level: int = 1) -> None:
-    """Write uint16 H×W (16-bit grayscale) or uint8 H×W×3 (RGB) as PNG."""
-    from PIL import Image
+    """Write uint16 H×W (16-bit grayscale) or uint8 H×W×3 (RGB) as PNG
+    (:func:`graph_slam.session.png.encode_png`)."""
+    from graph_slam.session.png import encode_png
 
-    depth16 = array.dtype == np.uint16 and array.ndim == 2
-    rgb8 = array.dtype == np.uint8 and array.ndim == 3 and array.shape[2] == 3
-    if not (depth16 or rgb8):
-        raise ValueError(f"write_png: unsupported array {array.dtype} {array.shape}")
-    Image.fromarray(np.ascontiguousarray(array)).save(
-        path, format="PNG", compress_level=compress_level
-    )
+    Path(path).write_bytes(encode_png(array, compress_level))
 
 
 # --------------------------------------------------------------------------- CSV
