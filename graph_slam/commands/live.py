@@ -110,6 +110,7 @@ def register(app: typer.Typer) -> None:
             out.mkdir(parents=True, exist_ok=True)
             viewer = LiveViewer(out / "live.rrd", spawn=rerun == "spawn",
                                 connect=None if rerun in ("spawn", "file") else rerun)  # fmt: skip
+            viewer.wait_ready()
         session_path = out / "session"
         runner = LiveRunner(source, prosthesis, pcfg, mount_pitch_deg=mount_pitch,
                             status=typer.echo, viewer=viewer, session_path=session_path,

@@ -2,48 +2,62 @@
 file, and streamed to a viewer that is spawned (``spawn``) or running at an address
 (``connect``: ``rerun+http://HOST:9876/proxy``).
 
-The logging runs on its own thread (``live-viewer``): the estimator hands each frame's output
-over (a frame's terrain view is a snapshot: later frames do not change it) and goes on; the
-grid's boxes are searched there, not on the estimator's thread. When the viewer falls
-``max_waiting`` frames behind, the oldest waiting frame is not drawn (counted: ``dropped``)."""
+The drawing runs in a process of its own (:mod:`graph_slam.live.view_worker`): the grid's
+boxes are searched and rerun's arrays built there, not under the estimator's interpreter lock.
+The estimator hands each frame's output over (a frame's terrain view is a snapshot: later
+frames do not change it) and goes on; a thread here copies the frame's pose and, every
+``grid_step``-th frame, the grid's cell sums into the worker's pipe. When the viewer falls
+``max_waiting`` frames behind, the oldest waiting frame is not drawn (counted: ``dropped``).
+A worker that stops (it crashed, or could not start rerun) stops the drawing, never the run
+(counted: ``lost``)."""
 
 from __future__ import annotations
 
+import contextlib
+import json
 import logging
+import os
 import queue
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
-import numpy as np
+from graph_slam.errors import ConfigError
 
 log = logging.getLogger(__name__)
+START_TIMEOUT_S = 60.0
+CLOSE_TIMEOUT_S = 120.0
 
 
 class LiveViewer:
     """Call with every frame's ``FrameOutput``; every ``grid_step``-th frame logs the grid."""
 
     def __init__(self, path: str | Path, *, spawn: bool = False, connect: str | None = None,
-                 grid_step: int = 9, max_waiting: int = 8) -> None:  # fmt: skip
-        import rerun as rr
-
-        from graph_slam.report.terrain_trace import TerrainTrace
-        from graph_slam.viz.rerun_logger import RerunLogger
-
-        self.logger = RerunLogger(path, application_id="graph_slam_live")
-        sinks = [rr.FileSink(str(path))]
+                 grid_step: int = 9, max_waiting: int = 8, nice: int = 5) -> None:  # fmt: skip
+        if grid_step < 1:
+            raise ConfigError(f"live viewer: grid_step must be ≥ 1, got {grid_step}")
+        self.path, self.grid_step = Path(path), int(grid_step)
+        self.counts = {"drawn": 0, "dropped": 0, "failed": 0, "lost": 0}
+        cmd = [sys.executable, "-m", "graph_slam.live.view_worker", str(self.path),
+               "--nice", str(int(nice))]  # fmt: skip
         if spawn:
-            rr.spawn(connect=False)
-            sinks.append(rr.GrpcSink())
+            cmd.append("--spawn")
         elif connect:
-            sinks.append(rr.GrpcSink(connect))
-        if len(sinks) > 1:
-            self.logger._rec.set_sinks(*sinks)  # the file and the viewer
-        self.trace = TerrainTrace(grid_step=grid_step, every_frame=False)
-        self._stride = -1
-        self.counts = {"drawn": 0, "dropped": 0}
+            cmd += ["--connect", connect]
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+        self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
         self._waiting: queue.Queue = queue.Queue(maxsize=max_waiting)
         self._thread = threading.Thread(target=self._drain, name="live-viewer", daemon=True)
         self._thread.start()
+
+    def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> bool:
+        """Wait until the worker has rerun open (its imports take a second or two)."""
+        line = _readline(self._proc.stdout, timeout_s)
+        if line.strip() != b"ready":
+            log.warning("rerun: the viewer's process did not start (%r)", line[:200])
+            return False
+        return True
 
     def frame(self, out) -> None:
         """Hand one frame's output over (never waits)."""
@@ -59,30 +73,50 @@ class LiveViewer:
                     pass
 
     def _drain(self) -> None:
-        while (out := self._waiting.get()) is not None:
-            try:
-                self._draw(out)
-                self.counts["drawn"] += 1
-            except Exception as err:  # the view only: never the run
-                self.counts["failed"] = self.counts.get("failed", 0) + 1
-                log.warning("rerun: frame %s not drawn (%s)", getattr(out, "frame_index", "?"), err)
+        from graph_slam.live.view_worker import frame_message
 
-    def _draw(self, out) -> None:
-        log = self.logger
-        log.set_time(out.stride_index, out.t_s)
-        if out.stride_T_camera is not None and np.isfinite(out.stride_T_camera).all():
-            log.log_camera(out.stride_T_camera)
-        self.trace(out)
-        snap = self.trace.snapshots.pop(int(out.frame_index), None)
-        if snap is not None:
-            log.log_grid(snap)
-        self.trace.obstacles.clear()
-        self.trace.t_s.clear()
-        self.trace.stride_index.clear()
+        pipe = self._proc.stdin
+        while (out := self._waiting.get()) is not None:
+            if pipe is None:
+                self.counts["lost"] += 1
+                continue
+            try:
+                pipe.write(frame_message(out, int(out.frame_index) % self.grid_step == 0))
+                pipe.flush()
+            except (BrokenPipeError, OSError, ValueError) as err:
+                log.warning("rerun: the viewer's process stopped (%s); not drawing", err)
+                self.counts["lost"] += 1
+                pipe = None
 
     def close(self) -> None:
-        """Draw what waits, then close the recording."""
+        """Draw what waits, then close the recording (the worker writes its counts)."""
         if self._thread.is_alive():
             self._waiting.put(None)
             self._thread.join()
-        self.logger.close()
+        proc = self._proc
+        with contextlib.suppress(OSError):
+            proc.stdin.close()
+        try:
+            proc.wait(timeout=CLOSE_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            log.warning("rerun: the viewer's process did not finish in %.0f s", CLOSE_TIMEOUT_S)
+            proc.kill()
+            proc.wait()
+        lines = proc.stdout.read().splitlines()
+        try:
+            worker = json.loads(lines[-1]) if lines else {}
+        except ValueError:
+            worker = {}
+        for key in ("drawn", "failed"):
+            self.counts[key] = int(worker.get(key, 0))
+        if proc.returncode != 0:
+            log.warning("rerun: the viewer's process ended with status %s", proc.returncode)
+
+
+def _readline(stream, timeout_s: float) -> bytes:
+    """One line of ``stream`` within ``timeout_s`` (b"" when none came)."""
+    got: list[bytes] = []
+    reader = threading.Thread(target=lambda: got.append(stream.readline()), daemon=True)
+    reader.start()
+    reader.join(timeout_s)
+    return got[0] if got else b""
