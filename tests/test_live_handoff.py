@@ -245,7 +245,8 @@ def test_live_loop_waits_for_a_late_imu_without_skipping() -> None:
     assert result.skipped <= 10 and result.n_processed + result.skipped == 20
     assert np.all(np.diff(frames) > 0)
     # the waits themselves depend on the machine's load (a late sender thread sends in bursts)
-    assert len(result.timing.ready_s) == 20 and min(result.timing.ready_s) >= 0.0
+    # (one wait per processed frame: a busy skip, allowed above, has none)
+    assert len(result.timing.ready_s) == result.n_processed and min(result.timing.ready_s) >= 0.0
 
 
 def test_an_unreadable_frame_is_skipped_and_counted_and_the_run_goes_on() -> None:
