@@ -104,6 +104,40 @@ def test_descending_stairs_with_the_shadow_behind_each_nosing():
         assert step.nosing.occluded
 
 
+def seen_counts(unknown, per_sample=3):
+    """Points per cell of :func:`grid`'s layout: ``per_sample`` for each of its 8×8 samples
+    that ``unknown`` leaves seen (points fall evenly on a surface)."""
+    sub = (np.arange(8) + 0.5) / 8 * CELL
+    xs = X0 + (np.arange(NX)[:, None] * CELL + sub[None, :]).ravel()
+    ys = Y0 + (np.arange(NY)[:, None] * CELL + sub[None, :]).ravel()
+    xx, yy = np.meshgrid(xs, ys, indexing="ij")
+    seen = ~unknown(xx, yy).reshape(NX, 8, NY, 8)
+    return per_sample * seen.sum(axis=(1, 3))
+
+
+def test_descending_nosings_placed_by_the_points_of_the_last_cell_seen():
+    """Nosings 0.35, 0.70 and 0.05 of the way through a cell, the shadow beyond each: without
+    the counts the edge is put 0.65 through the last cell seen (up to 7 mm off); with them,
+    where the last cell's share of points ends (within 1.5 mm: the samples lie 2.5 mm apart)."""
+    first, tread = 0.507, 0.287
+    down = stairs_surface(first=first, rise=-0.16, tread=tread, n=3)
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.06)
+
+    h, var = grid(down, 0.001, seed=21, unknown=shadow)
+    truth = [first + tread * k for k in range(3)]
+    plain = extract_features(h, var, (X0, Y0), CELL).stairs[0].steps
+    counted = extract_features(h, var, (X0, Y0), CELL, count=seen_counts(shadow)).stairs[0].steps
+    plain_err = [abs(s.nosing.x_m - t) for s, t in zip(plain, truth, strict=True)]
+    assert max(plain_err) > 0.004  # the fixed guess is off where the nosing is early in its cell
+    for step, t in zip(counted, truth, strict=True):
+        assert step.nosing.occluded
+        assert abs(step.nosing.x_m - t) <= 0.0015, (step.nosing.x_m, t)
+        assert 0 < step.nosing.sigma_m < 0.005
+
+
 @pytest.mark.parametrize("slope_deg", [5.0, 8.0, 10.0])
 def test_ramp_slope_direction_start(slope_deg):
     g = math.tan(math.radians(slope_deg))
