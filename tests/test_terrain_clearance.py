@@ -254,21 +254,25 @@ def test_the_reference_descent_clears_the_nosing_it_leaves():
 
 def test_edge_clearance_sigma_follows_the_part_of_the_profile_nearest():
     """Over the curb's top its σ is the top's height σ; beside its face the edge's position
-    σ; past its corner at 45° both, each times cos 45°; the toe's own σ adds in quadrature."""
+    σ and the toe's along the ground; past its corner at 45° both, each times cos 45°; the
+    toe's own σ adds in quadrature."""
     from graph_slam.terrain.features.clearance import ClearanceConfig, edge_clearance
     from graph_slam.terrain.features.model import Curb, EdgeLine, TerrainFeatures
 
-    s_x, s_h = 0.004, 0.002
+    s_x, s_h, s_t = 0.004, 0.002, 0.003
     edge = EdgeLine(0.7, 0.0, 0.0, s_x, 0.001, (-0.6, 0.6), 20, False)
     feats = TerrainFeatures(source="test", curbs=(Curb(0.15, s_h, edge, 0.0),))
+    cfg = ClearanceConfig(toe_along_sigma_m=s_t)
     x = np.linspace(0.72, 0.74, 5)
     over = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.17)])
-    assert edge_clearance(feats, over).sigma_m == pytest.approx(s_h, rel=1e-6)
+    assert edge_clearance(feats, over, cfg).sigma_m == pytest.approx(s_h, rel=1e-6)
     beside = np.column_stack([np.full(5, 0.68), np.zeros(5), np.linspace(0.05, 0.1, 5)])
-    assert edge_clearance(feats, beside).sigma_m == pytest.approx(s_x, rel=1e-6)
+    assert edge_clearance(feats, beside, cfg).sigma_m == pytest.approx(math.hypot(s_x, s_t))
+    no_toe = ClearanceConfig(toe_along_sigma_m=0.0)
+    assert edge_clearance(feats, beside, no_toe).sigma_m == pytest.approx(s_x, rel=1e-6)
     corner = np.array([[0.68, 0.0, 0.17], [0.6, 0.0, 0.25]])  # 2 cm before and above it
-    c = edge_clearance(feats, corner)
+    c = edge_clearance(feats, corner, no_toe)
     assert c.min_m == pytest.approx(math.hypot(0.02, 0.02), rel=1e-6)
     assert c.sigma_m == pytest.approx(math.hypot(s_x, s_h) / math.sqrt(2), rel=1e-6)
-    c = edge_clearance(feats, corner, ClearanceConfig(toe_sigma_m=0.003))
+    c = edge_clearance(feats, corner, ClearanceConfig(toe_sigma_m=0.003, toe_along_sigma_m=0))
     assert c.sigma_m == pytest.approx(math.sqrt((s_x**2 + s_h**2) / 2 + 0.003**2), rel=1e-6)

@@ -25,7 +25,8 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
   and the higher surface at its top; the lower surface is floor), over the path's points within
   ``edge_band_m`` of the edge line inside its y range; negative when the toe is below the
   profile. Its σ: the edge's position σ and the higher surface's height σ (the step's rise
-  σ) through the distance's derivatives by them, and ``toe_sigma_m``. Level floor has no edge: a swing over it has no edge clearance, and raises no
+  σ) through the distance's derivatives by them (the toe's own error along the ground,
+  ``toe_along_sigma_m``, beside the edge's position), and ``toe_sigma_m``. Level floor has no edge: a swing over it has no edge clearance, and raises no
   warning however close the toe passes to the floor. The path is resampled every
   ``resample_m`` first, so the same toe motion sampled at other times gives the same value.
 """
@@ -72,6 +73,15 @@ class ClearanceConfig(ConfigModel):
         ge=0,
         description="σ of the toe path relative to the grid (poses, encoders, leg model) in an "
         "edge clearance's σ, beside the edge's position and height σ",
+    )
+    toe_along_sigma_m: float = Field(
+        0.003,
+        ge=0,
+        description="σ of the toe path along the ground relative to the edges (the swing's "
+        "camera poses drift from those of the stance frames that mapped the edge: 3-6 mm "
+        "forward by late swing on the simulated stairs down), through the distance's "
+        "derivative by the edge's position: it counts where the toe passes the edge's face, "
+        "not over a top",
     )
     resample_m: float = Field(
         0.005, gt=0, description="the edge clearance resamples the toe path this finely"
@@ -280,7 +290,8 @@ def edge_clearances(
         dist, by_x, by_h = _profile(d[band], p[band, 2], near, far)
         k = int(np.argmin(dist))
         i = int(np.flatnonzero(band)[k])
-        sigma = math.hypot(by_x[k] * line.sigma_m, by_h[k] * rise_sigma, cfg.toe_sigma_m)
+        along = math.hypot(line.sigma_m, cfg.toe_along_sigma_m)
+        sigma = math.hypot(by_x[k] * along, by_h[k] * rise_sigma, cfg.toe_sigma_m)
         out.append((line, Clearance(float(dist[k]), sigma, float(p[i, 0]),
                                     float(p[i, 1]), i, label, "edge", edge_m=float(dist[k]))))  # fmt: skip
     return out
