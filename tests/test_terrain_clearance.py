@@ -45,7 +45,7 @@ def test_clearance_of_an_analytic_toe_path_over_an_analytic_step():
         got = clearance_along(view_of(h, var), feats, path)
         assert abs(got.min_m - true) <= 0.003, (c, got)
         assert got.edge == "curbs[0]" and abs(got.x_m - edge) <= 0.01
-        assert 0 < got.sigma_m < 0.005
+        assert 0 < got.sigma_m < 0.006  # the rise's: mostly the stride tilt over the terraces' 1 m
 
 
 def _box_case(height, x0=0.8, depth=0.2):

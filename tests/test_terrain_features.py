@@ -104,6 +104,30 @@ def test_descending_stairs_with_the_shadow_behind_each_nosing():
         assert step.nosing.occluded
 
 
+def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
+    """The flight seen in a frame tilted 5 mrad up along x: each rise comes out 5 mrad × the
+    distance between the middles of the two terraces high (1.4 mm between treads 28 cm
+    apart); its σ carries the stride tilt's (``stride_tilt_sigma_rad``) over that distance,
+    where the averaged cells alone would say under 0.3 mm."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    tilt = 0.005
+    base = stairs_surface()
+    h, var = grid(lambda x, y: base(x, y) + tilt * x, 0.001, seed=22)
+    with_tilt = FeatureConfig(stride_tilt_sigma_rad=tilt)
+    steps = extract_features(h, var, (X0, Y0), CELL, config=with_tilt).stairs[0].steps
+    bare = extract_features(h, var, (X0, Y0), CELL, config=FeatureConfig(stride_tilt_sigma_rad=0))
+    # the terraces' middles: the floor from the grid's start, the treads, the top to its end
+    bounds = [X0] + [0.513 + 0.28 * k for k in range(4)] + [X0 + NX * CELL]
+    middles = [(a + b) / 2 for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    assert len(steps) == 4
+    for k, (step, plain) in enumerate(zip(steps, bare.stairs[0].steps, strict=True)):
+        err = step.rise_m - 0.17
+        assert abs(err - tilt * (middles[k + 1] - middles[k])) <= 0.0006, (k, err)
+        assert 0.8 <= abs(err) / step.rise_sigma_m <= 1.5
+        assert plain.rise_sigma_m < 0.0003
+
+
 def seen_counts(unknown, per_sample=3):
     """Points per cell of :func:`grid`'s layout: ``per_sample`` for each of its 8×8 samples
     that ``unknown`` leaves seen (points fall evenly on a surface)."""

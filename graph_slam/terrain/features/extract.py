@@ -246,6 +246,11 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     ]
 
 
+def _centre_x(g: _Grid, terrace: dict) -> float:
+    """The middle of a terrace's extent along x."""
+    return g.x0 + (terrace["i"][0] + terrace["i"][1] + 1) * g.cell / 2
+
+
 def _seen_part(g: _Grid, i: np.ndarray, j: np.ndarray, cfg: FeatureConfig):
     """Per row: the part of cell ``(i, j)`` (the last seen before a shadow) that lies before
     the shadow, and whether the counts gave it (else ``shadow_cell_seen``): its points over
@@ -321,9 +326,11 @@ def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
         common = g.cell * part_sigma if occluded else 0.0
         line = _fit_line(y, x, s, occluded, common_sigma_m=common)
         ta, tb = terraces[a], terraces[b]
+        tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))
         out.append({
             "a": a, "b": b, "line": line, "rise": tb["h"] - ta["h"],
-            "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2 + (ta["corr"] - tb["corr"]) ** 2),
+            "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2
+                                    + (ta["corr"] - tb["corr"]) ** 2 + tilt**2),
         })  # fmt: skip
     out.sort(key=lambda e: e["line"].x_m)
     return out

@@ -90,6 +90,14 @@ class FeatureConfig(ConfigModel):
     shadow_count_sigma: float = Field(
         0.1, ge=0, description="σ of the part from the counts (a cell), common to the rows"
     )
+    stride_tilt_sigma_rad: float = Field(
+        0.003,
+        ge=0,
+        description="σ of the stride frame's tilt (the anchor's up, 0.1-0.7° off on the "
+        "simulated terrain walker): a tilt moves two terraces' heights apart by it times the "
+        "distance between their middles, the same in every cell of each, so a rise's σ "
+        "carries it however many cells are averaged",
+    )
     window_cells: int = Field(5, ge=3, le=11, description="local plane window (odd)")
     min_window_cells: int = Field(12, ge=3, description="known cells a local plane needs")
     level_max_deg: float = Field(3.0, gt=0, description="steepest level cell")
