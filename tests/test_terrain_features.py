@@ -9,6 +9,7 @@ samples' spread. Tolerances: the issue's targets (rise 3 mm, tread and nosing 8 
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -119,7 +120,7 @@ def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
     bare = extract_features(h, var, (X0, Y0), CELL, config=FeatureConfig(stride_tilt_sigma_rad=0))
     # the terraces' middles: the floor from the grid's start, the treads, the top to its end
     bounds = [X0] + [0.513 + 0.28 * k for k in range(4)] + [X0 + NX * CELL]
-    middles = [(a + b) / 2 for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    middles = [(a + b) / 2 for a, b in itertools.pairwise(bounds)]
     assert len(steps) == 4
     for k, (step, plain) in enumerate(zip(steps, bare.stairs[0].steps, strict=True)):
         err = step.rise_m - 0.17
