@@ -129,6 +129,21 @@ def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
         assert plain.rise_sigma_m < 0.0003
 
 
+def test_an_edge_seen_only_in_carried_cells_carries_the_carry_sigma():
+    """Counts 0 on both sides of every nosing (cells carried from the previous stride): each
+    nosing's σ holds ``carried_edge_sigma_m``; with this stride's points there it does not."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    h, var = grid(stairs_surface(), 0.001, seed=23)
+    carried = extract_features(h, var, (X0, Y0), CELL, count=np.zeros(h.shape))
+    seen = extract_features(h, var, (X0, Y0), CELL, count=np.full(h.shape, 50.0))
+    s_c = FeatureConfig().carried_edge_sigma_m
+    for a, b in zip(carried.stairs[0].steps, seen.stairs[0].steps, strict=True):
+        assert a.nosing.x_m == pytest.approx(b.nosing.x_m)
+        assert s_c <= a.nosing.sigma_m <= math.hypot(s_c, b.nosing.sigma_m) + 1e-9
+        assert b.nosing.sigma_m < 0.002
+
+
 def seen_counts(unknown, per_sample=3):
     """Points per cell of :func:`grid`'s layout: ``per_sample`` for each of its 8×8 samples
     that ``unknown`` leaves seen (points fall evenly on a surface)."""

@@ -238,12 +238,22 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     x = x - np.where(occluded, 1.0 - seen, 0.0) * g.cell
     noise = np.where(inside & ~unknown, np.nan_to_num(vw) / rise[:, None] ** 2, 0.0).sum(axis=1)
     sigma = g.cell * np.sqrt(noise)
+    carried = _carried(g, i1, i2, j)
     return [
-        (int(a), int(b), float(yy), float(xx), float(ss), bool(oc), bool(ct))
-        for a, b, yy, xx, ss, oc, ct in zip(
-            lab[cand], lab[cand + 1], g.y_of(j), x, sigma, occluded, counted, strict=True
+        (int(a), int(b), float(yy), float(xx), float(ss), bool(oc), bool(ct), bool(ca))
+        for a, b, yy, xx, ss, oc, ct, ca in zip(
+            lab[cand], lab[cand + 1], g.y_of(j), x, sigma, occluded, counted, carried,
+            strict=True,
         )
     ]
+
+
+def _carried(g: _Grid, i1: np.ndarray, i2: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Per row: whether the cells on both sides of the edge hold no point of this stride
+    (carried from the previous one); False when the counts are not known."""
+    if g.count is None:
+        return np.zeros(len(i1), bool)
+    return (g.count[i1, j] == 0) & (g.count[i2, j] == 0)
 
 
 def _centre_x(g: _Grid, terrace: dict) -> float:
@@ -311,19 +321,21 @@ def _fit_line(
 def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
     """Per terrace pair met in enough rows: its edge line, rise and σ."""
     pairs: dict[tuple[int, int], list] = {}
-    for a, b, y, x, s, oc, ct in _transitions(g, labels, terraces, cfg):
-        pairs.setdefault((a, b), []).append((y, x, s, oc, ct))
+    for a, b, y, x, s, oc, ct, ca in _transitions(g, labels, terraces, cfg):
+        pairs.setdefault((a, b), []).append((y, x, s, oc, ct, ca))
     out = []
     for (a, b), rows in pairs.items():
         if len(rows) < cfg.min_edge_rows:
             continue
-        y, x, s, oc, ct = (np.array(v) for v in zip(*rows, strict=True))
+        y, x, s, oc, ct, ca = (np.array(v) for v in zip(*rows, strict=True))
         occluded = bool(oc.mean() > 0.5)
         # where the shadow begins inside the last cell seen: the same guess in every row, or
         # the counts' ratio (its error common to the rows too: the density's trend)
         counted = occluded and bool(ct[oc].mean() > 0.5)
         part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma
         common = g.cell * part_sigma if occluded else 0.0
+        if ca.mean() > 0.5:  # moved here with the previous stride's cells
+            common = math.hypot(common, cfg.carried_edge_sigma_m)
         line = _fit_line(y, x, s, occluded, common_sigma_m=common)
         ta, tb = terraces[a], terraces[b]
         tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))

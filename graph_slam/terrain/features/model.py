@@ -90,6 +90,14 @@ class FeatureConfig(ConfigModel):
     shadow_count_sigma: float = Field(
         0.1, ge=0, description="σ of the part from the counts (a cell), common to the rows"
     )
+    carried_edge_sigma_m: float = Field(
+        0.006,
+        ge=0,
+        description="σ of an edge seen only in cells carried from the previous stride (no "
+        "point of this stride on either side of it), common to its rows: the carry moves "
+        "it by the estimated relative stride pose's horizontal error, which the cells' "
+        "height σ does not hold",
+    )
     stride_tilt_sigma_rad: float = Field(
         0.003,
         ge=0,
