@@ -276,3 +276,22 @@ def test_edge_clearance_sigma_follows_the_part_of_the_profile_nearest():
     assert c.sigma_m == pytest.approx(math.hypot(s_x, s_h) / math.sqrt(2), rel=1e-6)
     c = edge_clearance(feats, corner, ClearanceConfig(toe_sigma_m=0.003, toe_along_sigma_m=0))
     assert c.sigma_m == pytest.approx(math.sqrt((s_x**2 + s_h**2) / 2 + 0.003**2), rel=1e-6)
+
+
+def test_the_reference_is_up_a_near_curb_by_its_edge():
+    """A 10 cm curb 21 cm ahead of the toe (before mid-swing): the base line is up by the
+    edge, so the toe passes it the lift there high (5 cm·√sin(π·0.16), 3.5 cm) and raises no
+    warning; one 80 cm ahead is reached by mid-swing as before."""
+    for edge_x, reach_x in ((0.41, 0.41), (1.0, 0.85)):
+        h, var = grid(lambda x, y, e=edge_x: np.where(x >= e, 0.10, 0.0), 0.0005, seed=8)
+        feats = extract_features(h, var, (X0, Y0), CELL)
+        assert len(feats.curbs) == 1
+        cfg = ClearanceConfig()
+        path, kind = reference_swing(view_of(h, var), feats, (0.2, 0.0), cfg)
+        assert kind == "curb"
+        s = (path[:, 0] - 0.2) / cfg.stride_length_m
+        lift = cfg.lift_m * np.sqrt(np.sin(np.pi * s))
+        up = path[:, 0] >= reach_x
+        assert np.allclose(path[up, 2] - lift[up], 0.10, atol=0.002)
+        c = predict_clearance(view_of(h, var), feats, (0.2, 0.0), cfg)
+        assert not c.warning and c.edge_m > 0.03, (edge_x, c)

@@ -8,7 +8,7 @@ is below ``warn_below_m`` (2 cm). The reference per terrain type
 (:func:`terrain_type`, the first that applies along the walking line):
 
 * ``stairs_up`` / ``curb`` — a lift of ``lift_m`` over a base line that rises to the next
-  level by mid-swing; ``stairs_down`` — the base line drops to the next tread from mid-swing
+  level by mid-swing (up a curb nearer than that: by its edge); ``stairs_down`` — the base line drops to the next tread from mid-swing
   (the toe clears the nosing of the tread it leaves first);
 * ``step_over`` — a box whose leading edge lies within the swing: the base line rises to the
   box's top over ``step_over_run_m`` before its leading edge and comes back down over as much
@@ -115,9 +115,23 @@ def reference_swing(
     # up to the landing level by mid-swing when stepping up; down from mid-swing when stepping
     # down (the toe clears the nosing of the tread it leaves first: lowered over the whole
     # swing it passed that nosing a centimetre up); over the whole swing otherwise
-    u = np.minimum(2 * s, 1.0) if rise > 0 else np.clip(2 * s - 1, 0.0, 1.0) if rise < 0 else s
+    # (a curb up nearer than mid-swing: by its edge, as a foot stepping up is raised before it)
+    reach = 0.5 if not (kind == "curb" and rise > 0) else _curb_reach(features, x0, y0, cfg)
+    u = np.minimum(s / reach, 1.0) if rise > 0 else np.clip(2 * s - 1, 0.0, 1.0) if rise < 0 else s
     z = z0 + (z1 - z0) * u * u * (3 - 2 * u) + lift
     return np.column_stack([xy, z]), kind
+
+
+def _curb_reach(features: TerrainFeatures, x0: float, y0: float, cfg: ClearanceConfig) -> float:
+    """The swing's fraction by which the base line is up a curb ahead: mid-swing, or the
+    curb's edge when that comes first (at least 0.05 of the swing)."""
+    edges = [
+        c.edge.x_at(y0) for c in features.curbs
+        if x0 <= c.edge.x_at(y0) <= x0 + cfg.stride_length_m and _on_path(c.edge, y0)
+    ]  # fmt: skip
+    if not edges:
+        return 0.5
+    return float(np.clip((min(edges) - x0) / cfg.stride_length_m, 0.05, 0.5))
 
 
 def predict_clearance(
