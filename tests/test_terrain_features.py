@@ -9,6 +9,7 @@ samples' spread. Tolerances: the issue's targets (rise 3 mm, tread and nosing 8 
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -102,6 +103,79 @@ def test_descending_stairs_with_the_shadow_behind_each_nosing():
         assert abs(step.rise_m + 0.16) <= RISE_TOL
         assert abs(step.nosing.x_m - (0.507 + 0.3 * k)) <= NOSING_TOL
         assert step.nosing.occluded
+
+
+def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
+    """The flight seen in a frame tilted 5 mrad up along x: each rise comes out 5 mrad × the
+    distance between the middles of the two terraces high (1.4 mm between treads 28 cm
+    apart); its σ carries the stride tilt's (``stride_tilt_sigma_rad``) over that distance,
+    where the averaged cells alone would say under 0.3 mm."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    tilt = 0.005
+    base = stairs_surface()
+    h, var = grid(lambda x, y: base(x, y) + tilt * x, 0.001, seed=22)
+    with_tilt = FeatureConfig(stride_tilt_sigma_rad=tilt)
+    steps = extract_features(h, var, (X0, Y0), CELL, config=with_tilt).stairs[0].steps
+    bare = extract_features(h, var, (X0, Y0), CELL, config=FeatureConfig(stride_tilt_sigma_rad=0))
+    # the terraces' middles: the floor from the grid's start, the treads, the top to its end
+    bounds = [X0] + [0.513 + 0.28 * k for k in range(4)] + [X0 + NX * CELL]
+    middles = [(a + b) / 2 for a, b in itertools.pairwise(bounds)]
+    assert len(steps) == 4
+    for k, (step, plain) in enumerate(zip(steps, bare.stairs[0].steps, strict=True)):
+        err = step.rise_m - 0.17
+        assert abs(err - tilt * (middles[k + 1] - middles[k])) <= 0.0006, (k, err)
+        assert 0.8 <= abs(err) / step.rise_sigma_m <= 1.5
+        assert plain.rise_sigma_m < 0.0003
+
+
+def test_an_edge_seen_only_in_carried_cells_carries_the_carry_sigma():
+    """Counts 0 on both sides of every nosing (cells carried from the previous stride): each
+    nosing's σ holds ``carried_edge_sigma_m``; with this stride's points there it does not."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    h, var = grid(stairs_surface(), 0.001, seed=23)
+    carried = extract_features(h, var, (X0, Y0), CELL, count=np.zeros(h.shape))
+    seen = extract_features(h, var, (X0, Y0), CELL, count=np.full(h.shape, 50.0))
+    s_c = FeatureConfig().carried_edge_sigma_m
+    for a, b in zip(carried.stairs[0].steps, seen.stairs[0].steps, strict=True):
+        assert a.nosing.x_m == pytest.approx(b.nosing.x_m)
+        assert s_c <= a.nosing.sigma_m <= math.hypot(s_c, b.nosing.sigma_m) + 1e-9
+        assert b.nosing.sigma_m < 0.002
+
+
+def seen_counts(unknown, per_sample=3):
+    """Points per cell of :func:`grid`'s layout: ``per_sample`` for each of its 8×8 samples
+    that ``unknown`` leaves seen (points fall evenly on a surface)."""
+    sub = (np.arange(8) + 0.5) / 8 * CELL
+    xs = X0 + (np.arange(NX)[:, None] * CELL + sub[None, :]).ravel()
+    ys = Y0 + (np.arange(NY)[:, None] * CELL + sub[None, :]).ravel()
+    xx, yy = np.meshgrid(xs, ys, indexing="ij")
+    seen = ~unknown(xx, yy).reshape(NX, 8, NY, 8)
+    return per_sample * seen.sum(axis=(1, 3))
+
+
+def test_descending_nosings_placed_by_the_points_of_the_last_cell_seen():
+    """Nosings 0.35, 0.70 and 0.05 of the way through a cell, the shadow beyond each: without
+    the counts the edge is put 0.65 through the last cell seen (up to 7 mm off); with them,
+    where the last cell's share of points ends (within 1.5 mm: the samples lie 2.5 mm apart)."""
+    first, tread = 0.507, 0.287
+    down = stairs_surface(first=first, rise=-0.16, tread=tread, n=3)
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.06)
+
+    h, var = grid(down, 0.001, seed=21, unknown=shadow)
+    truth = [first + tread * k for k in range(3)]
+    plain = extract_features(h, var, (X0, Y0), CELL).stairs[0].steps
+    counted = extract_features(h, var, (X0, Y0), CELL, count=seen_counts(shadow)).stairs[0].steps
+    plain_err = [abs(s.nosing.x_m - t) for s, t in zip(plain, truth, strict=True)]
+    assert max(plain_err) > 0.004  # the fixed guess is off where the nosing is early in its cell
+    for step, t in zip(counted, truth, strict=True):
+        assert step.nosing.occluded
+        assert abs(step.nosing.x_m - t) <= 0.0015, (step.nosing.x_m, t)
+        assert 0 < step.nosing.sigma_m < 0.005
 
 
 @pytest.mark.parametrize("slope_deg", [5.0, 8.0, 10.0])

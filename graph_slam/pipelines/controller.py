@@ -47,7 +47,7 @@ class ControllerReadout:
     (:meth:`graph_slam.terrain.features.model.TerrainFeatures.summary`)."""
     clearance_m: float = float("nan")
     """Stance: the coming swing's predicted toe clearance
-    (:func:`graph_slam.terrain.features.clearance.predict_clearance`)."""
+    (:func:`graph_slam.terrain.features.prediction.predict_clearance`)."""
     clearance_warning: bool = False
 
     def line(self) -> str:
@@ -129,7 +129,7 @@ class ControllerTap:
                 obstacle_whole=o.complete,
             )
         if out.terrain is not None:
-            from graph_slam.terrain.features.clearance import predict_clearance
+            from graph_slam.terrain.features.prediction import predict_clearance
 
             fields["feature"] = out.terrain.features_ahead().summary(out.terrain.toe_x_m)
             if loaded:

@@ -96,7 +96,7 @@ class TerrainTrace:
         self.features.append(feats)
         prediction = None
         if feats is not None and getattr(out, "foot_loaded", False):
-            from graph_slam.terrain.features.clearance import predict_clearance
+            from graph_slam.terrain.features.prediction import predict_clearance
 
             prediction = predict_clearance(view, feats)
         self.predictions.append(prediction)

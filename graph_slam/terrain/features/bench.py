@@ -23,8 +23,8 @@ def _strides(session):
 
 def run(path: str, max_strides: int = 3) -> dict:
     from graph_slam.session.format import open_session
-    from graph_slam.terrain.features.clearance import predict_clearance
     from graph_slam.terrain.features.extract import features_of_view
+    from graph_slam.terrain.features.prediction import predict_clearance
     from graph_slam.terrain.grid.kernels import frame_point_terms
     from graph_slam.terrain.grid.online import (
         OnlineElevationMap,

@@ -14,19 +14,19 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
   which the toe path placed by the same poses shares, and ``toe_sigma_m``).
 * :func:`toe_path` — the measured swing: the toe in the stride frame from the camera poses and
   the encoders (``stride_T_camera · camera_T_toe(q)``, the leg model's forward kinematics).
-* :func:`reference_swing` / :func:`predict_clearance` — during stance, the clearance of the
-  coming swing: a reference toe path for the terrain type ahead (level or ramp: a lift of
-  ``lift_m`` over the ground; stairs or a curb: the lift over the first rise ahead; boxes are
-  what the warning is for, the reference does not step over them) from the toe's position now
-  over one stride length, against the current grid and features. ``warning`` when the predicted
-  **edge** clearance is below ``warn_below_m`` (2 cm).
+* :func:`~graph_slam.terrain.features.prediction.reference_swing` /
+  :func:`~graph_slam.terrain.features.prediction.predict_clearance` (module ``prediction``,
+  re-exported here) — during stance, the clearance of the coming swing on a reference toe path
+  for the terrain type ahead, with the warning when its **edge** clearance is below
+  ``warn_below_m`` (2 cm).
 * :func:`edge_clearance` — the clearance over the edges a swing must clear: the least
   Euclidean distance, in the vertical plane normal to each feature edge (a nosing, a curb, a
   box's leading or trailing edge), from the toe path to the edge's profile (its vertical face
   and the higher surface at its top; the lower surface is floor), over the path's points within
   ``edge_band_m`` of the edge line inside its y range; negative when the toe is below the
   profile. Its σ: the edge's position σ and the higher surface's height σ (the step's rise
-  σ) through the distance's derivatives by them, and ``toe_sigma_m``. Level floor has no edge: a swing over it has no edge clearance, and raises no
+  σ) through the distance's derivatives by them (the toe's own error along the ground,
+  ``toe_along_sigma_m``, beside the edge's position), and ``toe_sigma_m``. Level floor has no edge: a swing over it has no edge clearance, and raises no
   warning however close the toe passes to the floor. The path is resampled every
   ``resample_m`` first, so the same toe motion sampled at other times gives the same value.
 """
@@ -61,11 +61,27 @@ class ClearanceConfig(ConfigModel):
         0.05, gt=0, description="the reference swing's peak toe lift over the ground"
     )
     stride_length_m: float = Field(1.3, gt=0, description="the reference swing's length")
+    step_over_run_m: float = Field(
+        0.1,
+        gt=0,
+        description="the step-over reference swing rises to a box's top over this much before "
+        "its leading edge (less when the toe is nearer) and comes down over as much past its "
+        "trailing edge",
+    )
     toe_sigma_m: float = Field(
         0.0,
         ge=0,
         description="σ of the toe path relative to the grid (poses, encoders, leg model) in an "
         "edge clearance's σ, beside the edge's position and height σ",
+    )
+    toe_along_sigma_m: float = Field(
+        0.003,
+        ge=0,
+        description="σ of the toe path along the ground relative to the edges (the swing's "
+        "camera poses drift from those of the stance frames that mapped the edge: 3-6 mm "
+        "forward by late swing on the simulated stairs down), through the distance's "
+        "derivative by the edge's position: it counts where the toe passes the edge's face, "
+        "not over a top",
     )
     resample_m: float = Field(
         0.005, gt=0, description="the edge clearance resamples the toe path this finely"
@@ -216,72 +232,6 @@ def clearance_along(
                      terrain)  # fmt: skip
 
 
-def _on_path(line, y_m: float, margin_m: float = 0.05) -> bool:
-    return line.y_range_m[0] - margin_m <= y_m <= line.y_range_m[1] + margin_m
-
-
-def terrain_type(
-    features: TerrainFeatures, x_from_m: float, x_to_m: float, y_m: float = 0.0
-) -> tuple[str, float]:
-    """The reference swing's terrain type between two x along the line y = ``y_m`` (a
-    feature beside that line does not count), and the rise it lifts over."""
-    for st in features.stairs:
-        for step in st.steps:
-            if x_from_m <= step.nosing.x_m <= x_to_m and _on_path(step.nosing, y_m):
-                return ("stairs_up" if step.rise_m > 0 else "stairs_down"), step.rise_m
-    for c in features.curbs:
-        if x_from_m <= c.edge.x_m <= x_to_m and _on_path(c.edge, y_m):
-            return "curb", c.height_m
-    for r in features.ramps:
-        on = r.start is None or _on_path(r.start, y_m)
-        if on and r.far_x_m >= x_from_m and r.near_x_m <= x_to_m:
-            return "ramp", 0.0
-    return "level", 0.0
-
-
-def reference_swing(
-    view, features: TerrainFeatures, toe_xy_m=(0.2, 0.0), config: ClearanceConfig | None = None
-) -> tuple[np.ndarray, str]:
-    """The reference toe path (N×3) of the coming swing from ``toe_xy_m``, and its type."""
-    cfg = config or ClearanceConfig()
-    x0, y0 = float(toe_xy_m[0]), float(toe_xy_m[1])
-    s = np.linspace(0.0, 1.0, cfg.samples)
-    x = x0 + s * cfg.stride_length_m
-    kind, rise = terrain_type(features, x0, x0 + cfg.stride_length_m, y0)
-    xy = np.column_stack([x, np.full_like(x, y0)])
-    ground, _ = _grid_heights(view, xy[[0, -1]], cfg.toe_radius_m)
-    z0 = float(np.nan_to_num(ground[0]))
-    z1 = z0 + rise if kind != "ramp" else float(np.nan_to_num(ground[1], nan=z0))
-    lift = cfg.lift_m * np.sqrt(np.sin(np.pi * s))  # a plateau: the toe stays up mid-swing
-    # up to the landing level by mid-swing when stepping up; down from mid-swing when stepping
-    # down (the toe clears the nosing of the tread it leaves first: lowered over the whole
-    # swing it passed that nosing a centimetre up); over the whole swing otherwise
-    u = np.minimum(2 * s, 1.0) if rise > 0 else np.clip(2 * s - 1, 0.0, 1.0) if rise < 0 else s
-    z = z0 + (z1 - z0) * u * u * (3 - 2 * u) + lift
-    return np.column_stack([xy, z]), kind
-
-
-def predict_clearance(
-    view,
-    features: TerrainFeatures | None = None,
-    toe_xy_m=None,
-    config: ClearanceConfig | None = None,
-) -> Clearance:
-    """The coming swing's clearance on its reference path over the current terrain, with the
-    warning flag (see the module docstring)."""
-    cfg = config or ClearanceConfig()
-    feats = view.features if features is None else features
-    toe = (view.toe_x_m, 0.0) if toe_xy_m is None else toe_xy_m
-    path, kind = reference_swing(view, feats, toe, cfg)
-    mid = np.flatnonzero(cfg.mid_swing_mask(len(path)))
-    c = clearance_along(view, feats, path[mid], cfg, terrain=kind)
-    edge = edge_clearance(feats, path[mid], cfg)
-    edge_m = float("nan") if edge is None else edge.min_m
-    warn = bool(math.isfinite(edge_m) and edge_m < cfg.warn_below_m)
-    sample = int(mid[c.sample]) if c.sample >= 0 else -1
-    return Clearance(c.min_m, c.sigma_m, c.x_m, c.y_m, sample, c.edge, kind, warn, edge_m)
-
-
 def resample_path(toe_xyz_m: np.ndarray, step_m: float) -> np.ndarray:
     """The path (N×3) linearly resampled so that no two points are over ``step_m`` apart."""
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
@@ -340,7 +290,8 @@ def edge_clearances(
         dist, by_x, by_h = _profile(d[band], p[band, 2], near, far)
         k = int(np.argmin(dist))
         i = int(np.flatnonzero(band)[k])
-        sigma = math.hypot(by_x[k] * line.sigma_m, by_h[k] * rise_sigma, cfg.toe_sigma_m)
+        along = math.hypot(line.sigma_m, cfg.toe_along_sigma_m)
+        sigma = math.hypot(by_x[k] * along, by_h[k] * rise_sigma, cfg.toe_sigma_m)
         out.append((line, Clearance(float(dist[k]), sigma, float(p[i, 0]),
                                     float(p[i, 1]), i, label, "edge", edge_m=float(dist[k]))))  # fmt: skip
     return out
@@ -382,3 +333,15 @@ def interpolate_poses(t_s: np.ndarray, poses: np.ndarray, t_query: np.ndarray) -
     for k in range(3):
         out[:, k, 3] = np.interp(tq, t, p[:, k, 3])
     return out
+
+
+_PREDICTION = ("predict_clearance", "reference_swing", "terrain_type")
+
+
+def __getattr__(name: str):
+    """The stance-time prediction's names (module ``prediction``, which imports this one)."""
+    if name in _PREDICTION:
+        from graph_slam.terrain.features import prediction
+
+        return getattr(prediction, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -29,7 +29,7 @@ def features_of_view(view, config: FeatureConfig | None = None, source: str = "o
     return extract_features(
         view.height_m, view.variance_m2, view.origin_xy_m, view.cell_m,
         corr_sigma_m=corr, noise_sigma_m=noise, config=config, t_s=view.t_s,
-        stride_index=view.stride_index, source=source,
+        stride_index=view.stride_index, source=source, count=view.count,
     )  # fmt: skip
 
 
@@ -45,11 +45,14 @@ def extract_features(
     t_s: float = float("nan"),
     stride_index: int = -1,
     source: str = "online",
+    count: np.ndarray | None = None,
 ) -> TerrainFeatures:
     """Stairs, ramps, curbs and boxes of a height grid (NaN: unknown). ``variance_m2``: each
     cell's height variance; ``corr_sigma_m``: the part of its σ common to the grid (the pose's;
     zero when None); ``noise_sigma_m``: the part from its points' depth noise (a cell where it
-    exceeds ``max_noise_sigma_m`` is taken as not seen; None: every cell with a height)."""
+    exceeds ``max_noise_sigma_m`` is taken as not seen; None: every cell with a height);
+    ``count``: the points per cell (where a shadow begins inside the last cell seen; None:
+    ``shadow_cell_seen``)."""
     cfg = config or _DEFAULT
     h = np.asarray(height_m, dtype=np.float64)
     var = np.asarray(variance_m2, dtype=np.float64)
@@ -60,8 +63,9 @@ def extract_features(
     if noise_sigma_m is not None:
         with np.errstate(invalid="ignore"):  # held only by a depth edge's flying pixels
             noisy = np.isfinite(h) & ~(np.asarray(noise_sigma_m) <= cfg.max_noise_sigma_m)
+    cnt = None if count is None else np.asarray(count, dtype=np.float64).reshape(h.shape)
     g = _Grid(h, var, np.nan_to_num(corr), float(origin_xy_m[0]), float(origin_xy_m[1]), cell_m,
-              noisy)  # fmt: skip
+              noisy, cnt)  # fmt: skip
     out = TerrainFeatures(stride_index, float(t_s), source)
     if g.known.sum() < cfg.min_window_cells:
         return out
@@ -230,15 +234,48 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     last_near = np.max(np.where(near, pos, 0), axis=1)[:, None]
     f = np.where(occluded[:, None] & (pos > last_near) & inside, 1.0, f)
     x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1)
-    x = x - np.where(occluded, 1.0 - cfg.shadow_cell_seen, 0.0) * g.cell
+    seen, counted = _seen_part(g, i1 + last_near[:, 0], j, cfg)
+    x = x - np.where(occluded, 1.0 - seen, 0.0) * g.cell
     noise = np.where(inside & ~unknown, np.nan_to_num(vw) / rise[:, None] ** 2, 0.0).sum(axis=1)
     sigma = g.cell * np.sqrt(noise)
+    carried = _carried(g, i1, i2, j)
     return [
-        (int(a), int(b), float(yy), float(xx), float(ss), bool(oc))
-        for a, b, yy, xx, ss, oc in zip(
-            lab[cand], lab[cand + 1], g.y_of(j), x, sigma, occluded, strict=True
+        (int(a), int(b), float(yy), float(xx), float(ss), bool(oc), bool(ct), bool(ca))
+        for a, b, yy, xx, ss, oc, ct, ca in zip(
+            lab[cand], lab[cand + 1], g.y_of(j), x, sigma, occluded, counted, carried,
+            strict=True,
         )
     ]
+
+
+def _carried(g: _Grid, i1: np.ndarray, i2: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Per row: whether the cells on both sides of the edge hold no point of this stride
+    (carried from the previous one); False when the counts are not known."""
+    if g.count is None:
+        return np.zeros(len(i1), bool)
+    return (g.count[i1, j] == 0) & (g.count[i2, j] == 0)
+
+
+def _centre_x(g: _Grid, terrace: dict) -> float:
+    """The middle of a terrace's extent along x."""
+    return g.x0 + (terrace["i"][0] + terrace["i"][1] + 1) * g.cell / 2
+
+
+def _seen_part(g: _Grid, i: np.ndarray, j: np.ndarray, cfg: FeatureConfig):
+    """Per row: the part of cell ``(i, j)`` (the last seen before a shadow) that lies before
+    the shadow, and whether the counts gave it (else ``shadow_cell_seen``): its points over
+    the mean of the two cells before it (``FeatureConfig.shadow_from_counts``)."""
+    seen = np.full(len(i), cfg.shadow_cell_seen)
+    if g.count is None or not cfg.shadow_from_counts or len(i) == 0:
+        return seen, np.zeros(len(i), bool)
+    c = g.count
+    before = np.stack([c[np.maximum(i - k, 0), j] for k in (1, 2)], axis=1)
+    before = np.where((i[:, None] - np.array([1, 2])) >= 0, before, 0.0)
+    ref = before.mean(axis=1)
+    ok = before.min(axis=1) >= cfg.shadow_count_min
+    with np.errstate(invalid="ignore", divide="ignore"):
+        part = np.clip(c[i, j] / ref, 0.0, 1.0)
+    return np.where(ok, part, seen), ok
 
 
 def _fit_line(
@@ -284,21 +321,28 @@ def _fit_line(
 def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
     """Per terrace pair met in enough rows: its edge line, rise and σ."""
     pairs: dict[tuple[int, int], list] = {}
-    for a, b, y, x, s, oc in _transitions(g, labels, terraces, cfg):
-        pairs.setdefault((a, b), []).append((y, x, s, oc))
+    for a, b, y, x, s, oc, ct, ca in _transitions(g, labels, terraces, cfg):
+        pairs.setdefault((a, b), []).append((y, x, s, oc, ct, ca))
     out = []
     for (a, b), rows in pairs.items():
         if len(rows) < cfg.min_edge_rows:
             continue
-        y, x, s, oc = (np.array(v) for v in zip(*rows, strict=True))
+        y, x, s, oc, ct, ca = (np.array(v) for v in zip(*rows, strict=True))
         occluded = bool(oc.mean() > 0.5)
-        # where the shadow begins inside the last cell seen is the same guess in every row
-        common = g.cell * cfg.shadow_cell_sigma if occluded else 0.0
+        # where the shadow begins inside the last cell seen: the same guess in every row, or
+        # the counts' ratio (its error common to the rows too: the density's trend)
+        counted = occluded and bool(ct[oc].mean() > 0.5)
+        part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma
+        common = g.cell * part_sigma if occluded else 0.0
+        if ca.mean() > 0.5:  # moved here with the previous stride's cells
+            common = math.hypot(common, cfg.carried_edge_sigma_m)
         line = _fit_line(y, x, s, occluded, common_sigma_m=common)
         ta, tb = terraces[a], terraces[b]
+        tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))
         out.append({
             "a": a, "b": b, "line": line, "rise": tb["h"] - ta["h"],
-            "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2 + (ta["corr"] - tb["corr"]) ** 2),
+            "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2
+                                    + (ta["corr"] - tb["corr"]) ** 2 + tilt**2),
         })  # fmt: skip
     out.sort(key=lambda e: e["line"].x_m)
     return out

@@ -6,7 +6,7 @@ The document (``FEATURES_SCHEMA`` 1), stride frame, metres, radians, NaN as null
 - ``online`` / ``smoothed``: :meth:`TerrainFeatures.to_dict
   <graph_slam.terrain.features.model.TerrainFeatures.to_dict>` of the stride's online grid at its last
   frame and of its final grid (re-fused from the smoothed poses; null when there is none);
-- ``predicted_clearance``: :func:`~graph_slam.terrain.features.clearance.predict_clearance` of the
+- ``predicted_clearance``: :func:`~graph_slam.terrain.features.prediction.predict_clearance` of the
   final grid from the heel's stride (the toe at ``toe_x_m``): the reference swing's clearance
   over the terrain this stride mapped;
 - ``swing_clearance``: the measured swing — the toe path (the smoothed camera poses of the
@@ -25,13 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from graph_slam.errors import EvaluationError, GraphSlamError
-from graph_slam.terrain.features.clearance import (
-    Clearance,
-    clearance_along,
-    predict_clearance,
-    toe_path,
-)
+from graph_slam.terrain.features.clearance import Clearance, clearance_along, toe_path
 from graph_slam.terrain.features.model import TerrainFeatures
+from graph_slam.terrain.features.prediction import predict_clearance
 
 FEATURES_SCHEMA = 1
 _FIELDS = ("schema", "stride", "frames", "online", "smoothed", "predicted_clearance",

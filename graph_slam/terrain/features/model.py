@@ -77,6 +77,35 @@ class FeatureConfig(ConfigModel):
     shadow_cell_sigma: float = Field(
         0.22, ge=0, description="σ of that part (uniform over 0.25-1 of a cell: 0.75/√12)"
     )
+    shadow_from_counts: bool = Field(
+        True,
+        description="where the grid's point counts are known, the part of the last cell seen "
+        "before a shadow is its count over the mean count of the two cells before it (points "
+        "fall evenly on a tread: a cell seen over a part f of its length holds about f of its "
+        "neighbour's points); shadow_cell_seen where they are not",
+    )
+    shadow_count_min: int = Field(
+        8, ge=1, description="fewest points in the cells before it for that ratio"
+    )
+    shadow_count_sigma: float = Field(
+        0.1, ge=0, description="σ of the part from the counts (a cell), common to the rows"
+    )
+    carried_edge_sigma_m: float = Field(
+        0.006,
+        ge=0,
+        description="σ of an edge seen only in cells carried from the previous stride (no "
+        "point of this stride on either side of it), common to its rows: the carry moves "
+        "it by the estimated relative stride pose's horizontal error, which the cells' "
+        "height σ does not hold",
+    )
+    stride_tilt_sigma_rad: float = Field(
+        0.003,
+        ge=0,
+        description="σ of the stride frame's tilt (the anchor's up, 0.1-0.7° off on the "
+        "simulated terrain walker): a tilt moves two terraces' heights apart by it times the "
+        "distance between their middles, the same in every cell of each, so a rise's σ "
+        "carries it however many cells are averaged",
+    )
     window_cells: int = Field(5, ge=3, le=11, description="local plane window (odd)")
     min_window_cells: int = Field(12, ge=3, description="known cells a local plane needs")
     level_max_deg: float = Field(3.0, gt=0, description="steepest level cell")
@@ -322,6 +351,8 @@ class _Grid:
     noisy: np.ndarray | None = None
     """Cells held only by a depth edge's flying pixels (None: none): on no surface, and not
     seen beyond a drop."""
+    count: np.ndarray | None = None
+    """Points per cell (None: unknown); where a shadow begins inside the last cell seen."""
     known: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
