@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from graph_slam.frontend.floor import FloorConfig
+from graph_slam.frontend.treads import TreadsConfig
 from graph_slam.strides.anchor import StrideAnchor
+from tests.test_frontend_treads import flight_points
 
 PITCH = math.radians(35.0)
 # world x forward, y left, z up; camera (optical: x right, y down, z forward) 35° down
@@ -256,3 +258,41 @@ def test_a_known_lateral_bias_is_not_a_roll():
         math.degrees(math.atan(0.1 / 9.81)), abs=1e-3
     )
     assert tilt_deg(anchor(0.02).at_strike(0.0, 1.0, None).up_in_imu) < 1e-5
+
+
+def _stairs_anchor(up_world, treads: TreadsConfig | None = None, **floor) -> StrideAnchor:
+    return StrideAnchor(FakeGravity(np.asarray(up_world, float)), FloorConfig(**floor),
+                        np.eye(4), 0.01, 0.8, 0.2, treads=treads or TreadsConfig())  # fmt: skip
+
+
+def _flight_in_camera(**kw) -> np.ndarray:
+    return (flight_points(**kw) - CAMERA_POS) @ WORLD_R_CAMERA
+
+
+def test_the_treads_of_a_flight_fix_the_roll():
+    """Known answer: on a flight no plane passes the floor fit; the IMU's up 0.5° off in roll
+    (a lateral accelerometer bias of 0.086 m/s²) is brought within 0.05° of level by the
+    treads' common normal, fused like a floor (σ 0.002 rad against the IMU's 0.01); the
+    contact is level (a tread)."""
+    roll = math.radians(0.5)
+    up = [0.0, math.sin(roll), math.cos(roll)]
+    a = _stairs_anchor(up).at_strike(0.0, 0.05, _flight_in_camera())
+    assert a.case == "treads" and a.fit is not None and not a.fit.ok
+    assert tilt_deg(a.up_in_imu) < 0.05
+    assert a.sigma_rad == pytest.approx(1.0 / math.sqrt(1 / 0.01**2 + 1 / 0.002**2), rel=1e-6)
+    assert a.contact_slope_rad == 0.0
+    assert "anchor:treads" in a.flags and any(f.startswith("treads:") for f in a.flags)
+    off = _stairs_anchor(up, TreadsConfig(enabled=False)).at_strike(0.0, 0.05, _flight_in_camera())
+    assert off.case == "imu" and tilt_deg(off.up_in_imu) == pytest.approx(0.5, abs=1e-4)
+
+
+def test_treads_that_are_not_level_are_not_fused():
+    """A "flight" rolled 3° (beyond the 2° level gate against an exact IMU up) keeps the
+    IMU's up; so does the level-ground anchor (assume_level), which never searches treads."""
+    a = _stairs_anchor([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, _flight_in_camera(roll_deg=3.0))
+    assert a.case == "imu" and tilt_deg(a.up_in_imu) < 1e-5
+    assert a.treads is not None and a.treads.ok
+    old = _stairs_anchor([0.0, 0.0, 1.0], assume_level=True).at_strike(
+        0.0, 0.05, _flight_in_camera()
+    )
+    assert old.case == "imu" and old.treads is None

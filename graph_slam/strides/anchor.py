@@ -17,6 +17,10 @@ records the plane's slope. :class:`StrideAnchor` returns which case applied:
   off, was fused as the floor and tilted the whole session; with the heel to decide, the
   plane is searched within ``first_strike_search_rad`` of that poor up); fused by inverse
   variance;
+* ``treads``: no plane passed the floor fit (a tread is 0.28 m deep), but several small level
+  planes did (:func:`graph_slam.frontend.treads.fit_level_planes`: the treads of a flight, the
+  landing), and their common normal is level within its σ: fused by inverse variance (not at a
+  session's first strike, whose IMU up cannot test it);
 * ``slope``: a plane was found but is tilted against the IMU's up: IMU alone, slope recorded;
 * ``imu``: no plane (no depth, too few points, none near up) or the floor is off: IMU alone;
 * ``none``: no IMU up vector either (the back end's own default anchor).
@@ -38,11 +42,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from graph_slam.frontend.floor import FloorConfig, FloorFit, fit_floor, fuse_up
+from graph_slam.frontend.treads import LevelPlanes, TreadsConfig, fit_level_planes
 from graph_slam.strides.up_fusion import GraphUp, fuse_with_graph
 
 log = logging.getLogger(__name__)
 
-ANCHOR_CASES = ("floor", "slope", "imu", "none")
+ANCHOR_CASES = ("floor", "treads", "slope", "imu", "none")
 
 
 @dataclass(frozen=True)
@@ -69,6 +74,8 @@ class AnchorUp:
     heel_limit_m: float = float("inf")
     previous_slope_rad: float = 0.0
     """The previous stride's contact slope: the ground under a heel the plane misses."""
+    treads: LevelPlanes | None = None
+    """The small level planes searched where no floor passed (None: not searched)."""
 
     @property
     def assumed(self) -> bool:
@@ -97,6 +104,9 @@ class AnchorUp:
             out.insert(0, f"floor:{self.fit.reason}")
         if math.isfinite(self.slope_rad):
             out.append(f"slope_deg:{math.degrees(self.slope_rad):.2f}")
+        if self.treads is not None:
+            t = self.treads
+            out.append(f"treads:{t.n_planes}" if t.ok else f"treads:{t.reason.split(':')[0]}")
         if self.graph:
             out.append(f"up_graph:{self.graph}")
         if self.case in ("slope", "floor") and not self.heel_on_plane:
@@ -119,6 +129,7 @@ class StrideAnchor:
         velocity_change: Callable[[float], tuple[float, np.ndarray] | None] | None = None,
         lateral_bias: Callable[[float], tuple[np.ndarray, float] | None] | None = None,
         lateral_bias_max_sigma: float | None = None,
+        treads: TreadsConfig | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -130,6 +141,7 @@ class StrideAnchor:
         self.velocity_change = velocity_change
         self.lateral_bias = lateral_bias
         self.lateral_bias_max_sigma = lateral_bias_max_sigma
+        self.treads = treads
         self.last_contact_slope_rad = 0.0
         """The contact slope of the last stride anchored (0 before the first)."""
 
@@ -206,7 +218,9 @@ class StrideAnchor:
         fit = fit_floor(points_m, hint, cfg, max_angle_rad=search)
         if not fit.ok:
             log.info("t=%.3f s: no floor for the anchor (%s)", t_s, fit.reason)
-            return AnchorUp(t_s, up, sigma, "imu", fit=fit)
+            if cfg.assume_level or sigma is None or self.treads is None or not self.treads.enabled:
+                return AnchorUp(t_s, up, sigma, "imu", fit=fit)
+            return self.with_treads(t_s, up, sigma, points_m, hint, fit)
         n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
         tilt = fit.angle_to_hint_rad
         slope = self.signed_slope(up, n_imu)
@@ -231,6 +245,26 @@ class StrideAnchor:
             return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit, **heel)
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
         return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None, **heel)
+
+    def with_treads(self, t_s: float, up, sigma: float, points_m, hint, fit: FloorFit) -> AnchorUp:
+        """Where no floor passed: the common normal of the small level planes in view (stair
+        treads), fused like a level floor when within the level gate of the IMU's up
+        (``treads``), else the IMU's up alone (``imu``). A tread is level: the contact is too."""
+        cfg, tcfg = self.floor, self.treads
+        search = max(tcfg.search_rad, cfg.max_angle_rad + 3.0 * sigma)
+        planes = fit_level_planes(points_m, hint, cfg, tcfg, max_angle_rad=search)
+        if not planes.ok:
+            return AnchorUp(t_s, up, sigma, "imu", fit=fit, treads=planes)
+        n_imu = self.camera_T_imu[:3, :3].T @ planes.normal
+        tilt = planes.angle_to_hint_rad
+        slope = self.signed_slope(up, n_imu)
+        gate = cfg.level_gate_sigmas * math.hypot(sigma, planes.sigma_rad)
+        if tilt > max(gate, cfg.level_gate_min_rad):
+            log.info("t=%.3f s: level planes %.2f° off the IMU's up: not used", t_s,
+                     math.degrees(tilt))  # fmt: skip
+            return AnchorUp(t_s, up, sigma, "imu", slope, tilt, fit, treads=planes)
+        fused, sigma_fused = fuse_up(up, sigma, n_imu, planes.sigma_rad)
+        return AnchorUp(t_s, fused, sigma_fused, "treads", slope, tilt, fit, treads=planes)
 
     def _not_ground(self, fit: FloorFit, heel_in_camera_m) -> str | None:
         """Why a first strike's plane is not the ground the heel stands on (None: it is): the
@@ -283,4 +317,5 @@ def make_anchor(
         velocity_change if config.gravity_mean_acceleration else None,
         lateral_bias if config.gravity_lateral_bias_max_sigma_m_s2 is not None else None,
         config.gravity_lateral_bias_max_sigma_m_s2,
+        config.graph.treads,
     )
