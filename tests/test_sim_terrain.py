@@ -256,8 +256,10 @@ def test_terrain_walk_summary_and_markdown_agree_on_hand_made_runs() -> None:
 
     def run(scene, anchor, smoothed, tilts, label="level"):
         strides = [
-            TerrainStrideScore(scene, "normal", anchor, k + 1, label, sm, sm + 1.0, t, "imu", 0.0,
-                               "", 10, int(sm > 7.0))  # fmt: skip
+            TerrainStrideScore(
+                scene, "normal", anchor, k + 1, label, sm, sm + 1.0, t, "imu", 0.0, "", 10,
+                int(sm > 7.0),
+            )
             for k, (sm, t) in enumerate(zip(smoothed, tilts, strict=True))
         ]
         return TerrainRun(scene, "normal", anchor, 30, 30, 30, strides)

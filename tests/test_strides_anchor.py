@@ -296,3 +296,30 @@ def test_treads_that_are_not_level_are_not_fused():
         0.0, 0.05, _flight_in_camera()
     )
     assert old.case == "imu" and old.treads is None
+
+
+def test_a_level_platform_beside_a_ramp_fixes_the_up_and_the_ramp_keeps_the_contact():
+    """Known answer: an 8° ramp under the foot and a level platform ahead of it (from 1.3 m,
+    0.6 m deep, 1.2 m wide); the IMU's up 0.5° off along the heading (its error on a ramp).
+    The ramp is the contact's slope (against the fused up), the platform fixes the up within 0.05°
+    (``slope_level``); without the platform the IMU's up is kept (``slope``)."""
+    rng = np.random.default_rng(3)
+    ramp = ramp_points(8.0, n=6000)
+    x, y = rng.uniform(1.3, 1.9, 3000), rng.uniform(-0.6, 0.6, 3000)
+    top = np.column_stack([x, y, np.full(3000, math.tan(math.radians(8.0)) * 1.3)])
+    top[:, 2] += rng.normal(0.0, 0.001, 3000)
+    on_ramp = ramp[(ramp @ WORLD_R_CAMERA.T + CAMERA_POS)[:, 0] < 1.3]
+    points = np.vstack([on_ramp, (top - CAMERA_POS) @ WORLD_R_CAMERA])
+    err = math.radians(0.5)
+    up = [math.sin(err), 0.0, math.cos(err)]
+    a = _stairs_anchor(up).at_strike(0.0, 0.05, points)
+    assert a.case == "slope_level"
+    n = WORLD_R_CAMERA @ a.fit.normal  # the fitted ramp (the platform's edge pulls it a little)
+    ramp_deg = math.degrees(math.atan2(-n[0], n[2]))
+    assert ramp_deg == pytest.approx(8.0, abs=0.5)
+    # its slope against the fused (level) up, not the IMU's 0.5°-off one
+    assert math.degrees(a.contact_slope_rad) == pytest.approx(ramp_deg, abs=0.05)
+    assert tilt_deg(a.up_in_imu) < 0.05
+    assert a.sigma_rad < 0.0025
+    plain = _stairs_anchor(up).at_strike(0.0, 0.05, on_ramp)
+    assert plain.case == "slope" and tilt_deg(plain.up_in_imu) == pytest.approx(0.5, abs=1e-4)

@@ -70,6 +70,12 @@ class TreadsConfig(ConfigModel):
         description="a plane whose own normal is farther than this from the joint normal "
         "(and 3 of its own σ) is dropped",
     )
+    off_slope_m: float = Field(
+        0.02,
+        gt=0,
+        description="beside a sloped plane (a ramp) the level planes are searched among the "
+        "points farther than this from it",
+    )
     sigma_min_rad: float = Field(
         0.002,
         gt=0,
