@@ -256,7 +256,10 @@ def test_terrain_walk_summary_and_markdown_agree_on_hand_made_runs() -> None:
 
     def run(scene, anchor, smoothed, tilts, label="level"):
         strides = [
-            TerrainStrideScore(scene, "normal", anchor, k + 1, label, sm, sm + 1.0, t, "imu", 0.0)
+            TerrainStrideScore(
+                scene, "normal", anchor, k + 1, label, sm, sm + 1.0, t, "imu", 0.0, "", 10,
+                int(sm > 7.0),
+            )
             for k, (sm, t) in enumerate(zip(smoothed, tilts, strict=True))
         ]
         return TerrainRun(scene, "normal", anchor, 30, 30, 30, strides)
@@ -271,4 +274,8 @@ def test_terrain_walk_summary_and_markdown_agree_on_hand_made_runs() -> None:
     assert ramp["smoothed_mm"] == 7.0 and abs(ramp["smoothed_x_level"] - 7.0 / 3.0) < 1e-12
     assert ramp["online_mm"] == 8.0 and ramp["ramp_tilt"] == "0.50/0.80"
     text = markdown_table(runs, "graph-slam bench terrain-walk")
-    assert text.splitlines()[-1] == "| ramp-up-8 | normal | 7.0 | 2.33 | 8.0 | 2.00 | 0.50/0.80 | 30/30 |"
+    row = "| ramp-up-8 | normal | 7.0 | 2.33 | 8.0 | 2.00 | 0.50/0.80 | 30/30 | 1/20 |"
+    assert text.splitlines()[-1] == row
+    assert ramp["registered_off"] == "1/20"  # stride 3's 8 mm counted, the first stride's not
+    _, alone = summary_rows(runs[:2])  # without the level-ground anchor's run
+    assert alone["ramp_tilt"] == "0.50/-"

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from graph_slam.frontend.floor import FloorConfig
+from graph_slam.frontend.treads import TreadsConfig
 from graph_slam.strides.anchor import StrideAnchor
+from tests.test_frontend_treads import flight_points
 
 PITCH = math.radians(35.0)
 # world x forward, y left, z up; camera (optical: x right, y down, z forward) 35° down
@@ -256,3 +258,68 @@ def test_a_known_lateral_bias_is_not_a_roll():
         math.degrees(math.atan(0.1 / 9.81)), abs=1e-3
     )
     assert tilt_deg(anchor(0.02).at_strike(0.0, 1.0, None).up_in_imu) < 1e-5
+
+
+def _stairs_anchor(up_world, treads: TreadsConfig | None = None, **floor) -> StrideAnchor:
+    return StrideAnchor(FakeGravity(np.asarray(up_world, float)), FloorConfig(**floor),
+                        np.eye(4), 0.01, 0.8, 0.2, treads=treads or TreadsConfig())  # fmt: skip
+
+
+def _flight_in_camera(**kw) -> np.ndarray:
+    return (flight_points(**kw) - CAMERA_POS) @ WORLD_R_CAMERA
+
+
+def test_the_treads_of_a_flight_fix_the_roll():
+    """Known answer: on a flight no plane passes the floor fit; the IMU's up 0.5° off in roll
+    (a lateral accelerometer bias of 0.086 m/s²) is brought within 0.05° of level by the
+    treads' common normal, fused like a floor (σ 0.002 rad against the IMU's 0.01); the
+    contact is level (a tread)."""
+    roll = math.radians(0.5)
+    up = [0.0, math.sin(roll), math.cos(roll)]
+    a = _stairs_anchor(up).at_strike(0.0, 0.05, _flight_in_camera())
+    assert a.case == "treads" and a.fit is not None and not a.fit.ok
+    assert tilt_deg(a.up_in_imu) < 0.05
+    assert a.sigma_rad == pytest.approx(1.0 / math.sqrt(1 / 0.01**2 + 1 / 0.002**2), rel=1e-6)
+    assert a.contact_slope_rad == 0.0
+    assert "anchor:treads" in a.flags and any(f.startswith("treads:") for f in a.flags)
+    off = _stairs_anchor(up, TreadsConfig(enabled=False)).at_strike(0.0, 0.05, _flight_in_camera())
+    assert off.case == "imu" and tilt_deg(off.up_in_imu) == pytest.approx(0.5, abs=1e-4)
+
+
+def test_treads_that_are_not_level_are_not_fused():
+    """A "flight" rolled 3° (beyond the 2° level gate against an exact IMU up) keeps the
+    IMU's up; so does the level-ground anchor (assume_level), which never searches treads."""
+    a = _stairs_anchor([0.0, 0.0, 1.0]).at_strike(0.0, 0.05, _flight_in_camera(roll_deg=3.0))
+    assert a.case == "imu" and tilt_deg(a.up_in_imu) < 1e-5
+    assert a.treads is not None and a.treads.ok
+    old = _stairs_anchor([0.0, 0.0, 1.0], assume_level=True).at_strike(
+        0.0, 0.05, _flight_in_camera()
+    )
+    assert old.case == "imu" and old.treads is None
+
+
+def test_a_level_platform_beside_a_ramp_fixes_the_up_and_the_ramp_keeps_the_contact():
+    """Known answer: an 8° ramp under the foot and a level platform ahead of it (from 1.3 m,
+    0.6 m deep, 1.2 m wide); the IMU's up 0.5° off along the heading (its error on a ramp).
+    The ramp is the contact's slope (against the fused up), the platform fixes the up within 0.05°
+    (``slope_level``); without the platform the IMU's up is kept (``slope``)."""
+    rng = np.random.default_rng(3)
+    ramp = ramp_points(8.0, n=6000)
+    x, y = rng.uniform(1.3, 1.9, 3000), rng.uniform(-0.6, 0.6, 3000)
+    top = np.column_stack([x, y, np.full(3000, math.tan(math.radians(8.0)) * 1.3)])
+    top[:, 2] += rng.normal(0.0, 0.001, 3000)
+    on_ramp = ramp[(ramp @ WORLD_R_CAMERA.T + CAMERA_POS)[:, 0] < 1.3]
+    points = np.vstack([on_ramp, (top - CAMERA_POS) @ WORLD_R_CAMERA])
+    err = math.radians(0.5)
+    up = [math.sin(err), 0.0, math.cos(err)]
+    a = _stairs_anchor(up).at_strike(0.0, 0.05, points)
+    assert a.case == "slope_level"
+    n = WORLD_R_CAMERA @ a.fit.normal  # the fitted ramp (the platform's edge pulls it a little)
+    ramp_deg = math.degrees(math.atan2(-n[0], n[2]))
+    assert ramp_deg == pytest.approx(8.0, abs=0.5)
+    # its slope against the fused (level) up, not the IMU's 0.5°-off one
+    assert math.degrees(a.contact_slope_rad) == pytest.approx(ramp_deg, abs=0.05)
+    assert tilt_deg(a.up_in_imu) < 0.05
+    assert a.sigma_rad < 0.0025
+    plain = _stairs_anchor(up).at_strike(0.0, 0.05, on_ramp)
+    assert plain.case == "slope" and tilt_deg(plain.up_in_imu) == pytest.approx(0.5, abs=1e-4)

@@ -35,6 +35,10 @@ class TerrainStrideScore:
     case: str
     slope_deg: float
     floor: str = ""
+    registered: int = 0
+    """Frames of the stride whose registration the graph took (``icp:ok`` / ``icp:partial``)."""
+    registered_off: int = 0
+    """Of those, frames whose online or smoothed position is more than ``OFF_M`` off the truth."""
 
 
 @dataclass(frozen=True)
@@ -46,6 +50,23 @@ class TerrainRun:
     posed_online: int
     posed_smoothed: int
     strides: list[TerrainStrideScore]
+
+
+OFF_M = 0.02
+"""A frame counted registered must not be farther than this from the truth (stride frame)."""
+
+
+def _registered_off(res, ref) -> tuple[int, int]:
+    """(registered frames, of them more than ``OFF_M`` off online or smoothed) of one stride."""
+    idx = np.asarray(ref.frame_indices)
+    truth = ref.stride_T_camera[:, :3, 3]
+    err = np.maximum(
+        np.linalg.norm(res.online_stride_T_camera[idx, :3, 3] - truth, axis=1),
+        np.linalg.norm(res.smoothed_stride_T_camera[idx, :3, 3] - truth, axis=1),
+    )
+    reg = np.array([any(f in ("icp:ok",) or f.startswith("icp:partial")
+                        for f in res.frames[i].flags) for i in idx])  # fmt: skip
+    return int(reg.sum()), int((reg & ~(err <= OFF_M)).sum())
 
 
 def _config(preset: str | None, assume_level: bool, overrides: dict | None = None):
@@ -108,12 +129,13 @@ def score_terrain_run(
                 label = row.label
         flags = res.frames[i0].flags
         slope = _flag(flags, "slope_deg:")
+        registered, off = _registered_off(res, ref)
         rows.append(
             TerrainStrideScore(
                 scene, speed, "level" if assume_level else "new", int(ref.stride_index), label,
                 sc.smoothed_rmse_m * 1e3, sc.online_rmse_m * 1e3, tilt,
                 _flag(flags, "anchor:") or "-", float(slope) if slope else float("nan"),
-                _flag(flags, "floor:"),
+                _flag(flags, "floor:"), registered, off,
             )
         )  # fmt: skip
     online = np.isfinite(res.online_stride_T_camera[:, 0, 0]).sum()
@@ -133,10 +155,12 @@ def run_terrain_bench(
     level_scene: str = "flat-floor",
     progress=None,
     overrides: dict | None = None,
+    compare_level: bool = True,
 ) -> list[TerrainRun]:
     """Simulate and score every scene at every speed (module text); the level reference
     first. ``progress(line)`` gets each run's lines as they finish; ``overrides``: a partial
-    PipelineConfig dict for every run (the level reference's too)."""
+    PipelineConfig dict for every run (the level reference's too); ``compare_level`` False:
+    the level-ground anchor is not run (half the time; no tilt of its own to compare)."""
     from graph_slam.sim import SPEEDS_M_S, SimConfig, simulate
 
     out: list[TerrainRun] = []
@@ -149,7 +173,8 @@ def run_terrain_bench(
                     drops="none", resolution=resolution, quicklook=False,
                 )  # fmt: skip
                 simulate(cfg, path, overwrite=True)
-                anchors = (False,) if scene == level_scene else (False, True)
+                compare = compare_level and scene != level_scene
+                anchors = (False, True) if compare else (False,)
                 for assume_level in anchors:
                     run = score_terrain_run(scene, speed, path, preset, assume_level, overrides)
                     out.append(run)
@@ -169,7 +194,8 @@ def run_lines(run: TerrainRun) -> list[str]:
         lines.append(
             f"  stride {s.stride} {s.label:11s} smoothed {s.smoothed_mm:6.1f} mm online "
             f"{s.online_mm:6.1f} mm  tilt {s.tilt_deg:5.2f} deg  {s.case:5s} "
-            f"slope {s.slope_deg:6.2f} deg  {s.floor}"
+            f"slope {s.slope_deg:6.2f} deg  registered {s.registered} (>2 cm: "
+            f"{s.registered_off})  {s.floor}"
         )
     return lines
 
@@ -196,13 +222,18 @@ def summary_rows(runs: list[TerrainRun], skip_first: bool = True) -> list[dict]:
                     and o.speed == r.speed), None)  # fmt: skip
         ramp = [s.tilt_deg for s in r.strides if s.label.startswith("ramp")]
         ramp_old = [s.tilt_deg for s in (old.strides if old else []) if s.label.startswith("ramp")]
+        ramp_tilt = "-"
+        if ramp:
+            ramp_tilt = f"{max(ramp):.2f}/" + (f"{max(ramp_old):.2f}" if ramp_old else "-")
         sm, on = median(r, "smoothed_mm"), median(r, "online_mm")
         rows.append({
             "scene": r.scene, "speed": r.speed, "smoothed_mm": sm, "online_mm": on,
             "smoothed_x_level": sm / median(ref, "smoothed_mm"),
             "online_x_level": on / median(ref, "online_mm"),
-            "ramp_tilt": f"{max(ramp):.2f}/{max(ramp_old):.2f}" if ramp and ramp_old else "-",
+            "ramp_tilt": ramp_tilt,
             "posed": f"{r.posed_online}/{r.frames}",
+            "registered_off": f"{sum(s.registered_off for s in r.strides)}/"
+            f"{sum(s.registered for s in r.strides)}",
         })  # fmt: skip
     return rows
 
@@ -211,13 +242,13 @@ def summary_lines(runs: list[TerrainRun], skip_first: bool = True) -> list[str]:
     """:func:`summary_rows` as aligned text."""
     lines = [
         f"{'scene':16s} {'speed':6s} {'smoothed mm':>11s} {'×level':>6s} {'online mm':>9s} "
-        f"{'×level':>6s} {'ramp tilt new/level deg':>24s} {'posed':>9s}"
+        f"{'×level':>6s} {'ramp tilt new/level deg':>24s} {'posed':>9s} {'reg >2cm':>9s}"
     ]
     for r in summary_rows(runs, skip_first):
         lines.append(
             f"{r['scene']:16s} {r['speed']:6s} {r['smoothed_mm']:11.1f} "
             f"{r['smoothed_x_level']:6.2f} {r['online_mm']:9.1f} {r['online_x_level']:6.2f} "
-            f"{r['ramp_tilt']:>24s} {r['posed']:>9s}"
+            f"{r['ramp_tilt']:>24s} {r['posed']:>9s} {r['registered_off']:>9s}"
         )
     return lines
 
@@ -231,14 +262,14 @@ def markdown_table(runs: list[TerrainRun], command: str, skip_first: bool = True
         f"({caption(command)})",
         "",
         "| scene | speed | smoothed mm | × level | online mm | × level "
-        "| ramp tilt °, new / level-ground anchor | posed online |",
-        "| :-- | :-- | --: | --: | --: | --: | --: | --: |",
+        "| ramp tilt °, new / level-ground anchor | posed online | registered > 2 cm off |",
+        "| :-- | :-- | --: | --: | --: | --: | --: | --: | --: |",
     ]
     for r in summary_rows(runs, skip_first):
         lines.append(
             f"| {r['scene']} | {r['speed']} | {r['smoothed_mm']:.1f} "
             f"| {r['smoothed_x_level']:.2f} | {r['online_mm']:.1f} | {r['online_x_level']:.2f} "
-            f"| {r['ramp_tilt']} | {r['posed']} |"
+            f"| {r['ramp_tilt']} | {r['posed']} | {r['registered_off']} |"
         )
     return "\n".join(lines)
 

@@ -444,6 +444,14 @@ def terrain_walk_bench(
         Path | None,
         typer.Option("--config", help="YAML of PipelineConfig overrides for every run."),
     ] = None,
+    compare_level: Annotated[
+        bool,
+        typer.Option(
+            "--compare-level/--no-compare-level",
+            help="Also run the level-ground anchor on every scene (its ramp tilt beside the "
+            "new anchor's); off: half the time.",
+        ),
+    ] = True,
     markdown: options.Markdown = False,
 ) -> None:
     """The full graph on the terrain walker's scenes (stairs, ramps, curbs, boxes): per-stride
@@ -466,7 +474,7 @@ def terrain_walk_bench(
         return
     runs = tw.run_terrain_bench(
         names, chosen, strides, resolution, preset or None, seed, progress=typer.echo,
-        overrides=overrides,
+        overrides=overrides, compare_level=compare_level,
     )  # fmt: skip
     typer.echo(
         "== summary (median per stride, each session's first stride left out; × level: over "

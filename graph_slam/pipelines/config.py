@@ -21,6 +21,7 @@ from graph_slam.frontend.config import (
     thesis_registration,
 )
 from graph_slam.frontend.floor import FloorConfig
+from graph_slam.frontend.treads import TreadsConfig
 from graph_slam.pipelines.keyframe import KeyframeConfig
 from graph_slam.strides.mount import MountEstimateConfig
 from graph_slam.terrain.maps.builder import TerrainConfig
@@ -163,6 +164,11 @@ class GraphFrontendConfig(ConfigModel):
     floor: FloorConfig = Field(
         default_factory=FloorConfig,
         description="the floor plane in the stride's first frame, fused into the anchor's tilt",
+    )
+    treads: TreadsConfig = Field(
+        default_factory=TreadsConfig,
+        description="where no floor passes the floor fit: several small level planes (stair "
+        "treads) in the stride's first frame, fused into the anchor's tilt when level",
     )
     recolour_keyframe: bool = Field(
         False,

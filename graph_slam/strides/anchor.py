@@ -17,7 +17,14 @@ records the plane's slope. :class:`StrideAnchor` returns which case applied:
   off, was fused as the floor and tilted the whole session; with the heel to decide, the
   plane is searched within ``first_strike_search_rad`` of that poor up); fused by inverse
   variance;
+* ``treads``: no plane passed the floor fit (a tread is 0.28 m deep), but several small level
+  planes did (:func:`graph_slam.frontend.treads.fit_level_planes`: the treads of a flight, the
+  landing), and their common normal is level within its σ: fused by inverse variance (not at a
+  session's first strike, whose IMU up cannot test it);
 * ``slope``: a plane was found but is tilted against the IMU's up: IMU alone, slope recorded;
+* ``slope_level``: as ``slope`` (its slope for the contact), but level planes beside the
+  sloped one (the platform at a ramp's top, the floor at its foot), common normal level within
+  its σ, fused into the up as the treads are;
 * ``imu``: no plane (no depth, too few points, none near up) or the floor is off: IMU alone;
 * ``none``: no IMU up vector either (the back end's own default anchor).
 
@@ -38,11 +45,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from graph_slam.frontend.floor import FloorConfig, FloorFit, fit_floor, fuse_up
+from graph_slam.frontend.treads import LevelPlanes, TreadsConfig, fit_level_planes
 from graph_slam.strides.up_fusion import GraphUp, fuse_with_graph
 
 log = logging.getLogger(__name__)
 
-ANCHOR_CASES = ("floor", "slope", "imu", "none")
+ANCHOR_CASES = ("floor", "treads", "slope", "slope_level", "imu", "none")
 
 
 @dataclass(frozen=True)
@@ -69,6 +77,8 @@ class AnchorUp:
     heel_limit_m: float = float("inf")
     previous_slope_rad: float = 0.0
     """The previous stride's contact slope: the ground under a heel the plane misses."""
+    treads: LevelPlanes | None = None
+    """The small level planes searched where no floor passed (None: not searched)."""
 
     @property
     def assumed(self) -> bool:
@@ -86,9 +96,9 @@ class AnchorUp:
         (a slope) and level where it was, when it passes under the heel; where it does not
         (a ramp that starts ahead of the foot, the level floor ahead of a heel still on the
         ramp), the previous stride's contact slope."""
-        if self.case in ("slope", "floor") and not self.heel_on_plane:
+        if self.case in ("slope", "slope_level", "floor") and not self.heel_on_plane:
             return self.previous_slope_rad
-        return self.slope_rad if self.case == "slope" else 0.0
+        return self.slope_rad if self.case in ("slope", "slope_level") else 0.0
 
     @property
     def flags(self) -> tuple[str, ...]:
@@ -97,9 +107,12 @@ class AnchorUp:
             out.insert(0, f"floor:{self.fit.reason}")
         if math.isfinite(self.slope_rad):
             out.append(f"slope_deg:{math.degrees(self.slope_rad):.2f}")
+        if self.treads is not None:
+            t = self.treads
+            out.append(f"treads:{t.n_planes}" if t.ok else f"treads:{t.reason.split(':')[0]}")
         if self.graph:
             out.append(f"up_graph:{self.graph}")
-        if self.case in ("slope", "floor") and not self.heel_on_plane:
+        if self.case in ("slope", "slope_level", "floor") and not self.heel_on_plane:
             out.append(f"heel_off_plane:{self.heel_off_m:.3f}")
         return tuple(out)
 
@@ -119,6 +132,7 @@ class StrideAnchor:
         velocity_change: Callable[[float], tuple[float, np.ndarray] | None] | None = None,
         lateral_bias: Callable[[float], tuple[np.ndarray, float] | None] | None = None,
         lateral_bias_max_sigma: float | None = None,
+        treads: TreadsConfig | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -130,6 +144,7 @@ class StrideAnchor:
         self.velocity_change = velocity_change
         self.lateral_bias = lateral_bias
         self.lateral_bias_max_sigma = lateral_bias_max_sigma
+        self.treads = treads
         self.last_contact_slope_rad = 0.0
         """The contact slope of the last stride anchored (0 before the first)."""
 
@@ -206,7 +221,9 @@ class StrideAnchor:
         fit = fit_floor(points_m, hint, cfg, max_angle_rad=search)
         if not fit.ok:
             log.info("t=%.3f s: no floor for the anchor (%s)", t_s, fit.reason)
-            return AnchorUp(t_s, up, sigma, "imu", fit=fit)
+            if not self._searches_levels(sigma):
+                return AnchorUp(t_s, up, sigma, "imu", fit=fit)
+            return self.with_treads(t_s, up, sigma, points_m, hint, fit)
         n_imu = self.camera_T_imu[:3, :3].T @ fit.normal
         tilt = fit.angle_to_hint_rad
         slope = self.signed_slope(up, n_imu)
@@ -228,9 +245,61 @@ class StrideAnchor:
         heel = {"heel_off_m": heel_off, "heel_limit_m": cfg.contact_heel_m,
                 "previous_slope_rad": self.last_contact_slope_rad}  # fmt: skip
         if not consistent:
-            return AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit, **heel)
+            return self.beside_slope(AnchorUp(t_s, up, sigma, "slope", slope, tilt, fit, **heel),
+                                     points_m, hint)  # fmt: skip
         fused, sigma_fused = fuse_up(up, sigma_imu, n_imu, fit.sigma_rad)
         return AnchorUp(t_s, fused, sigma_fused, "floor", slope, tilt, fit, sigma is None, **heel)
+
+    def level_planes(self, up, sigma: float, points_m, hint):
+        """The small level planes in ``points_m`` (:func:`fit_level_planes`) and, when their
+        common normal is within the level gate of the IMU's up, the two fused: returns
+        ``(planes, up, σ)`` with ``up`` None where they were not found or not level."""
+        cfg, tcfg = self.floor, self.treads
+        search = max(tcfg.search_rad, cfg.max_angle_rad + 3.0 * sigma)
+        planes = fit_level_planes(points_m, hint, cfg, tcfg, max_angle_rad=search)
+        if not planes.ok:
+            return planes, None, sigma
+        gate = cfg.level_gate_sigmas * math.hypot(sigma, planes.sigma_rad)
+        if planes.angle_to_hint_rad > max(gate, cfg.level_gate_min_rad):
+            log.info("level planes %.2f° off the IMU's up: not used",
+                     math.degrees(planes.angle_to_hint_rad))  # fmt: skip
+            return planes, None, sigma
+        n_imu = self.camera_T_imu[:3, :3].T @ planes.normal
+        fused, sigma_fused = fuse_up(up, sigma, n_imu, planes.sigma_rad)
+        return planes, fused, sigma_fused
+
+    def _searches_levels(self, sigma: float | None) -> bool:
+        on = self.treads is not None and self.treads.enabled
+        return on and not self.floor.assume_level and sigma is not None
+
+    def with_treads(self, t_s: float, up, sigma: float, points_m, hint, fit: FloorFit) -> AnchorUp:
+        """Where no floor passed: the common normal of the small level planes in view (stair
+        treads), fused like a level floor when within the level gate of the IMU's up
+        (``treads``), else the IMU's up alone (``imu``). A tread is level: the contact is too."""
+        planes, fused, sigma_fused = self.level_planes(up, sigma, points_m, hint)
+        if fused is None:
+            return AnchorUp(t_s, up, sigma, "imu", fit=fit, treads=planes)
+        n_imu = self.camera_T_imu[:3, :3].T @ planes.normal
+        slope, tilt = self.signed_slope(up, n_imu), planes.angle_to_hint_rad
+        return AnchorUp(t_s, fused, sigma_fused, "treads", slope, tilt, fit, treads=planes)
+
+    def beside_slope(self, anchor: AnchorUp, points_m, hint) -> AnchorUp:
+        """A sloped plane (a ramp) keeps its slope for the contact; level planes beside it,
+        farther than ``treads.off_slope_m`` from it (the platform at a ramp's top, the floor
+        at its foot), fix the up (``slope_level``) when level within the gate."""
+        if not self._searches_levels(anchor.sigma_rad):
+            return anchor
+        fit = anchor.fit
+        pts = np.asarray(points_m, float)
+        pts = pts[np.isfinite(pts).all(axis=1)]
+        rest = pts[np.abs(pts @ fit.normal + fit.offset_m) >= self.treads.off_slope_m]
+        planes, fused, sigma_fused = self.level_planes(anchor.up_in_imu, anchor.sigma_rad,
+                                                       rest, hint)  # fmt: skip
+        if fused is None:
+            return replace(anchor, treads=planes)
+        slope = self.signed_slope(fused, self.camera_T_imu[:3, :3].T @ fit.normal)  # vs level
+        return replace(anchor, up_in_imu=fused, sigma_rad=sigma_fused, case="slope_level",
+                       slope_rad=slope, treads=planes)  # fmt: skip
 
     def _not_ground(self, fit: FloorFit, heel_in_camera_m) -> str | None:
         """Why a first strike's plane is not the ground the heel stands on (None: it is): the
@@ -283,4 +352,5 @@ def make_anchor(
         velocity_change if config.gravity_mean_acceleration else None,
         lateral_bias if config.gravity_lateral_bias_max_sigma_m_s2 is not None else None,
         config.gravity_lateral_bias_max_sigma_m_s2,
+        config.graph.treads,
     )
