@@ -100,7 +100,7 @@ class EventEmission:
                 # the thigh still flexes: its strike, which follows the flexion peak, is to come
                 win.close_at_s = max(win.close_at_s, t_s + w1)
             onset = timing.poll()
-            if onset is not None or t_s >= win.close_at_s:
+            if onset is not None or (t_s >= win.close_at_s and not timing.holding):
                 strike = timing.close(onset)
                 self.counts["impact_strikes"] += int(onset is not None)
                 if win.emitted:
