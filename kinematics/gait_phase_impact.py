@@ -69,8 +69,11 @@ class StrikeTimingConfig:
     the burst's own peak."""
     follow_s: float = 0.12
     """The longest an onset is held while its burst is followed (the detection latency it may
-    add); the hold ends sooner once a burst as large as the typical one has stayed below half
-    its peak for the envelope's time constant (``smooth_s``: a ripple is not the burst's end)."""
+    add); the hold ends sooner once the burst has outgrown the typical peak and turned down, or
+    a burst as large as the typical one has fallen below half its peak (it is over)."""
+    outgrown_ratio: float = 2.0
+    """A held burst this many times the typical peak shows that the typical came from weaker
+    bursts: its own peak (once the envelope turns down) sets the threshold."""
 
 
 @dataclass
@@ -180,9 +183,8 @@ class StrikeTiming:
 
     @property
     def settled(self) -> bool:
-        """The typical peak rests on ``settle_bursts`` strong strike bursts or more."""
-        strong = [p for p in self.peaks if p >= self.cfg.impact.min_strength * self.floor]
-        return len(strong) >= self.cfg.settle_bursts
+        """``settle_bursts`` strike windows' bursts or more are measured."""
+        return len(self.peaks) >= self.cfg.settle_bursts
 
     @property
     def holding(self) -> bool:
@@ -248,21 +250,23 @@ class StrikeTiming:
         return self._release()
 
     def _release(self) -> float | None:
-        """A held onset once its burst is followed: ``follow_s`` past the first rise, or a
-        burst at least as large as the typical one stayed below half its peak for ``smooth_s``. The onset is then
-        the first rise, since the held one, through ``threshold_fraction`` of the larger of the
-        typical peak and the burst's peak (the threshold learned from weaker bursts is crossed
-        early in a strong burst's rise); None while held."""
+        """A held onset once its burst is followed: ``follow_s`` past the first rise; sooner
+        when the burst outgrew the typical peak (``outgrown_ratio`` times it) and the envelope
+        has turned down (the burst's peak is behind: the threshold's basis is this burst), or
+        when a burst at least as large as the typical one fell below half its peak (over). The
+        onset is then the first rise, since
+        the held one, through ``threshold_fraction`` of the larger of the typical peak and the
+        burst's peak (the threshold learned from weaker bursts is crossed early in a strong
+        burst's rise); None while held."""
         first, peak, below = self._held
+        turned = self.env < self._prev_env
         peak = max(peak, self.env)
-        below = (
-            (below if math.isfinite(below) else self._t_now) if self.env < 0.5 * peak else math.inf
-        )
+        below = self._t_now if self.env < 0.5 * peak else math.inf
         self._held = (first, peak, below)
         typical = self.typical_peak
-        # the burst is over: below half its peak for the envelope's time constant (not a ripple)
-        over = peak >= typical and self._t_now - below >= self.cfg.impact.smooth_s - 1e-9
-        if not over and self._t_now < first + self.cfg.follow_s:
+        outgrown = peak >= self.cfg.outgrown_ratio * typical and turned
+        over = peak >= typical and math.isfinite(below)
+        if not (outgrown or over) and self._t_now < first + self.cfg.follow_s:
             return None
         self._held = None
         level = self.cfg.impact.threshold_fraction * max(typical, peak)
