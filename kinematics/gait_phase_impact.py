@@ -70,7 +70,7 @@ class StrikeTimingConfig:
     follow_s: float = 0.12
     """The longest an onset is held while its burst is followed (the detection latency it may
     add); the hold ends sooner once the burst has outgrown the typical peak and turned down, or
-    a burst as large as the typical one has fallen below half its peak (it is over)."""
+    the burst has fallen below half its peak (it is over)."""
     outgrown_ratio: float = 2.0
     """A held burst this many times the typical peak shows that the typical came from weaker
     bursts: its own peak (once the envelope turns down) sets the threshold."""
@@ -253,8 +253,7 @@ class StrikeTiming:
         """A held onset once its burst is followed: ``follow_s`` past the first rise; sooner
         when the burst outgrew the typical peak (``outgrown_ratio`` times it) and the envelope
         has turned down (the burst's peak is behind: the threshold's basis is this burst), or
-        when a burst at least as large as the typical one fell below half its peak (over). The
-        onset is then the first rise, since
+        when the burst fell below half its peak (over). The onset is then the first rise, since
         the held one, through ``threshold_fraction`` of the larger of the typical peak and the
         burst's peak (the threshold learned from weaker bursts is crossed early in a strong
         burst's rise); None while held."""
@@ -265,7 +264,7 @@ class StrikeTiming:
         self._held = (first, peak, below)
         typical = self.typical_peak
         outgrown = peak >= self.cfg.outgrown_ratio * typical and turned
-        over = peak >= typical and math.isfinite(below)
+        over = math.isfinite(below)
         if not (outgrown or over) and self._t_now < first + self.cfg.follow_s:
             return None
         self._held = None
