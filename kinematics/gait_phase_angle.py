@@ -58,6 +58,20 @@ class AnglePhaseConfig:
     max_sample_gap_s: float = 0.1
     """A stride with a longer gap between its samples (the walk stopped, the lock was lost)
     gives no calibration."""
+    weigh_strides: int = 3
+    """The stride time and the landmarks are scored by their error in predicting the strike
+    over this many recent strides (median squared error: one odd stride, a turn's pivot or the
+    first after a start, does not decide)."""
+    min_scored: int = 2
+    """A predictor is compared with the other once it has predicted this many strikes."""
+    error_floor_s: float = 0.01
+    """Added in quadrature to both errors before they are compared (a sample interval at
+    100 Hz): two predictors both exact to within a sample are equal."""
+    time_advantage: float = 2.0
+    """Once a landmark is passed it predicts the strike, unless the stride time predicted the
+    last strikes this many times better (RMS error; in turns, whose swings differ from step to
+    step while the stride time holds). Equal errors keep the landmark: the swing, which it
+    times, varies less than the stance when the pace changes."""
 
 
 class ThighAnglePhase:
@@ -75,11 +89,15 @@ class ThighAnglePhase:
         self._ext_s = math.nan  # the largest extension's time, once confirmed
         self._mid_s = math.nan  # mid-swing's time, once passed
         self._out = 0.0
+        self._stride_pred = math.nan  # the stride time predicted for the current stride
+        m = self.cfg.weigh_strides
+        self._sq_err = {k: deque(maxlen=m) for k in ("time", "ext", "mid")}
 
     def strike(self, t_s: float) -> None:
         """A foot strike at ``t_s`` (emitted now, possibly a few samples later): the stride
         that ends there calibrates the landmarks; a new one starts."""
         if self._strike_s is not None and 0.0 < t_s - self._strike_s <= self.cfg.max_stride_s:
+            self._score(t_s)
             self._calibrate(self._strike_s, t_s)
         self._strike_s = t_s
         self._low, self._ext_s, self._mid_s, self._out = (
@@ -107,20 +125,56 @@ class ThighAnglePhase:
             self._samples.popleft()
         if self._strike_s is None:
             return math.nan
+        self._stride_pred = stride_s
         d = max(t_s - self._strike_s, 0.0)
-        rest = max(stride_s - d, 0.0)
-        if math.isfinite(self._mid_s) and self._from_mid:
-            rest = float(np.median(self._from_mid)) - (t_s - self._mid_s)
-        elif math.isfinite(self._ext_s) and self._from_ext:
-            rest = float(np.median(self._from_ext)) - (t_s - self._ext_s)
-        elif self._from_ext:  # the swing is still to come after the lowest angle so far
-            since_low = t_s - self._low[1] if math.isfinite(self._low[1]) else 0.0
-            rest = max(rest, float(np.median(self._from_ext)) - since_low)
+        rest = self._rest(t_s, d, stride_s)
         phase = d / (d + rest) if rest > 0.0 else 0.999
         self._out = min(max(self._out, phase), 0.999)
         return self._out
 
     # --- inside ------------------------------------------------------------------------------
+    def _predicted(self, t_s: float, stride_s: float) -> dict[str, float]:
+        """The next strike's time as each predictor at hand sees it at ``t_s``."""
+        out = {"time": self._strike_s + stride_s} if math.isfinite(stride_s) else {}
+        if math.isfinite(self._ext_s) and self._from_ext:
+            out["ext"] = self._ext_s + float(np.median(self._from_ext))
+        if math.isfinite(self._mid_s) and self._from_mid:
+            out["mid"] = self._mid_s + float(np.median(self._from_mid))
+        return out
+
+    def _rest(self, t_s: float, d: float, stride_s: float) -> float:
+        """The time still to come before the next strike: the latest landmark passed predicts
+        it, unless the stride time predicted the recent strikes ``time_advantage`` times better
+        (:meth:`_time_better`); before a landmark, the stride time, held back while the swing
+        is still to come (unless the stride time did better than the largest extension)."""
+        rest = max(stride_s - d, 0.0)
+        pred = self._predicted(t_s, stride_s)
+        landmark = "mid" if "mid" in pred else "ext" if "ext" in pred else None
+        if landmark is None:
+            if self._from_ext and not self._time_better("ext"):
+                since_low = t_s - self._low[1] if math.isfinite(self._low[1]) else 0.0
+                rest = max(rest, float(np.median(self._from_ext)) - since_low)
+            return rest
+        if "time" in pred and self._time_better(landmark):
+            return rest
+        return pred[landmark] - t_s
+
+    def _time_better(self, landmark: str) -> bool:
+        """The stride time predicted the recent strikes ``time_advantage`` times better (RMS,
+        each error with ``error_floor_s`` added in quadrature) than ``landmark``, both scored on
+        ``min_scored`` strikes or more."""
+        err = {
+            k: float(np.median(self._sq_err[k])) + self.cfg.error_floor_s**2
+            for k in ("time", landmark)
+            if len(self._sq_err[k]) >= self.cfg.min_scored
+        }
+        return len(err) == 2 and err["time"] * self.cfg.time_advantage**2 < err[landmark]
+
+    def _score(self, t_s: float) -> None:
+        """Each predictor's error on the strike at ``t_s`` (before this stride calibrates)."""
+        for k, p in self._predicted(t_s, self._stride_pred).items():
+            self._sq_err[k].append((p - t_s) ** 2)
+
     def _track(self, t_s: float, angle: float) -> None:
         if self._range is None:
             return

@@ -100,7 +100,7 @@ class EventEmission:
                 # the thigh still flexes: its strike, which follows the flexion peak, is to come
                 win.close_at_s = max(win.close_at_s, t_s + w1)
             onset = timing.poll()
-            if onset is not None or t_s >= win.close_at_s:
+            if onset is not None or (t_s >= win.close_at_s and not timing.holding):
                 strike = timing.close(onset)
                 self.counts["impact_strikes"] += int(onset is not None)
                 if win.emitted:
@@ -174,7 +174,9 @@ class EventEmission:
         on a thigh whose swing and stance differ from it (a prosthesis side: 0.1-0.2 cycle at
         the lock), while the time since the strike over the EKF's cadence lags (the cadence is
         still settling from its prior, low). The phase reported is then their circular mean
-        (docs/kinematics.md, "The first strikes and the first stride's phase")."""
+        (docs/kinematics.md, "The first strikes and the first stride's phase"), not below 0:
+        just after a strike an EKF phase that has not yet crossed its integer would otherwise
+        pull the mean back across the wrap, to the end of the last stride (0.9-0.95)."""
         ekf = self._ekf
         last = self._last_event_t["foot_strike"]
         own = float((ekf.x[0] - self.timing.bias_s * max(float(ekf.x[1]), 1e-3)) % 1.0)
@@ -193,7 +195,8 @@ class EventEmission:
             return own
         if stride is None and not (self.stride_phase is not None and self.stride_phase.calibrated):
             linear = min((t_s - last) * max(float(ekf.x[1]), 0.3), 0.999)
-            return float(min((linear + 0.5 * (math.remainder(own - linear, 1.0))) % 1.0, 0.999))
+            mean = linear + 0.5 * math.remainder(own - linear, 1.0)
+            return float(min(max(mean, 0.0), 0.999))  # a strike was emitted: not wrapped back
         if retimed is not None and math.isfinite(retimed):
             return float(retimed)
         return float(min((t_s - last) / stride, 0.999))

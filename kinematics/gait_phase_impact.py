@@ -11,7 +11,11 @@ that bias online and removes it:
   peak. Once a strike window has held a burst ``min_strength`` times above the median
   envelope, **impact mode** is on: the strike is emitted at the envelope's rise through
   ``threshold_fraction`` of that median peak, at ``onset − lag_s`` (detection 25-40 ms after
-  contact);
+  contact). Until the typical peak rests on ``settle_bursts`` bursts (after a start, the one
+  burst seen may be a turn's or a first step's, far weaker than the walk's) the onset is held
+  while its burst is followed (at most ``follow_s``) and placed at ``threshold_fraction`` of
+  the larger of the typical peak and the burst's own: a threshold learned from a weak burst
+  is crossed early in a strong burst's slow rise;
 * each strike placed on an impact (or given by a load cell, :meth:`StrikeTiming.reference`)
   adds a sample of the EKF's strike bias (reference time − the EKF's own strike time); the bias
   is the median of the last ``bias_strides`` samples and shifts the phase the estimator reports,
@@ -25,6 +29,7 @@ that bias online and removes it:
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -56,6 +61,19 @@ class StrikeTimingConfig:
     """... having flexed by at least this much before that peak (a walking thigh swings by
     30-50°; the other leg's strike, felt through the pelvis, comes in this leg's mid-stance,
     while it extends)."""
+    settle_bursts: int = 2
+    """Until this many strong strike bursts are measured the typical peak is not yet the
+    walk's (a single burst, often a turn's or a first step's weak one: on the OpenSense right
+    femur 0.38 against 2-5 later): an onset is then held while its burst is followed
+    (``follow_s``) and placed at ``threshold_fraction`` of the larger of the typical peak and
+    the burst's own peak."""
+    follow_s: float = 0.12
+    """The longest an onset is held while its burst is followed (the detection latency it may
+    add); the hold ends sooner once the burst has outgrown the typical peak and turned down, or
+    the burst has fallen below half its peak (it is over)."""
+    outgrown_ratio: float = 2.0
+    """A held burst this many times the typical peak shows that the typical came from weaker
+    bursts: its own peak (once the envelope turns down) sets the threshold."""
 
 
 @dataclass
@@ -96,6 +114,9 @@ class StrikeTiming:
         self._armed_above = False
         self._post: tuple[float, float] | None = None
         """(until, peak): the burst after an onset, followed to its peak."""
+        self._held: tuple[float, float, float] | None = None
+        """(first rise, peak since, below half the peak since): an onset held while its burst
+        is followed (``follow_s``)."""
 
     # --- per sample ----------------------------------------------------------------------
     def sample(self, t_s: float, accel_m_s2: np.ndarray) -> None:
@@ -161,6 +182,16 @@ class StrikeTiming:
         return float(np.median(strong)) if strong else math.nan
 
     @property
+    def settled(self) -> bool:
+        """``settle_bursts`` strike windows' bursts or more are measured."""
+        return len(self.peaks) >= self.cfg.settle_bursts
+
+    @property
+    def holding(self) -> bool:
+        """An onset is held while its burst is followed (the window must stay open)."""
+        return self._held is not None
+
+    @property
     def impact_mode(self) -> bool:
         """Strikes are timed by impacts once a strike window has held a strong burst."""
         return len(self._envs) >= 20 and math.isfinite(self.typical_peak)
@@ -174,6 +205,7 @@ class StrikeTiming:
         """Open the window of strike ``target``."""
         self.window = StrikeWindow(target, close_at_s, raw_s, calibrated_s, self.env)
         self._armed_above = self.impact_mode and self.env >= self.level()
+        self._held = None
         return self.window
 
     def _past_rise(self) -> float | None:
@@ -186,17 +218,59 @@ class StrikeTiming:
                 return t0 + (level - e0) / (e1 - e0) * (t1 - t0)
         return None
 
+    def _first_rise_since(self, t_from_s: float, level: float) -> float | None:
+        """The first rise through ``level`` at or after ``t_from_s`` in the recent history (the
+        sample before ``t_from_s`` included: the rise may lie between it and the next)."""
+        hist = list(self._hist)
+        k = next((i for i, (t, _) in enumerate(hist) if t >= t_from_s), len(hist))
+        hist = hist[max(k - 1, 0) :]
+        for (t0, e0), (t1, e1) in itertools.pairwise(hist):
+            if e0 < level <= e1:
+                return t0 + (level - e0) / (e1 - e0) * (t1 - t0)
+        return None
+
     def poll(self) -> float | None:
         """The impact onset at the latest sample when the envelope has just risen through the
-        threshold in impact mode (interpolated), else None."""
+        threshold in impact mode (interpolated), else None. Before the typical peak is
+        settled (:attr:`settled`) the onset is held while its burst is followed and returned
+        once the hold ends (:meth:`_release`)."""
         if self.window is None or not self.impact_mode or self._t_before is None:
             return None
+        if self._held is not None:
+            return self._release()
+        onset = None
         if self._armed_above:
             self._armed_above = False
-            past = self._past_rise()
-            if past is not None:
-                return past
-        return self.rise_now()
+            onset = self._past_rise()
+        if onset is None:
+            onset = self.rise_now()
+        if onset is None or self.settled:
+            return onset
+        self._held = (onset, max(e for t, e in self._hist if t >= onset - 1e-9), math.inf)
+        return self._release()
+
+    def _release(self) -> float | None:
+        """A held onset once its burst is followed: ``follow_s`` past the first rise; sooner
+        when the burst outgrew the typical peak (``outgrown_ratio`` times it) and the envelope
+        has turned down (the burst's peak is behind: the threshold's basis is this burst), or
+        when the burst fell below half its peak (over). The onset is then the first rise, since
+        the held one, through ``threshold_fraction`` of the larger of the typical peak and the
+        burst's peak (the threshold learned from weaker bursts is crossed early in a strong
+        burst's rise); None while held."""
+        first, peak, below = self._held
+        turned = self.env < self._prev_env
+        peak = max(peak, self.env)
+        below = self._t_now if self.env < 0.5 * peak else math.inf
+        self._held = (first, peak, below)
+        typical = self.typical_peak
+        outgrown = peak >= self.cfg.outgrown_ratio * typical and turned
+        over = math.isfinite(below)
+        if not (outgrown or over) and self._t_now < first + self.cfg.follow_s:
+            return None
+        self._held = None
+        level = self.cfg.impact.threshold_fraction * max(typical, peak)
+        onset = self._first_rise_since(first, level)
+        return onset if onset is not None else first
 
     def rise_now(self) -> float | None:
         """The onset when the envelope has just risen through the threshold (impact mode,
@@ -213,6 +287,7 @@ class StrikeTiming:
         """Close the window; return the strike time from the onset (None without one). The
         window's burst peak joins the typical peak; an onset adds a bias sample."""
         win, self.window = self.window, None
+        self._held = None
         if win is None:
             return None
         if onset_s is None:

@@ -89,9 +89,11 @@ def test_no_strike_from_a_shock_alone_when_the_windows_hold_the_shocks():
 @pytest.mark.skipif(not (DATA / "00B4227C.txt").exists(), reason="shared real walks absent")
 def test_femur_walks_online_against_the_two_thigh_reference():
     """The reference derived from the two thighs (kinematics.gait_two_legs): online, every
-    referenced strike is found and none is extra on either leg; on the left femur the strike in
-    the turn whose lock was lost (15.26 s) comes from its shock after the flexion peak, within
-    30 ms, and the worst error is within 60 ms."""
+    referenced strike is found and none is extra on either leg, median within 30 ms, worst
+    within 60 ms, latency p95 within 100 ms; on the left femur the strike in the turn whose
+    lock was lost (15.26 s) comes from its shock after the flexion peak, within 30 ms; on the
+    right femur the first strike after the opening turn (8.19 s; 83 ms early when the onset
+    threshold came from the turn's weak burst alone) is within 30 ms."""
     from kinematics.gait_impact import envelope
     from kinematics.gait_real import read_xsens_orientation, read_xsens_txt
     from kinematics.gait_two_legs import Leg, derive_strikes, score_against, thigh_inclination_rad
@@ -110,8 +112,12 @@ def test_femur_walks_online_against_the_two_thigh_reference():
         assert sc.missed == 0 and sc.extra == 0, (ref.strikes_s, res.times("foot_strike"))
         assert np.median(np.abs(sc.errors_s)) <= 0.03
         assert np.percentile(sc.latencies_s, 95) <= 0.1
+        assert np.max(np.abs(sc.errors_s)) <= 0.06
+        if own == right:
+            k = int(np.argmin(np.abs(ref.strikes_s - 8.19)))
+            assert abs(ref.strikes_s[k] - 8.19) < 0.02
+            assert np.min(np.abs(res.times("foot_strike") - ref.strikes_s[k])) <= 0.03
         if own == left:
-            assert np.max(np.abs(sc.errors_s)) <= 0.06
             k = int(np.argmin(np.abs(ref.strikes_s - 15.26)))
             assert abs(ref.strikes_s[k] - 15.26) < 0.02
             assert np.min(np.abs(res.times("foot_strike") - ref.strikes_s[k])) <= 0.03
