@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -12,6 +13,9 @@ from graph_slam.session.synthetic import SyntheticConfig, write_synthetic_sessio
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
 TEST_DATA = Path(__file__).resolve().parent / "data"
+REAL_THIGH_IMU = Path(os.environ.get("GAIT_REAL_DATA", SHARED_DATA / "real_thigh_imu"))
+"""The real walks with thigh IMUs (``GAIT_REAL_DATA`` may point elsewhere, e.g. from a checkout
+whose ../shared is not beside it)."""
 
 SMALL_SYNTHETIC = SyntheticConfig(duration_s=2.4, camera_rate_hz=30.0, seed=7)
 

@@ -4,11 +4,10 @@ absent), the Xsens text reader, and the 24 right-handed axis arrangements."""
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REAL_THIGH_IMU
 from scipy.spatial.transform import Rotation
 
 from kinematics.errors import GaitInputError
@@ -22,14 +21,7 @@ from kinematics.gait_real import (
     right_handed_arrangements,
 )
 
-# ../shared/data from the repository (GAIT_REAL_DATA may point elsewhere, e.g. a checkout
-# whose ../shared is not beside it)
-DATA = Path(
-    os.environ.get(
-        "GAIT_REAL_DATA",
-        Path(__file__).resolve().parents[2] / "shared" / "data" / "real_thigh_imu",
-    )
-)
+DATA = REAL_THIGH_IMU
 XSENS = DATA / "walking_xsens_upperLeg.txt"
 needs_data = pytest.mark.skipif(
     not XSENS.exists(), reason=f"real thigh walk not found ({XSENS}; ../shared/data is absent)"

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REAL_THIGH_IMU
 
 from kinematics.gait_events import detect_from_thigh_imu
 from kinematics.gait_online import estimate_online
@@ -16,7 +16,7 @@ from kinematics.gait_patterns import ABLE_BODIED
 from kinematics.gait_scenarios import simulate_walks
 from kinematics.gait_synth import random_mounting
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real_thigh_imu"
+DATA = REAL_THIGH_IMU
 SPEEDS = [1.2] * 8
 
 

@@ -5,11 +5,10 @@ the OpenSense femur walks (skipped when the shared data is absent)."""
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import REAL_THIGH_IMU
 from scipy.spatial.transform import Rotation
 
 from kinematics.gait_curves import stride_time_s, thigh_angle
@@ -23,12 +22,7 @@ from kinematics.gait_two_legs import (
     thigh_inclination_rad,
 )
 
-DATA = Path(
-    os.environ.get(
-        "GAIT_REAL_DATA",
-        Path(__file__).resolve().parents[2] / "shared" / "data" / "real_thigh_imu",
-    )
-)
+DATA = REAL_THIGH_IMU
 RATE_HZ = 100.0
 LAG_S = ImpactConfig().lag_s
 
