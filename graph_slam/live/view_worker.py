@@ -7,9 +7,9 @@ process (``python -m graph_slam.live.view_worker RRD [--spawn | --connect ADDR]`
 the frames from its standard input and draws them; the estimator's process only copies each
 frame's pose and, every ``grid_step``-th frame, the grid's cell sums into the pipe.
 
-Messages (:func:`pack` / :func:`unpack`; no pickle): a 4-byte big-endian length, then a JSON
-header (UTF-8) of that length naming the arrays that follow (name, dtype, shape), then their
-bytes. When its input ends the worker closes the recording and writes one line of JSON with
+Messages (:func:`pack` / :func:`unpack`; no pickle): two 4-byte big-endian lengths (the
+header's, the arrays'), a JSON header (UTF-8) naming the arrays that follow (name, dtype,
+shape), then their bytes. When its input ends the worker closes the recording and writes one line of JSON with
 its counts (``drawn``, ``failed``) to its standard output.
 """
 
@@ -20,14 +20,20 @@ import json
 import logging
 import struct
 import sys
+from dataclasses import fields
 from types import SimpleNamespace
 from typing import BinaryIO
 
 import numpy as np
 
 log = logging.getLogger(__name__)
-SUMS = ("w", "wz", "a", "b", "count", "last_t_s", "wz2", "d")
-"""The fields of :class:`~graph_slam.terrain.grid.online.CellSums` sent with a grid."""
+
+
+def _sum_names() -> tuple[str, ...]:
+    """The fields of :class:`~graph_slam.terrain.grid.online.CellSums`, sent with a grid."""
+    from graph_slam.terrain.grid.online import CellSums
+
+    return tuple(f.name for f in fields(CellSums))
 
 
 def pack(header: dict, arrays: dict[str, np.ndarray] | None = None) -> bytes:
@@ -76,7 +82,7 @@ def frame_message(out, with_grid: bool) -> bytes:
                           "origin": [float(v) for v in view.origin_xy_m],
                           "cell_m": float(view.cell_m), "shape": list(view.shape),
                           "toe_x_m": float(view.toe_x_m)}  # fmt: skip
-        arrays.update({f"sums.{k}": np.asarray(getattr(view.sums, k)) for k in SUMS})
+        arrays.update({f"sums.{k}": np.asarray(getattr(view.sums, k)) for k in _sum_names()})
     return pack(header, arrays)
 
 
@@ -88,7 +94,7 @@ def frame_of(header: dict, arrays: dict[str, np.ndarray]) -> SimpleNamespace:
         from graph_slam.terrain.grid.view import TerrainView
 
         v = header["view"]
-        sums = CellSums(**{k: arrays[f"sums.{k}"] for k in SUMS})
+        sums = CellSums(**{k: arrays[f"sums.{k}"] for k in _sum_names()})
         view = TerrainView(v["stride"], v["t_s"], np.asarray(v["origin"], float), v["cell_m"],
                            sums, tuple(v["shape"]), v["toe_x_m"])  # fmt: skip
     return SimpleNamespace(frame_index=header["frame"], stride_index=header["stride"],
