@@ -12,11 +12,10 @@ import pytest
 from graph_slam.terrain.features.clearance import (
     ClearanceConfig,
     clearance_along,
-    predict_clearance,
-    reference_swing,
     toe_path,
 )
 from graph_slam.terrain.features.extract import extract_features
+from graph_slam.terrain.features.prediction import predict_clearance, reference_swing
 from tests.test_terrain_features import CELL, X0, Y0, grid
 
 
@@ -136,7 +135,7 @@ def test_unknown_terrain_gives_no_clearance(n):
 
 
 def test_a_flight_beside_the_path_leaves_the_reference_level():
-    from graph_slam.terrain.features.clearance import terrain_type
+    from graph_slam.terrain.features.prediction import terrain_type
     from tests.test_terrain_features import stairs_surface
 
     def beside(x, y):  # the flight only at y < -0.2 m

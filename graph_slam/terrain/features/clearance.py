@@ -15,8 +15,7 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
 * :func:`toe_path` — the measured swing: the toe in the stride frame from the camera poses and
   the encoders (``stride_T_camera · camera_T_toe(q)``, the leg model's forward kinematics).
 * :func:`~graph_slam.terrain.features.prediction.reference_swing` /
-  :func:`~graph_slam.terrain.features.prediction.predict_clearance` (module ``prediction``,
-  re-exported here) — during stance, the clearance of the coming swing on a reference toe path
+  :func:`~graph_slam.terrain.features.prediction.predict_clearance` (module ``prediction``) — during stance, the clearance of the coming swing on a reference toe path
   for the terrain type ahead, with the warning when its **edge** clearance is below
   ``warn_below_m`` (2 cm).
 * :func:`edge_clearance` — the clearance over the edges a swing must clear: the least
@@ -333,15 +332,3 @@ def interpolate_poses(t_s: np.ndarray, poses: np.ndarray, t_query: np.ndarray) -
     for k in range(3):
         out[:, k, 3] = np.interp(tq, t, p[:, k, 3])
     return out
-
-
-_PREDICTION = ("predict_clearance", "reference_swing", "terrain_type")
-
-
-def __getattr__(name: str):
-    """The stance-time prediction's names (module ``prediction``, which imports this one)."""
-    if name in _PREDICTION:
-        from graph_slam.terrain.features import prediction
-
-        return getattr(prediction, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
