@@ -178,6 +178,39 @@ def test_descending_nosings_placed_by_the_points_of_the_last_cell_seen():
         assert 0 < step.nosing.sigma_m < 0.005
 
 
+@pytest.mark.parametrize("through", [0.35, 0.70])
+def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
+    """A 12 cm curb down, its edge ``through`` of the way through a cell and 4 cm of shadow
+    beyond it, as the stance frames saw it (the last cell before the edge holds only the top's
+    points); a late viewpoint over the edge put 2 points of the lower surface in each cell of
+    the shadow. With ``shadow_sparse_fraction`` 0.25 those cells are the shadow's: the edge
+    lies where the last cell's share of points ends (within 1.5 mm); counted as the lower
+    surface (0, the default) it lies at that cell's end ((1 - through) of a cell late). Seen
+    fully (no shadow), the counts change nothing."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    edge = X0 + 40 * CELL + through * CELL
+    curb = lambda x, y: np.where(x >= edge, -0.12, 0.0)  # noqa: E731
+
+    def shadow(x, y):
+        return (x >= edge) & (x < edge + 0.04)
+
+    h, var = grid(curb, 0.001, seed=31, unknown=shadow)
+    count = seen_counts(shadow)
+    late = np.isnan(h) & (np.arange(NX)[:, None] > 40)
+    h[late], var[late], count[late] = -0.12, 1e-6, 2
+    on = FeatureConfig(shadow_sparse_fraction=0.25)
+    got = extract_features(h, var, (X0, Y0), CELL, count=count, config=on).curbs[0].edge
+    assert abs(got.x_m - edge) <= 0.0015, (got.x_m, edge)
+    assert got.occluded and 0 < got.sigma_m < 0.005
+    plain = extract_features(h, var, (X0, Y0), CELL, count=count).curbs[0].edge  # off
+    assert plain.x_m - edge == pytest.approx((1 - through) * CELL, abs=0.0015)
+    hf, vf = grid(curb, 0.001, seed=31)
+    full = seen_counts(lambda x, y: np.zeros(x.shape, bool))
+    seen = extract_features(hf, vf, (X0, Y0), CELL, count=full, config=on).curbs[0].edge
+    assert seen.x_m == pytest.approx(features(hf, vf).curbs[0].edge.x_m, abs=1e-9)
+
+
 @pytest.mark.parametrize("slope_deg", [5.0, 8.0, 10.0])
 def test_ramp_slope_direction_start(slope_deg):
     g = math.tan(math.radians(slope_deg))
