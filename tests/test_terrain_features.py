@@ -90,6 +90,28 @@ def test_staircase_partial_view_and_yaw():
     assert abs(st.steps[0].tread_m - 0.28 * math.cos(math.radians(10))) <= TREAD_TOL
 
 
+@pytest.mark.parametrize("seed", [11, 13, 14, 15])
+def test_a_tread_to_a_nosing_seen_in_a_few_rows_at_the_side(seed):
+    """A flight yawed 3°, its second nosing seen only in the 4 rows at the grid's side (y <
+    -0.52 m), 3 mm noise: that line's yaw is off by up to 0.8°. The tread is taken where both
+    nosings were seen: within 2 mm of the truth and 3σ (its σ holds each line's yaw σ over
+    the distance from its point); the next line extrapolated half a metre to the first's
+    point is 5-8 mm off with these seeds."""
+    yaw = math.radians(3.0)
+    h, var = grid(stairs_surface(n=2, yaw_deg=3.0), 0.003, seed=seed,
+                  unknown=lambda x, y: (x > 0.75) & (y > -0.52))  # fmt: skip
+    (st,) = features(h, var).stairs
+    first, second = st.steps
+    assert second.nosing.rows == 4 and first.nosing.y_range_m[1] > 0.5
+    truth = 0.28 * math.cos(yaw)
+    err = first.tread_m - truth
+    assert abs(err) <= 0.002, (first.tread_m, err)
+    assert abs(err) <= 3 * first.tread_sigma_m, (err, first.tread_sigma_m)
+    here, nxt = first.nosing, second.nosing
+    extrapolated = (nxt.x_at(here.y_m) - here.x_m) * math.cos(here.yaw_rad)
+    assert abs(extrapolated - truth) > 0.005
+
+
 def test_descending_stairs_with_the_shadow_behind_each_nosing():
     down = stairs_surface(first=0.507, rise=-0.16, tread=0.3, n=3)
 
