@@ -330,13 +330,31 @@ def _box_top(x, y):
 @pytest.mark.parametrize("shadow_m", [0.40, 2.0])
 def test_a_box_seen_in_part_is_no_stair(shadow_m):
     """A 19 cm box whose top is seen but the floor behind it is not (a long shadow, or the
-    view's end): one up-edge and a 20 cm top is no one-step flight."""
+    view's end): one up-edge and a 20 cm top is no one-step flight nor a curb, but a box seen
+    in part (``far_seen`` False): its leading edge (within 8 mm) and height (3 mm) known, its
+    depth the part of the top seen (to the end of its last cell), no trailing edge for the
+    clearance; the
+    step-over reference stays on its top past the part seen."""
+    from graph_slam.terrain.features.clearance import _edges
+    from graph_slam.terrain.features.prediction import step_over_base
 
     def shadow(x, y):
         return (x >= 1.1062) & (x < 1.1062 + shadow_m) & (y >= -0.4) & (y < -0.1333)
 
     f = features(*grid(_box_top, 0.001, seed=11, unknown=shadow))
     assert not f.stairs and not f.curbs, f
+    (box,) = f.boxes
+    assert not box.far_seen
+    assert abs(box.height_m - 0.1905) <= 0.003
+    assert abs(box.leading.x_at(-0.27) - 0.903) <= NOSING_TOL
+    assert 0.15 < box.depth_m <= 0.2032 + CELL and math.isnan(box.depth_sigma_m)  # to a cell's end
+    assert [name for name, *_ in _edges(f)] == ["boxes[0].leading"]
+    x = np.linspace(0.5, 1.8, 27)
+    base = step_over_base(x, box, -0.27, 0.1)
+    assert np.allclose(base[x >= 0.903 + NOSING_TOL], box.height_m)
+    doc = f.to_dict()
+    del doc["boxes"][0]["far_seen"]  # a document from before the field: a whole box
+    assert TerrainFeatures.from_dict(doc).boxes[0].far_seen
 
 
 def test_a_box_trailing_drop_onto_a_short_floor_is_no_stair():

@@ -149,6 +149,8 @@ def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, f
     for k, b in enumerate(features.boxes):
         top = b.floor_height_m + b.height_m
         out.append((f"boxes[{k}].leading", b.leading, b.floor_height_m, top, b.height_sigma_m))
+        if not b.far_seen:
+            continue  # its top runs on into cells not seen: no trailing edge known
         trail = dataclasses.replace(b.leading, x_m=b.leading.x_m + b.depth_m)
         out.append((f"boxes[{k}].trailing", trail, top, b.floor_height_m, b.height_sigma_m))
     return out

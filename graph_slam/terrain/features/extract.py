@@ -81,7 +81,8 @@ def extract_features(
     edges = _edges(g, labels, terraces, cfg)
     boxes, used = boxes_of(edges, terraces, cfg)
     rest = [e for k, e in enumerate(edges) if k not in used]
-    stairs, curbs = chains_of(rest, g, labels, terraces, cfg)
+    stairs, curbs, parts = chains_of(rest, g, labels, terraces, cfg)
+    boxes += parts
     ramps = _ramps(g, sloped, labels, terraces, cfg)
     return TerrainFeatures(
         stride_index, float(t_s), source, tuple(stairs), tuple(ramps), tuple(curbs), tuple(boxes)

@@ -95,11 +95,44 @@ def _further_rise(g: _Grid, labels, edge: dict, terraces: dict, cfg: FeatureConf
     return rows >= cfg.min_edge_rows
 
 
+def _ends_unseen(g: _Grid, labels, edge: dict, cfg: FeatureConfig) -> bool:
+    """Whether the terrace beyond a single edge runs into cells not seen (no known cell within
+    ``max_gap_cells + 1`` past its far end, or the grid's end) in at least half of the edge's
+    rows where it is seen: its far side is in the shadow or out of view."""
+    b, (lo, hi) = edge["b"], edge["line"].y_range_m
+    j0 = max(math.floor((lo - g.y0) / g.cell), 0)
+    j1 = min(math.floor((hi - g.y0) / g.cell), g.h.shape[1] - 1)
+    look = cfg.max_gap_cells + 1
+    rows = unseen = 0
+    for j in range(j0, j1 + 1):
+        ii = np.flatnonzero(labels[:, j] == b)
+        if ii.size == 0:
+            continue
+        rows += 1
+        unseen += not g.known[ii[-1] + 1 : ii[-1] + 1 + look, j].any()
+    return rows > 0 and 2 * unseen >= rows
+
+
+def _part_box(e: dict, terraces: dict, depth_seen_m: float) -> BoxFeature:
+    """A box seen in part (``BoxFeature.far_seen`` False): its leading edge and height, the
+    part of its top seen."""
+    return BoxFeature(
+        height_m=e["rise"],
+        height_sigma_m=e["rise_sigma"],
+        leading=e["line"],
+        depth_m=depth_seen_m,
+        depth_sigma_m=float("nan"),
+        floor_height_m=terraces[e["a"]]["h"],
+        far_seen=False,
+    )
+
+
 def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureConfig):
-    """Edges linked through shared terraces with the same sign of rise: stairs or a curb."""
+    """Edges linked through shared terraces with the same sign of rise: stairs or a curb; a
+    single rise whose short top runs into cells not seen: a box seen in part."""
     starts = {e["a"]: e for e in edges}
     ends = {e["b"] for e in edges}
-    stairs, curbs, seen = [], [], set()
+    stairs, curbs, parts, seen = [], [], [], set()
     for e in edges:
         if id(e) in seen:
             continue
@@ -122,7 +155,11 @@ def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureC
                 curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"], terraces[e["a"]]["h"]))
                 continue
             if not _further_rise(g, labels, e, terraces, cfg):
-                continue  # one edge and a short top: a box seen in part, not a flight
+                # one edge and a short top: not a flight; a box seen in part when its top
+                # runs into cells not seen
+                if e["rise"] > 0 and _ends_unseen(g, labels, e, cfg):
+                    parts.append(_part_box(e, terraces, run_on))
+                continue
         steps = []
         for k, c in enumerate(chain):
             tread, tread_sigma = float("nan"), float("nan")
@@ -140,7 +177,7 @@ def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureC
                 )
             )
         stairs.append(Stairs(tuple(steps)))
-    return stairs, curbs
+    return stairs, curbs, parts
 
 
 def _tread(here: EdgeLine, nxt: EdgeLine) -> tuple[float, float]:

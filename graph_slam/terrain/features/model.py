@@ -49,7 +49,7 @@ yaw) is not in the grid and not in these σ (docs/terrain.md, *Limits*).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 
 import numpy as np
 from pydantic import Field
@@ -244,6 +244,10 @@ class BoxFeature:
     depth_sigma_m: float
     floor_height_m: float = 0.0
     """The surface it stands on (stride z)."""
+    far_seen: bool = True
+    """False: a box seen in part, its top running into cells not seen yet (its far side in
+    the shadow or out of view): ``depth_m`` is the part of the top seen (a lower bound,
+    ``depth_sigma_m`` NaN) and it has no trailing edge."""
 
     @property
     def near_x_m(self) -> float:
@@ -341,6 +345,8 @@ def _plain(obj):
 def _build(cls, d: dict, **nested):
     kwargs = {}
     for f in fields(cls):
+        if f.name not in d and f.default is not MISSING:
+            continue  # a field added since the document was written: its default
         v = d[f.name]
         if f.name in nested:
             v = None if v is None else _build(nested[f.name], v)
