@@ -333,8 +333,7 @@ def test_a_box_seen_in_part_is_no_stair(shadow_m):
     view's end): one up-edge and a 20 cm top is no one-step flight nor a curb, but a box seen
     in part (``far_seen`` False): its leading edge (within 8 mm) and height (3 mm) known, its
     depth the part of the top seen (to the end of its last cell), no trailing edge for the
-    clearance; the
-    step-over reference stays on its top past the part seen."""
+    clearance; the step-over reference stays on its top past the part seen."""
     from graph_slam.terrain.features.clearance import _edges
     from graph_slam.terrain.features.prediction import step_over_base
 

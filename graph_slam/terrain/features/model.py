@@ -29,9 +29,11 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
    sign of rise are **stairs** (two or more edges), a single edge whose far terrace runs at
    least ``curb_min_depth_m`` on is a **curb**; a single edge whose short far terrace is a
    tread (a further rise the same way within ``max_gap_cells`` past its end, in at least
-   ``min_edge_rows`` rows) is a stair of one step seen; any other single edge is left out (a
-   box whose far side is not seen yet: :meth:`TerrainView.obstacles_ahead` reports it in
-   part). The other edges between a box's top and its floor level are that box's.
+   ``min_edge_rows`` rows) is a stair of one step seen; a single rise whose short top runs
+   into cells not seen (its far side in the shadow or out of view) is a box seen in part
+   (``BoxFeature.far_seen`` False: leading edge and height, the part of the top seen, no
+   trailing edge); any other single edge is left out. The other edges between a box's top
+   and its floor level are that box's.
    Components of cells sloped between ``ramp_min_deg`` and ``ramp_max_deg`` are **ramps**:
    one plane fitted to them (slope, uphill direction, σ from the fit and a pose tilt's: the
    change of the cells' pose part of σ per metre up the slope) and their start line, the
@@ -246,8 +248,8 @@ class BoxFeature:
     """The surface it stands on (stride z)."""
     far_seen: bool = True
     """False: a box seen in part, its top running into cells not seen yet (its far side in
-    the shadow or out of view): ``depth_m`` is the part of the top seen (a lower bound,
-    ``depth_sigma_m`` NaN) and it has no trailing edge."""
+    the shadow or out of view): ``depth_m`` is the part of the top seen (to the end of its
+    last cell; ``depth_sigma_m`` NaN) and it has no trailing edge."""
 
     @property
     def near_x_m(self) -> float:
