@@ -294,3 +294,36 @@ def test_the_reference_is_up_a_near_curb_by_its_edge():
         assert np.allclose(path[up, 2] - lift[up], 0.10, atol=0.002)
         c = predict_clearance(view_of(h, var), feats, (0.2, 0.0), cfg)
         assert not c.warning and c.edge_m > 0.03, (edge_x, c)
+
+
+def test_the_measured_toe_is_placed_by_the_poses_that_placed_the_grid():
+    """A stride whose final grid is its online grid (no clouds kept): its online poses carry a
+    common 6 mm error forward, which moves the grid's curb edge by the same 6 mm; the toe
+    path from those poses (``grid_stride_T_camera``) rising 17 mm in front of the true face
+    gives 17 mm (the error cancels), the smoothed poses' (error-free) 23 mm. A grid re-fused
+    from the smoothed poses takes the smoothed ones."""
+    from graph_slam.pipelines.results import StrideOutput
+    from graph_slam.terrain.features.clearance import edge_clearance
+
+    rng = np.random.default_rng(7)
+    n = 40
+    true = np.tile(np.eye(4), (n, 1, 1))  # the toe's true path: up the face 17 mm before it
+    true[:, 0, 3] = np.concatenate([np.full(20, 0.683), np.linspace(0.683, 0.9, 20)])
+    true[:, 2, 3] = np.concatenate([np.linspace(0.01, 0.2, 20), np.full(20, 0.2)])
+    true[:, 1, 3] = rng.normal(0.0, 0.01, n)  # off the walking line a little, seeded
+    online = true.copy()
+    online[:, 0, 3] += 0.006
+    leg = SimpleNamespace(frame_T_frame=lambda *a, **k: np.eye(4))  # the toe at the camera
+    summary = SimpleNamespace(online_stride_T_camera=online, smoothed_stride_T_camera=true)
+    grid = object()
+    live = StrideOutput(summary, online_grid=grid, smoothed_grid=grid)
+    q = np.zeros((n, 2))
+    feats = _curb(0.7 + 0.006)  # the edge where the online poses put it
+    got = edge_clearance(feats, toe_path(live.grid_stride_T_camera, q, leg))
+    assert got.min_m == pytest.approx(0.017, abs=1e-6)
+    wrong = edge_clearance(feats, toe_path(live.smoothed_stride_T_camera, q, leg))
+    assert wrong.min_m == pytest.approx(0.023, abs=1e-6)
+    refused = StrideOutput(summary, online_grid=grid, smoothed_grid=object())
+    assert refused.grid_stride_T_camera is true
+    baseline = StrideOutput(SimpleNamespace(smoothed_stride_T_camera=true), grid, grid)
+    assert baseline.grid_stride_T_camera is true

@@ -90,6 +90,28 @@ def test_staircase_partial_view_and_yaw():
     assert abs(st.steps[0].tread_m - 0.28 * math.cos(math.radians(10))) <= TREAD_TOL
 
 
+@pytest.mark.parametrize("seed", [11, 13, 14, 15])
+def test_a_tread_to_a_nosing_seen_in_a_few_rows_at_the_side(seed):
+    """A flight yawed 3°, its second nosing seen only in the 4 rows at the grid's side (y <
+    -0.52 m), 3 mm noise: that line's yaw is off by up to 0.8°. The tread is taken where both
+    nosings were seen: within 2 mm of the truth and 3σ (its σ holds each line's yaw σ over
+    the distance from its point); the next line extrapolated half a metre to the first's
+    point is 5-8 mm off with these seeds."""
+    yaw = math.radians(3.0)
+    h, var = grid(stairs_surface(n=2, yaw_deg=3.0), 0.003, seed=seed,
+                  unknown=lambda x, y: (x > 0.75) & (y > -0.52))  # fmt: skip
+    (st,) = features(h, var).stairs
+    first, second = st.steps
+    assert second.nosing.rows == 4 and first.nosing.y_range_m[1] > 0.5
+    truth = 0.28 * math.cos(yaw)
+    err = first.tread_m - truth
+    assert abs(err) <= 0.002, (first.tread_m, err)
+    assert abs(err) <= 3 * first.tread_sigma_m, (err, first.tread_sigma_m)
+    here, nxt = first.nosing, second.nosing
+    extrapolated = (nxt.x_at(here.y_m) - here.x_m) * math.cos(here.yaw_rad)
+    assert abs(extrapolated - truth) > 0.005
+
+
 def test_descending_stairs_with_the_shadow_behind_each_nosing():
     down = stairs_surface(first=0.507, rise=-0.16, tread=0.3, n=3)
 
@@ -176,6 +198,39 @@ def test_descending_nosings_placed_by_the_points_of_the_last_cell_seen():
         assert step.nosing.occluded
         assert abs(step.nosing.x_m - t) <= 0.0015, (step.nosing.x_m, t)
         assert 0 < step.nosing.sigma_m < 0.005
+
+
+@pytest.mark.parametrize("through", [0.35, 0.70])
+def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
+    """A 12 cm curb down, its edge ``through`` of the way through a cell and 4 cm of shadow
+    beyond it, as the stance frames saw it (the last cell before the edge holds only the top's
+    points); a late viewpoint over the edge put 2 points of the lower surface in each cell of
+    the shadow. With ``shadow_sparse_fraction`` 0.25 those cells are the shadow's: the edge
+    lies where the last cell's share of points ends (within 1.5 mm); counted as the lower
+    surface (0, the default) it lies at that cell's end ((1 - through) of a cell late). Seen
+    fully (no shadow), the counts change nothing."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    edge = X0 + 40 * CELL + through * CELL
+    curb = lambda x, y: np.where(x >= edge, -0.12, 0.0)  # noqa: E731
+
+    def shadow(x, y):
+        return (x >= edge) & (x < edge + 0.04)
+
+    h, var = grid(curb, 0.001, seed=31, unknown=shadow)
+    count = seen_counts(shadow)
+    late = np.isnan(h) & (np.arange(NX)[:, None] > 40)
+    h[late], var[late], count[late] = -0.12, 1e-6, 2
+    on = FeatureConfig(shadow_sparse_fraction=0.25)
+    got = extract_features(h, var, (X0, Y0), CELL, count=count, config=on).curbs[0].edge
+    assert abs(got.x_m - edge) <= 0.0015, (got.x_m, edge)
+    assert got.occluded and 0 < got.sigma_m < 0.005
+    plain = extract_features(h, var, (X0, Y0), CELL, count=count).curbs[0].edge  # off
+    assert plain.x_m - edge == pytest.approx((1 - through) * CELL, abs=0.0015)
+    hf, vf = grid(curb, 0.001, seed=31)
+    full = seen_counts(lambda x, y: np.zeros(x.shape, bool))
+    seen = extract_features(hf, vf, (X0, Y0), CELL, count=full, config=on).curbs[0].edge
+    assert seen.x_m == pytest.approx(features(hf, vf).curbs[0].edge.x_m, abs=1e-9)
 
 
 @pytest.mark.parametrize("slope_deg", [5.0, 8.0, 10.0])
@@ -275,13 +330,30 @@ def _box_top(x, y):
 @pytest.mark.parametrize("shadow_m", [0.40, 2.0])
 def test_a_box_seen_in_part_is_no_stair(shadow_m):
     """A 19 cm box whose top is seen but the floor behind it is not (a long shadow, or the
-    view's end): one up-edge and a 20 cm top is no one-step flight."""
+    view's end): one up-edge and a 20 cm top is no one-step flight nor a curb, but a box seen
+    in part (``far_seen`` False): its leading edge (within 8 mm) and height (3 mm) known, its
+    depth the part of the top seen (to the end of its last cell), no trailing edge for the
+    clearance; the step-over reference stays on its top past the part seen."""
+    from graph_slam.terrain.features.clearance import _edges
+    from graph_slam.terrain.features.prediction import step_over_base
 
     def shadow(x, y):
         return (x >= 1.1062) & (x < 1.1062 + shadow_m) & (y >= -0.4) & (y < -0.1333)
 
     f = features(*grid(_box_top, 0.001, seed=11, unknown=shadow))
     assert not f.stairs and not f.curbs, f
+    (box,) = f.boxes
+    assert not box.far_seen
+    assert abs(box.height_m - 0.1905) <= 0.003
+    assert abs(box.leading.x_at(-0.27) - 0.903) <= NOSING_TOL
+    assert 0.15 < box.depth_m <= 0.2032 + CELL and math.isnan(box.depth_sigma_m)  # to a cell's end
+    assert [name for name, *_ in _edges(f)] == ["boxes[0].leading"]
+    x = np.linspace(0.5, 1.8, 27)
+    base = step_over_base(x, box, -0.27, 0.1)
+    assert np.allclose(base[x >= 0.903 + NOSING_TOL], box.height_m)
+    doc = f.to_dict()
+    del doc["boxes"][0]["far_seen"]  # a document from before the field: a whole box
+    assert TerrainFeatures.from_dict(doc).boxes[0].far_seen
 
 
 def test_a_box_trailing_drop_onto_a_short_floor_is_no_stair():

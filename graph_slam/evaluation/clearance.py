@@ -2,7 +2,7 @@
 over the terrain and over each edge the swing passes, the features a swing must clear.
 
 :func:`swing_clearance_pair` and :func:`edge_clearance_pairs` score a stride's measured swing
-(the smoothed poses, the encoders, the final grid) against the true one (the true poses, the
+(the poses that placed the final grid, the encoders, the final grid) against the true one (the true poses, the
 same encoders, the scene's surface and features, :mod:`graph_slam.evaluation.features`), both
 sampled at 200 Hz between the stride's mid-swing frames (docs/terrain.md, "Toe clearance");
 :func:`swing_toe_extent` and :func:`in_swing` say which features a swing must clear (the
@@ -26,8 +26,10 @@ from graph_slam.evaluation.features import (
 def _swing_paths(run_session, ref, stride, leg_model, cfg, rate_hz: float = 200.0):
     """The measured and the true toe paths (N×3 each, stride frame) over a scored stride's
     mid-swing, sampled at ``rate_hz`` between its first and last frames there: the camera
-    poses interpolated between frames (the smoothed ones, the true ones), the encoders at the
-    same times; None when they cannot be had."""
+    poses interpolated between frames (those that placed the stride's final grid,
+    ``StrideOutput.grid_stride_T_camera``: the smoothed ones, or the online ones when the
+    final grid is the online grid; the true ones), the encoders at the same times; None when
+    they cannot be had."""
     from graph_slam.strides.joints import interp_q
     from graph_slam.terrain.features.clearance import interpolate_poses, toe_path
 
@@ -36,7 +38,7 @@ def _swing_paths(run_session, ref, stride, leg_model, cfg, rate_hz: float = 200.
         return None
     t = np.asarray(ref.t_s)
     s = (t - ref.toe_off_s) / max(ref.t_next_strike_s - ref.toe_off_s, 1e-9)
-    est = np.asarray(stride.smoothed_stride_T_camera)
+    est = np.asarray(getattr(stride, "grid_stride_T_camera", stride.smoothed_stride_T_camera))
     rows = np.flatnonzero((s >= cfg.mid_swing[0]) & (s <= cfg.mid_swing[1]))
     rows = [k for k in rows if np.isfinite(est[k]).all()]
     if len(rows) < 2:
@@ -97,7 +99,7 @@ def edge_clearance_pairs(run_session, ref, stride, leg_model, config=None, match
     """The swing's clearance over each edge it must clear
     (:func:`graph_slam.terrain.features.clearance.edge_clearances`): per edge the true toe
     path passes (the scene's features), (measured, true, σ) — measured over the final grid's
-    edge nearest it (within ``match_m`` along x at its y) from the smoothed poses' toe path,
+    edge nearest it (within ``match_m`` along x at its y) from the measured toe path,
     NaN when no such measured edge lies on that path — and the swing's true edge clearance
     (the least; None: the true path passes no edge, or the paths cannot be had)."""
     from graph_slam.terrain.features.clearance import ClearanceConfig, edge_clearances

@@ -168,12 +168,14 @@ def score_features(
         hit = _nearest_edge(b.leading, [(t.leading, t) for t in truth.boxes], match_m)
         if hit is not None:
             edge, t = hit
-            out["boxes"].append({
+            row = {
                 "x_m": b.leading.x_m,
                 "height_m": _err(b.height_m, t.height_m, b.height_sigma_m),
                 "leading_m": _err(b.leading.x_m, edge.x_at(b.leading.y_m), b.leading.sigma_m),
-                "depth_m": _err(b.depth_m, t.depth_m, b.depth_sigma_m),
-            })  # fmt: skip
+            }
+            if b.far_seen:  # a box seen in part has no depth, only the part of its top seen
+                row["depth_m"] = _err(b.depth_m, t.depth_m, b.depth_sigma_m)
+            out["boxes"].append(row)
     return out
 
 

@@ -122,6 +122,18 @@ class StrideOutput:
         return self.summary.smoothed_stride_T_camera
 
     @property
+    def grid_stride_T_camera(self) -> np.ndarray:
+        """The poses that placed the final grid (``smoothed_grid``): the online ones when it
+        is the online grid (no clouds kept: the real-time preset), else the smoothed ones. A
+        toe path measured against that grid is placed by the same poses, so that their common
+        error cancels in the clearance (docs/terrain.md, "Toe clearance")."""
+        online = getattr(self.summary, "online_stride_T_camera", None)
+        grid = self.smoothed_grid
+        if online is not None and grid is not None and grid is self.online_grid:
+            return np.asarray(online)
+        return self.summary.smoothed_stride_T_camera
+
+    @property
     def flags(self) -> tuple[str, ...]:
         return self.summary.flags
 

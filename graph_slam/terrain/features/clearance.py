@@ -13,7 +13,9 @@ put the nosing up to a cell late and low; the feature's line is sub-cell.
   ``boxes[0].leading``, or ``ground``), its σ (the terrain's σ there without the pose part,
   which the toe path placed by the same poses shares, and ``toe_sigma_m``).
 * :func:`toe_path` — the measured swing: the toe in the stride frame from the camera poses and
-  the encoders (``stride_T_camera · camera_T_toe(q)``, the leg model's forward kinematics).
+  the encoders (``stride_T_camera · camera_T_toe(q)``, the leg model's forward kinematics); the
+  poses are those that placed the grid it is measured against
+  (``StrideOutput.grid_stride_T_camera``).
 * :func:`~graph_slam.terrain.features.prediction.reference_swing` /
   :func:`~graph_slam.terrain.features.prediction.predict_clearance` (module ``prediction``) — during stance, the clearance of the coming swing on a reference toe path
   for the terrain type ahead, with the warning when its **edge** clearance is below
@@ -77,10 +79,11 @@ class ClearanceConfig(ConfigModel):
         0.003,
         ge=0,
         description="σ of the toe path along the ground relative to the edges (the swing's "
-        "camera poses drift from those of the stance frames that mapped the edge: 3-6 mm "
-        "forward by late swing on the simulated stairs down), through the distance's "
-        "derivative by the edge's position: it counts where the toe passes the edge's face, "
-        "not over a top",
+        "camera poses drift from those of the stance frames that mapped the edge: the online "
+        "poses' x error in late swing less that in stance, RMS 2.7 mm over 8 strides up and "
+        "3.2 mm over 12 down the simulated stairs, 1.1-1.7 mm on level ground), through the "
+        "distance's derivative by the edge's position: it counts where the toe passes the "
+        "edge's face, not over a top",
     )
     resample_m: float = Field(
         0.005, gt=0, description="the edge clearance resamples the toe path this finely"
@@ -149,6 +152,8 @@ def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, f
     for k, b in enumerate(features.boxes):
         top = b.floor_height_m + b.height_m
         out.append((f"boxes[{k}].leading", b.leading, b.floor_height_m, top, b.height_sigma_m))
+        if not b.far_seen:
+            continue  # its top runs on into cells not seen: no trailing edge known
         trail = dataclasses.replace(b.leading, x_m=b.leading.x_m + b.depth_m)
         out.append((f"boxes[{k}].trailing", trail, top, b.floor_height_m, b.height_sigma_m))
     return out

@@ -81,7 +81,8 @@ def extract_features(
     edges = _edges(g, labels, terraces, cfg)
     boxes, used = boxes_of(edges, terraces, cfg)
     rest = [e for k, e in enumerate(edges) if k not in used]
-    stairs, curbs = chains_of(rest, g, labels, terraces, cfg)
+    stairs, curbs, parts = chains_of(rest, g, labels, terraces, cfg)
+    boxes += parts
     ramps = _ramps(g, sloped, labels, terraces, cfg)
     return TerrainFeatures(
         stride_index, float(t_s), source, tuple(stairs), tuple(ramps), tuple(curbs), tuple(boxes)
@@ -221,8 +222,9 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
     # beyond a drop, a cell of flying pixels is not seen; up a riser, the cells across it are
     # mixtures of the two surfaces and of the riser, whatever their noise
     flying = g.noisy[idx, j[:, None]] & (rise < 0)[:, None]
-    unknown = inside & (~np.isfinite(hw) | flying)
     f = np.clip((hw - ha[:, None]) / rise[:, None], 0.0, 1.0)
+    flying |= _sparse_far(g, idx, i1, j, f, rise, cfg)
+    unknown = inside & (~np.isfinite(hw) | flying)
     f = np.where(unknown, 1.0, np.where(inside, f, 0.0))
     occluded = unknown.any(axis=1)
     # Occluded: the cells past the last one mostly of the near surface, before the first cell
@@ -246,6 +248,21 @@ def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfi
             strict=True,
         )
     ]
+
+
+def _sparse_far(g: _Grid, idx, i1, j, f, rise, cfg: FeatureConfig) -> np.ndarray:
+    """Per row and cell of the window: beyond a drop, a cell mostly of the far surface (f at
+    least 0.5) holding under ``shadow_sparse_fraction`` of the mean count of the two near
+    cells before the edge (those up to ``i1``): the shadow, seen from a few late viewpoints
+    only (``FeatureConfig.shadow_sparse_fraction``)."""
+    out = np.zeros(idx.shape, dtype=bool)
+    if g.count is None or cfg.shadow_sparse_fraction <= 0 or len(i1) == 0:
+        return out
+    c = g.count
+    before = np.stack([c[np.maximum(i1 - k, 0), j] for k in (0, 1)], axis=1).astype(float)
+    ok = (before.min(axis=1) >= cfg.shadow_count_min) & (rise < 0)
+    ref = before.mean(axis=1)[:, None]
+    return ok[:, None] & (f >= 0.5) & (c[idx, j[:, None]] < cfg.shadow_sparse_fraction * ref)
 
 
 def _carried(g: _Grid, i1: np.ndarray, i2: np.ndarray, j: np.ndarray) -> np.ndarray:

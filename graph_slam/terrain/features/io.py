@@ -5,12 +5,14 @@ The document (``FEATURES_SCHEMA`` 1), stride frame, metres, radians, NaN as null
 - ``stride``: the stride's index; ``frames``: its first and last frame index;
 - ``online`` / ``smoothed``: :meth:`TerrainFeatures.to_dict
   <graph_slam.terrain.features.model.TerrainFeatures.to_dict>` of the stride's online grid at its last
-  frame and of its final grid (re-fused from the smoothed poses; null when there is none);
+  frame and of its final grid (re-fused from the smoothed poses, or the online grid when no
+  clouds were kept; null when there is none);
 - ``predicted_clearance``: :func:`~graph_slam.terrain.features.prediction.predict_clearance` of the
   final grid from the heel's stride (the toe at ``toe_x_m``): the reference swing's clearance
   over the terrain this stride mapped;
-- ``swing_clearance``: the measured swing — the toe path (the smoothed camera poses of the
-  stride's unloaded frames and the encoders, through the leg model) against the final grid —
+- ``swing_clearance``: the measured swing — the toe path (the camera poses that placed the
+  final grid at the stride's unloaded frames and the encoders, through the leg model) against
+  the final grid —
   or null with ``swing_clearance_skipped`` saying why (no encoders, no swing frame, ...).
 
 :func:`read_features_json` checks the fields and gives the records back.
@@ -35,8 +37,10 @@ _FIELDS = ("schema", "stride", "frames", "online", "smoothed", "predicted_cleara
 
 
 def swing_toe_path(stride, results, session, leg_model) -> tuple[np.ndarray | None, str]:
-    """The toe (N×3, stride frame) over the stride's unloaded frames from its smoothed poses
-    and the encoders; None and why when it cannot be had."""
+    """The toe (N×3, stride frame) over the stride's unloaded frames from the poses that
+    placed its final grid (``StrideOutput.grid_stride_T_camera``: the smoothed ones, the online
+    ones when the final grid is the online grid) and the encoders; None and why when it
+    cannot be had."""
     from graph_slam.strides.joints import interp_q
 
     joints = session.joints if session is not None else None
@@ -44,7 +48,8 @@ def swing_toe_path(stride, results, session, leg_model) -> tuple[np.ndarray | No
         return None, "no encoders or leg model"
     loaded = {f.frame_index: f.foot_loaded for f in results.frames}
     rows = [k for k, i in enumerate(stride.frame_indices) if not loaded.get(int(i), True)]
-    poses = np.asarray(stride.smoothed_stride_T_camera)[rows] if rows else np.zeros((0, 4, 4))
+    placed = getattr(stride, "grid_stride_T_camera", stride.smoothed_stride_T_camera)
+    poses = np.asarray(placed)[rows] if rows else np.zeros((0, 4, 4))
     t_joint = np.asarray(joints.t_s) + session.calibration.joints_time_offset_s
     t = session.frame_times_s[[stride.frame_indices[k] for k in rows]]
     q = [interp_q(float(tt), t_joint, joints.q_rad) for tt in t]

@@ -84,10 +84,10 @@ def _smoothstep(u: np.ndarray) -> np.ndarray:
 def step_over_base(x: np.ndarray, box: BoxFeature, y_m: float, run_m: float) -> np.ndarray:
     """The step-over base line's height over the box's floor, 0 to the box's height: up over
     ``run_m`` before its leading edge (from the first x when that is nearer), level over the
-    top, down over ``run_m`` past its trailing edge."""
+    top, down over ``run_m`` past its trailing edge (a box seen in part: its top runs on)."""
     x = np.asarray(x, dtype=np.float64)
     lead = box.leading.x_at(y_m)
-    trail = lead + box.depth_m
+    trail = lead + box.depth_m if box.far_seen else math.inf
     start = max(lead - run_m, float(x[0]))
     up = np.where(x >= lead, 1.0, _smoothstep((x - start) / max(lead - start, 1e-6)))
     down = np.where(x <= trail, 1.0, 1.0 - _smoothstep((x - trail) / run_m))
