@@ -1,6 +1,7 @@
 """The live loop's preparing thread: between the camera's callbacks and the estimator.
 
-It takes the source's items in arrival order and passes them on in the same order; a depth
+It takes the source's items in arrival order and passes them on in the same order (the IMU
+items skip it: the source puts them on :attr:`Preparer.items` itself); a depth
 frame is decoded to metres and its colour image (when paired) registered to it here, as the
 frame arrives (the compiled registration releases the GIL: it runs beside the estimator), so
 the estimator's thread only books the frame. librealsense's frames are released as soon as
@@ -53,6 +54,17 @@ class Preparer:
 
     def start(self) -> None:
         self._thread.start()
+
+    def discard(self) -> int:
+        """Drop what is on :attr:`items` (before :meth:`start`: the IMU items the source
+        routed here before the run started); how many items."""
+        n = 0
+        while True:
+            try:
+                self.items.get_nowait()
+            except queue.Empty:
+                return n
+            n += 1
 
     def stop(self) -> None:
         self._stop.set()
