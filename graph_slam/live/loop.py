@@ -7,7 +7,8 @@ Threads (docs/recording.md, "Live"):
   the merged IMU samples straight on the estimator's inbox, stamped with their arrival
   (``time.perf_counter``);
 - the **preparing** thread (:mod:`graph_slam.live.prep`) decodes each frame and registers its
-  colour image to it (compiled, the GIL released) as it arrives;
+  colour image to it (compiled, the GIL released) as it arrives, and does the frame-only part
+  of the pipeline's preparation (its ``prepare_ahead``: organised points and normals);
 - the **estimator** thread (the caller's) books what arrived in a :class:`~graph_slam.live.
   handoff.FrameQueue` and takes a frame by its rule: a frame is ready when the IMU has a sample
   at or after its time; the oldest ready frame is taken, unless newer ones became ready while
@@ -157,7 +158,7 @@ class LiveRunner:
         self.frames = FrameQueue(self.imu_wait_s, needs_imu=setup.has_imu)
         if self.session_path is not None:
             self._start_writer(self.session_path)
-        prep = Preparer(self.source)
+        prep = Preparer(self.source, ahead=getattr(self.pipe, "prepare_ahead", None))
         self.source.route_imu(prep.items)  # the IMU straight to the estimator, not behind frames
         self.source.discard()
         prep.discard()
@@ -173,6 +174,7 @@ class LiveRunner:
             finally:
                 self.source.stop()
                 prep.stop()
+                self.timing.ahead_cpu_s.extend(prep.ahead_cpu_s)
                 self.prosthesis.close()
         results = self.pipe.finish()
         results.config["mount_pitch"] = {"source": "config", "pitch_deg": self.mount_pitch_deg}
