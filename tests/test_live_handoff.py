@@ -123,6 +123,7 @@ class _FakeCamera:
     imu_delay_s: float = 0.0
     unreadable: tuple[int, ...] = ()
     items: queue.Queue = field(default_factory=queue.Queue)
+    imu_items: queue.Queue | None = None  # the loop's inbox (route_imu)
     counts: dict = field(default_factory=dict)
     playback: str = "fake"
 
@@ -145,6 +146,9 @@ class _FakeCamera:
     def discard(self) -> int:
         return 0
 
+    def route_imu(self, to: queue.Queue) -> None:
+        self.imu_items = to
+
     def resume(self) -> None:
         threading.Thread(target=self._send, daemon=True).start()
 
@@ -162,8 +166,8 @@ class _FakeCamera:
                 raw = np.full((12, 16), 1000, np.uint16) if k not in self.unreadable else None
                 self.items.put(FrameItem(t_s, k, now, _Depth(raw), None, self.setup))
             else:
-                self.items.put(ImuItem(np.array([t_s + 1e-4]), np.zeros((1, 3)),
-                                       np.zeros((1, 3)), now))  # fmt: skip
+                self.imu_items.put(ImuItem(np.array([t_s + 1e-4]), np.zeros((1, 3)),
+                                           np.zeros((1, 3)), now))  # fmt: skip
         self.items.put(EndItem("end of playback", time.perf_counter()))
 
     def get(self, timeout_s: float):

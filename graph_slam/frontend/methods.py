@@ -27,7 +27,9 @@ be registered is prepared on its target's grid through the guess
 
 from __future__ import annotations
 
+import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -42,7 +44,13 @@ from graph_slam.frontend.config import (
     RegistrationConfig,
 )
 from graph_slam.frontend.gicp import prepare_frame, register_prepared
-from graph_slam.frontend.projective import prepare_depth, register_depth
+from graph_slam.frontend.projective import (
+    OrganisedDepth,
+    organise_depth,
+    prepare_depth,
+    register_depth,
+    uses_color,
+)
 from graph_slam.frontend.registration import register
 from graph_slam.frontend.result import RegistrationResult
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
@@ -191,6 +199,32 @@ def projective_for_camera(config: ProjectiveConfig, intrinsics: CameraIntrinsics
     )
 
 
+class OrganisedAhead:
+    """Frames' frame-only preparation done ahead of their turn (:func:`organise_depth`, on
+    another thread), for the projective registrations that share it; each one is taken once,
+    by the frame made of the same arrays; at most ``size`` wait (the oldest are dropped: a
+    frame the live loop skipped never takes its own)."""
+
+    def __init__(self, size: int = 8) -> None:
+        self._lock = threading.Lock()
+        self._waiting: deque[OrganisedDepth] = deque(maxlen=size)
+
+    def put(self, organised: OrganisedDepth) -> None:
+        with self._lock:
+            self._waiting.append(organised)
+
+    def take(self, frame, color: bool) -> OrganisedDepth | None:
+        with self._lock:
+            for i, organised in enumerate(self._waiting):
+                if organised.fits(frame, color):
+                    del self._waiting[i]
+                    return organised
+        return None
+
+    def __len__(self) -> int:
+        return len(self._waiting)
+
+
 class _Projective:
     """Projective association on the organised depth (:mod:`graph_slam.frontend.projective`)."""
 
@@ -200,11 +234,19 @@ class _Projective:
         self.config = projective_for_camera(config, intrinsics)
         self.intrinsics, self.cloud_config = intrinsics, cloud_config
         self.has_color = has_color
+        self.ahead: OrganisedAhead | None = None  # frames organised ahead (:meth:`organise`)
+
+    def organise(self, frame) -> OrganisedDepth:
+        """The frame-only part of :meth:`prepare` (any thread: it reads the config only)."""
+        return organise_depth(frame, self.intrinsics, self.config, self.cloud_config,
+                              self.has_color)  # fmt: skip
 
     def prepare(self, frame, grid_T_cloud=None) -> PreparedFrame:
-        depth = prepare_depth(
-            frame, self.intrinsics, self.config, self.cloud_config, grid_T_cloud, self.has_color
-        )
+        organised = None
+        if self.ahead is not None:
+            organised = self.ahead.take(frame, uses_color(frame, self.config, self.has_color))
+        depth = prepare_depth(frame, self.intrinsics, self.config, self.cloud_config,
+                              grid_T_cloud, self.has_color, organised)  # fmt: skip
         timing = {stage: depth.timing_s[stage] for stage in ("cloud", "voxel", "normals")}
         return PreparedFrame(Cloud(depth.pixel_points_m), depth, depth.grid_T_cloud, timing)
 

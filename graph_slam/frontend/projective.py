@@ -111,21 +111,50 @@ def organized_normals(
     return normals, defined, grads if has else None
 
 
-def prepare_depth(
+@dataclass(frozen=True, eq=False)
+class OrganisedDepth:
+    """The part of :func:`prepare_depth` that depends on the frame alone — the organised
+    points, normals and intensity gradients, not the grid — so it can be done before the
+    frame's guess is known (the live loop does it on the thread that decodes the frame).
+    ``depth_m`` / ``color_rgb``: the frame's own arrays it was made from (:meth:`fits`)."""
+
+    depth_m: np.ndarray
+    color_rgb: np.ndarray | None
+    color: bool  # the intensity was used
+    step: int
+    camera: tuple[float, float, float, float]
+    valid: np.ndarray
+    pts: np.ndarray
+    rows: np.ndarray
+    intensity: np.ndarray
+    normals: np.ndarray
+    defined: np.ndarray
+    grads: np.ndarray
+    timing_s: dict[str, float]
+
+    def fits(self, frame: RgbdFrame, color: bool) -> bool:
+        """Made from this frame's arrays (the same objects), with the intensity or not."""
+        return (
+            self.depth_m is frame.depth_m
+            and self.color == color
+            and (not color or self.color_rgb is frame.color_rgb)
+        )
+
+
+def uses_color(frame: RgbdFrame, config: ProjectiveConfig, use_color: bool) -> bool:
+    """Whether :func:`prepare_depth` uses the frame's intensity."""
+    return use_color and config.photometric and frame.color_rgb is not None
+
+
+def organise_depth(
     frame: RgbdFrame,
     intrinsics: CameraIntrinsics,
     config: ProjectiveConfig,
     cloud_config: CloudConfig | None = None,
-    grid_T_cloud: np.ndarray | None = None,
     use_color: bool = True,
-) -> DepthFrame:
-    """Prepare ``frame`` once (see the module doc): organised points, normals and intensity
-    gradients, voxel means on the grid fixed in frame ``grid`` (``grid_T_cloud``: the frame's
-    own by default), and the pixel → voxel map. The loops are compiled
-    (:mod:`graph_slam.frontend.kernels`)."""
+) -> OrganisedDepth:
+    """The frame-only part of :func:`prepare_depth` (:class:`OrganisedDepth`)."""
     cloud_config = cloud_config or CloudConfig()
-    grid_T_cloud = np.eye(4) if grid_T_cloud is None else np.asarray(grid_T_cloud, dtype=float)
-    check_pose("prepare_depth", "grid_T_cloud", grid_T_cloud)
     if frame.depth_m.shape != intrinsics.shape_hw:
         raise RecordError(
             f"RgbdFrame[{frame.index}].depth_m: shape {frame.depth_m.shape} does not match the "
@@ -139,7 +168,7 @@ def prepare_depth(
         intrinsics.cx_px / step,
         intrinsics.cy_px / step,
     )
-    color = use_color and config.photometric and frame.color_rgb is not None
+    color = uses_color(frame, config, use_color)
     planes, valid, pts, rows, intensity = kernels.organize(
         frame.depth_m, step, *camera, cloud_config.min_depth_m, cloud_config.max_depth_m,
         frame.color_rgb if color else _NO_COLOR, color,
@@ -150,25 +179,53 @@ def prepare_depth(
     normals, defined, grads = kernels.pixel_normals(
         planes[:, ::ns, ::ns], valid[::ns, ::ns], config.max_jump_ratio * ns, sub, color
     )
+    timing = {"cloud": t1 - t0, "normals": time.perf_counter() - t1}
+    return OrganisedDepth(frame.depth_m, frame.color_rgb, color, step, camera, valid, pts, rows,
+                          intensity, normals, defined, grads, timing)  # fmt: skip
+
+
+def prepare_depth(
+    frame: RgbdFrame,
+    intrinsics: CameraIntrinsics,
+    config: ProjectiveConfig,
+    cloud_config: CloudConfig | None = None,
+    grid_T_cloud: np.ndarray | None = None,
+    use_color: bool = True,
+    organised: OrganisedDepth | None = None,
+) -> DepthFrame:
+    """Prepare ``frame`` once (see the module doc): organised points, normals and intensity
+    gradients, voxel means on the grid fixed in frame ``grid`` (``grid_T_cloud``: the frame's
+    own by default), and the pixel → voxel map. The loops are compiled
+    (:mod:`graph_slam.frontend.kernels`). ``organised``: the frame-only part already done
+    (:func:`organise_depth`; used when it :meth:`~OrganisedDepth.fits` the frame, the same
+    arrays as it would compute; else computed here)."""
+    grid_T_cloud = np.eye(4) if grid_T_cloud is None else np.asarray(grid_T_cloud, dtype=float)
+    check_pose("prepare_depth", "grid_T_cloud", grid_T_cloud)
+    color = uses_color(frame, config, use_color)
+    ahead = organised is not None and organised.fits(frame, color)
+    if not ahead:
+        organised = organise_depth(frame, intrinsics, config, cloud_config, use_color)
+    o = organised
     t2 = time.perf_counter()
     points, unit, voxel_intensity, voxel_grads, pixel_voxel, outside = kernels.voxel_means(
-        pts, rows, valid.shape, grid_T_cloud, config.voxel_m, normals, defined, grads,
-        intensity, color, ns, config.min_pixel_normals,
+        o.pts, o.rows, o.valid.shape, grid_T_cloud, config.voxel_m, o.normals, o.defined,
+        o.grads, o.intensity, color, config.normal_step, config.min_pixel_normals,
     )  # fmt: skip
     if outside:
         raise RecordError(
             f"RgbdFrame[{frame.index}]: a point lies more than {kernels.KEY_OFFSET} voxels of "
             f"{config.voxel_m} m from the grid origin; the voxel key cannot hold it"
         )
-    timing = {"cloud": t1 - t0, "normals": t2 - t1, "voxel": time.perf_counter() - t2}
+    timing = {"cloud": 0.0, "normals": 0.0} if ahead else dict(o.timing_s)
+    timing["voxel"] = time.perf_counter() - t2
     return DepthFrame(
         points_m=points,
         normals=unit,
         intensity=voxel_intensity if color else None,
         gradients=voxel_grads if color else None,
         pixel_voxel=pixel_voxel,
-        pixel_points_m=pts,
-        camera=camera,
+        pixel_points_m=o.pts,
+        camera=o.camera,
         grid_T_cloud=grid_T_cloud,
         voxel_m=config.voxel_m,
         timing_s=timing,

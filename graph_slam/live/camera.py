@@ -2,14 +2,16 @@
 back in real time through the same ``rs.pipeline`` a camera uses.
 
 librealsense calls back on its own threads; each callback turns what arrived into items on
-one queue, in arrival order, each stamped with its arrival time (``time.perf_counter``):
+a queue, in arrival order, each stamped with its arrival time (``time.perf_counter``):
 
 - a depth frame becomes an :class:`~graph_slam.session.records.RgbdFrame` (metres), with the
   colour image of its frameset registered to it (as ``graph-slam convert`` does) when that
   image is within ``max_color_dt_s`` and not given to an earlier frame; else depth-only;
 - accel and gyro samples are merged online (:class:`ImuMerger`): each gyro sample gets the
   accel interpolated at its time once the accel sample after it has arrived (causal; samples
-  outside the accel's span or across an accel gap are dropped, counted).
+  outside the accel's span or across an accel gap are dropped, counted). The IMU items go on
+  the same queue as the frames, or (:meth:`RealsenseSource.route_imu`) straight to the
+  estimator's inbox, past the thread that decodes the frames.
 
 Stamps are the frames' own times (the device clock, ms → s), as in a converted recording.
 The source ends when the playback ends, when ``stop`` is called, or when nothing arrived for
@@ -195,6 +197,7 @@ class RealsenseSource:
         self.timeout_s = timeout_s
         self._camera_T_imu = camera_T_imu
         self.items: queue.Queue = queue.Queue()
+        self._imu_items: queue.Queue = self.items  # where IMU items go (:meth:`route_imu`)
         self.merger = ImuMerger()
         self.counts: dict[str, int] = {"depth": 0, "color used": 0, "depth-only": 0}
         self._pipe = None
@@ -294,6 +297,12 @@ class RealsenseSource:
         if self.playback is not None and self._pipe is not None:
             self._pipe.get_active_profile().get_device().as_playback().resume()
 
+    def route_imu(self, to: queue.Queue) -> None:
+        """Put the IMU items on ``to`` from now on (the estimator's own inbox), not behind
+        the depth frames on :attr:`items`: a frame's IMU sample is not held up while the
+        frame before it is decoded."""
+        self._imu_items = to
+
     def discard(self) -> int:
         """Drop what arrived so far (before the run started); how many items."""
         n = 0
@@ -353,15 +362,15 @@ class RealsenseSource:
         d = frame.as_motion_frame().get_motion_data()
         value = np.array([d.x, d.y, d.z], dtype=np.float64)
         t_s = frame.get_timestamp() * 1e-3
-        with self._lock:
+        with self._lock:  # (put under the lock: the samples stay in time order)
             if frame.profile.stream_type() == rs.stream.accel:
                 out = self.merger.accel(t_s, value)
             else:
                 out = self.merger.gyro(t_s, value)
-        if out:
-            t = np.array([o[0] for o in out])
-            self.items.put(ImuItem(t, np.array([o[1] for o in out]),
-                                   np.array([o[2] for o in out]), arrival))  # fmt: skip
+            if out:
+                t = np.array([o[0] for o in out])
+                self._imu_items.put(ImuItem(t, np.array([o[1] for o in out]),
+                                            np.array([o[2] for o in out]), arrival))  # fmt: skip
 
     def _frameset(self, fs, arrival: float) -> None:
         depth = fs.get_depth_frame()

@@ -3,10 +3,12 @@ real-time pipeline, until Ctrl-C, the end of a playback or a camera that stops s
 
 Threads (docs/recording.md, "Live"):
 
-- librealsense's callbacks put each depth frame (kept, not decoded) and the merged IMU samples
-  on the source's queue, stamped with their arrival (``time.perf_counter``);
+- librealsense's callbacks put each depth frame (kept, not decoded) on the source's queue and
+  the merged IMU samples straight on the estimator's inbox, stamped with their arrival
+  (``time.perf_counter``);
 - the **preparing** thread (:mod:`graph_slam.live.prep`) decodes each frame and registers its
-  colour image to it (compiled, the GIL released) as it arrives;
+  colour image to it (compiled, the GIL released) as it arrives, and does the frame-only part
+  of the pipeline's preparation (its ``prepare_ahead``: organised points and normals);
 - the **estimator** thread (the caller's) books what arrived in a :class:`~graph_slam.live.
   handoff.FrameQueue` and takes a frame by its rule: a frame is ready when the IMU has a sample
   at or after its time; the oldest ready frame is taken, unless newer ones became ready while
@@ -30,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import queue
 import sys
 import threading
@@ -76,6 +79,22 @@ def _gil_switch(interval_s: float | None):
         sys.setswitchinterval(before)
 
 
+def lower_priority(increment: int) -> int | None:
+    """Lower the calling thread's CPU priority by ``increment`` nice steps (Linux: a thread's
+    own nice value; elsewhere, or where it is refused, nothing); the nice value it got. The
+    session writer's compression then yields the cores to the estimator and the threads
+    that feed it, and catches up when they wait."""
+    if increment <= 0 or not sys.platform.startswith("linux"):
+        return None
+    tid = threading.get_native_id()
+    try:
+        nice = min(os.getpriority(os.PRIO_PROCESS, tid) + increment, 19)
+        os.setpriority(os.PRIO_PROCESS, tid, nice)
+    except OSError:
+        return None
+    return nice
+
+
 class LiveRunner:
     """One live run (see the module docstring); :meth:`run` returns a :class:`LiveResult`."""
 
@@ -94,13 +113,14 @@ class LiveRunner:
         pipeline_factory: Callable | None = None,
         session_path: Path | None = None,
         gil_switch_s: float | None = 0.0005,
+        writer_nice: int = 10,
     ) -> None:
         self.source, self.prosthesis, self.config = source, prosthesis, config
         self.mount_pitch_deg = mount_pitch_deg
         self.status, self.status_interval_s = status, status_interval_s
         self.viewer, self.imu_wait_s, self.keep_frames = viewer, imu_wait_s, keep_frames
         self.pipeline_factory = pipeline_factory
-        self.gil_switch_s = gil_switch_s
+        self.gil_switch_s, self.writer_nice = gil_switch_s, writer_nice
         self.session_path = None if session_path is None else Path(session_path)
         self._writer = None
         self._writer_thread: threading.Thread | None = None
@@ -138,8 +158,10 @@ class LiveRunner:
         self.frames = FrameQueue(self.imu_wait_s, needs_imu=setup.has_imu)
         if self.session_path is not None:
             self._start_writer(self.session_path)
+        prep = Preparer(self.source, ahead=getattr(self.pipe, "prepare_ahead", None))
+        self.source.route_imu(prep.items)  # the IMU straight to the estimator, not behind frames
         self.source.discard()
-        prep = Preparer(self.source)
+        prep.discard()
         prep.start()
         self.source.resume()
         reason = "stopped"
@@ -152,6 +174,7 @@ class LiveRunner:
             finally:
                 self.source.stop()
                 prep.stop()
+                self.timing.ahead_cpu_s.extend(prep.ahead_cpu_s)
                 self.prosthesis.close()
         results = self.pipe.finish()
         results.config["mount_pitch"] = {"source": "config", "pitch_deg": self.mount_pitch_deg}
@@ -224,20 +247,32 @@ class LiveRunner:
         return None
 
     def _feed_imu(self, t_s: float) -> None:
-        """IMU chunks up to and including the first sample at or after ``t_s``."""
+        """The IMU samples up to and including the first one at or after ``t_s``, given in
+        one call (the samples arrive one or two at a time: one call a frame, not one a chunk;
+        the estimator appends them alike)."""
+        taken: list[ImuItem] = []
         while self._imu_pending:
             chunk = self._imu_pending[0]
             k = int(np.searchsorted(chunk.t_s, t_s, side="left")) + 1
-            take = slice(0, min(k, chunk.t_s.size))
-            self.pipe.add_imu(chunk.t_s[take], chunk.gyro_rad_s[take], chunk.accel_m_s2[take])
-            self.rec.imu.append((chunk.t_s[take], chunk.gyro_rad_s[take], chunk.accel_m_s2[take]))
             if k < chunk.t_s.size:
+                taken.append(ImuItem(chunk.t_s[:k], chunk.gyro_rad_s[:k], chunk.accel_m_s2[:k],
+                                     chunk.arrival_s))  # fmt: skip
                 self._imu_pending[0] = ImuItem(chunk.t_s[k:], chunk.gyro_rad_s[k:],
                                                chunk.accel_m_s2[k:], chunk.arrival_s)  # fmt: skip
-                return
-            self._imu_pending.pop(0)
+                break
+            taken.append(self._imu_pending.pop(0))
             if chunk.t_s[-1] >= t_s:
-                return
+                break
+        if not taken:
+            return
+        if len(taken) == 1:
+            t, gyro, accel = taken[0].t_s, taken[0].gyro_rad_s, taken[0].accel_m_s2
+        else:
+            t = np.concatenate([c.t_s for c in taken])
+            gyro = np.concatenate([c.gyro_rad_s for c in taken])
+            accel = np.concatenate([c.accel_m_s2 for c in taken])
+        self.pipe.add_imu(t, gyro, accel)
+        self.rec.imu.append((t, gyro, accel))
 
     def _process(self, item: PreparedFrame, ready_s: float) -> None:
         c0 = time.thread_time()
@@ -258,7 +293,7 @@ class LiveRunner:
                 self.pipe.foot_strike(t_event)
             self._loaded = kind == "foot_strike"
         index = len(self._latency)
-        frame = RgbdFrame(frame.t_s, frame.depth_m, frame.color_rgb, index)
+        frame = frame.renumbered(index)  # (checked once, when it was decoded)
         c1 = time.thread_time()
         out = self.pipe.add_frame(frame, self._loaded)
         c2 = time.thread_time()
@@ -316,6 +351,7 @@ class LiveRunner:
         self._writer = self._session_writer(path)
 
         def drain() -> None:
+            lower_priority(self.writer_nice)
             while (frame := self._to_write.get()) is not None:
                 self._writer.add_frame(frame)
 

@@ -29,6 +29,7 @@ class Timing:
     book_cpu_s: float = 0.0  #: booking arrivals and the skip rule, the whole run
     prepare_cpu_s: array = field(default_factory=_floats)  #: per arrived frame, preparing
     prepare_color: array = field(default_factory=lambda: array("b"))  #: ... with colour
+    ahead_cpu_s: array = field(default_factory=_floats)  #: ... the pipeline's part, ahead
 
     def frame(self, **values: float) -> None:
         for key, value in values.items():
@@ -54,7 +55,8 @@ class Timing:
                 "booking_per_frame_ms": round(1e3 * self.book_cpu_s / n, 3),
             },
             "preparing_thread_cpu": {"with_colour": stats(prep[color]),
-                                     "depth_only": stats(prep[~color])},
+                                     "depth_only": stats(prep[~color]),
+                                     "pipeline_ahead": stats(self.ahead_cpu_s)},
             "wait_for_imu": stats(self.ready_s), "wait_to_start": stats(self.wait_s),
             "processed_in_first_second": int(np.sum(np.asarray(self.since_start_s) <= 1.0)),
         }  # fmt: skip

@@ -16,6 +16,7 @@ from graph_slam.backend import StrideSLAM
 from graph_slam.backend.measurements import IcpMeasurement
 from graph_slam.errors import RegistrationError
 from graph_slam.frontend import Registration, make_registration
+from graph_slam.frontend.methods import OrganisedAhead
 from graph_slam.frontend.result import RegistrationResult
 from graph_slam.pipelines.bridge import UnregisteredStride
 from graph_slam.pipelines.config import PipelineConfig
@@ -114,6 +115,10 @@ class GraphPipeline(PipelineBase):
         # registered with the depth-only settings, as is any frame whose keyframe has none.
         self.registration_depth_only = _graph_registration(config, intrinsics, False)
         self._uncoloured: set[int] = set()
+        self._ahead = OrganisedAhead()  # frames organised before their turn (prepare_ahead)
+        for registration in (self.registration, self.registration_depth_only):
+            if hasattr(registration, "organise"):
+                registration.ahead = self._ahead
         self.imu_guess = imu_guess_on(config, self.registration)
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.anchor = make_anchor(
@@ -227,6 +232,20 @@ class GraphPipeline(PipelineBase):
                 prepared = self.registration.prepare(frame, None)
             timer.exclude("preprocess", "cloud")
         return prepared, icp, fitness
+
+    def prepare_ahead(self, frame: RgbdFrame) -> None:
+        """The part of the frame's preparation that depends on the frame alone (organised
+        points and normals), done now — on any thread, before its turn: the live loop does it
+        as the frame is decoded — and taken by :meth:`add_frame` for the same frame (the same
+        arrays: the result is the one it would compute). A frame of its kind registers with
+        colour when it has a colour image (its keyframe without one: computed then)."""
+        if not self.cfg.backend.factors["icp"]:
+            return
+        registration = (self.registration if frame.color_rgb is not None
+                        else self.registration_depth_only)  # fmt: skip
+        organise = getattr(registration, "organise", None)
+        if organise is not None:
+            self._ahead.put(organise(frame))
 
     def _recolours(self, frame: RgbdFrame) -> bool:
         """The frame has colour but its keyframe has none (``graph.recolour_keyframe``): it

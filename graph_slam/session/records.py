@@ -155,6 +155,15 @@ class RgbdFrame:
                 )
             object.__setattr__(self, "color_rgb", _frozen(color))
 
+    def renumbered(self, index: int) -> RgbdFrame:
+        """The same frame with another ``index``, not checked again (its arrays were checked
+        and made read-only when it was made)."""
+        out = object.__new__(RgbdFrame)
+        for name, value in (("t_s", self.t_s), ("depth_m", self.depth_m),
+                            ("color_rgb", self.color_rgb), ("index", int(index))):  # fmt: skip
+            object.__setattr__(out, name, value)
+        return out
+
     @property
     def valid_fraction(self) -> float:
         """Fraction of pixels with a depth reading."""
