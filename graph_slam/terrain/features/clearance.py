@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -154,24 +155,33 @@ def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, f
     return out
 
 
+def finite_or(v, nan: float = 0.0) -> float:
+    """``np.nan_to_num`` of one number: ``nan`` for NaN, the largest float for ±inf."""
+    v = float(v)
+    if math.isnan(v):
+        return nan
+    return math.copysign(sys.float_info.max, v) if math.isinf(v) else v
+
+
 _OFFSETS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
 
 
-def _independent_sigma(view) -> np.ndarray:
-    """The cells' σ less their pose part (the grid's ``B/W``): a toe path placed by the same
-    poses as the grid shares that error, and it cancels in the clearance."""
+def _independent_sigma(view, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Cells ``(i, j)``'s σ less their pose part (the grid's ``B/W``): a toe path placed by
+    the same poses as the grid shares that error, and it cancels in the clearance."""
     sums = getattr(view, "sums", None)
     if sums is None:
-        return view.sigma_m
+        return view.sigma_m[i, j]
+    flat = i * view.shape[1] + j
     with np.errstate(invalid="ignore", divide="ignore"):
-        corr = (sums.b / sums.w).reshape(view.shape)
-    return np.sqrt(np.maximum(view.variance_m2 - np.nan_to_num(corr) ** 2, 0.0))
+        corr = sums.b[flat] / sums.w[flat]
+    return np.sqrt(np.maximum(view.variance_m2[i, j] - np.nan_to_num(corr) ** 2, 0.0))
 
 
 def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per point: the highest known cell within ``radius`` (the 3×3 offsets of it) and its σ
     without the pose part (NaN: none)."""
-    h, s = view.height_m, _independent_sigma(view)
+    h = view.height_m
     nx, ny = h.shape
     q = (xy[:, None, :] + radius * _OFFSETS[None]) - np.asarray(view.origin_xy_m)
     ij = np.floor(q / view.cell_m).astype(np.int64)
@@ -182,7 +192,7 @@ def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.n
     k = np.argmax(hh, axis=1)
     rows = np.arange(len(xy))
     best = hh[rows, k]
-    sig = s[i[rows, k], j[rows, k]]
+    sig = _independent_sigma(view, i[rows, k], j[rows, k])
     found = np.isfinite(best)
     return np.where(found, best, np.nan), np.where(found, sig, np.nan)
 
@@ -226,7 +236,7 @@ def clearance_along(
         return Clearance(float("nan"), float("nan"), float("nan"), float("nan"), -1, "unknown",
                          terrain)  # fmt: skip
     k = int(np.nanargmin(clear))
-    sig = math.hypot(float(np.nan_to_num(sigma[k])), toe_sigma_m)
+    sig = math.hypot(finite_or(sigma[k]), toe_sigma_m)
     return Clearance(float(clear[k]), sig, float(p[k, 0]), float(p[k, 1]), k, str(name[k]),
                      terrain)  # fmt: skip
 

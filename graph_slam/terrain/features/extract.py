@@ -8,6 +8,8 @@ import numba
 import numpy as np
 
 from graph_slam.errors import MappingError
+from graph_slam.terrain.features import kernels
+from graph_slam.terrain.features.edges import edges_of
 from graph_slam.terrain.features.kinds import boxes_of, chains_of
 from graph_slam.terrain.features.model import (
     EdgeLine,
@@ -77,8 +79,8 @@ def extract_features(
         & (slope <= math.tan(math.radians(cfg.ramp_max_deg)))
         & (rms < cfg.fit_rms_max_m)
     )
-    labels, terraces = _terraces(g, level, cfg)
-    edges = _edges(g, labels, terraces, cfg)
+    labels, terraces, heights = _terraces(g, level, cfg)
+    edges = edges_of(g, labels, heights, terraces, cfg)
     boxes, used = boxes_of(edges, terraces, cfg)
     rest = [e for k, e in enumerate(edges) if k not in used]
     stairs, curbs = chains_of(rest, g, labels, terraces, cfg)
@@ -139,226 +141,45 @@ def _local_planes(g: _Grid, cfg: FeatureConfig):
 
 
 def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
-    """Components of level cells, and per component its height, σ parts and extent."""
-    from scipy import ndimage
-
-    labels, n = ndimage.label(level)
+    """Components of level cells, and per component its height, σ parts and extent; and per
+    label the terrace's height."""
+    labels, n = kernels.label4(level)
     if n == 0:
-        return labels, {}
-    flat = labels.ravel()
-    sizes = np.bincount(flat, minlength=n + 1)
-    w = np.where(level, 1.0 / np.maximum(g.var, 1e-12), 0.0).ravel()
-    var_ind = np.maximum(g.var - g.corr**2, 0.0).ravel()
-    hv = np.where(level, g.h, 0.0).ravel()
-    sw = np.bincount(flat, w, n + 1)
-    height = np.bincount(flat, w * hv, n + 1) / np.maximum(sw, 1e-300)
-    ind = np.sqrt(np.bincount(flat, w * w * var_ind, n + 1)) / np.maximum(sw, 1e-300)
-    corr = np.bincount(flat, w * g.corr.ravel(), n + 1) / np.maximum(sw, 1e-300)
+        return labels, {}, np.zeros(1)
+    sizes, sw, swh, sind, scorr = kernels.terrace_sums(labels, n, g.h, g.var, g.corr)
+    height = swh / np.maximum(sw, 1e-300)
+    ind = np.sqrt(sind) / np.maximum(sw, 1e-300)
+    corr = scorr / np.maximum(sw, 1e-300)
     keep = sizes >= cfg.min_terrace_cells
     keep[0] = False
     labels = np.where(keep[labels], labels, 0)
-    labels = _grow(g, labels, height, cfg)
-    objs = ndimage.find_objects(labels)
+    # grown by up to grow_cells cells (4-neighbours) into the known cells within grow_tol_m
+    # of its height: the cells by an edge are not level (their window holds the step) but
+    # those still on the surface are the terrace's, so that it ends at the edge (its height
+    # stays that of its level cells)
+    labels = kernels.grow(labels, g.known, g.h, height, cfg.grow_cells, cfg.grow_tol_m)
+    ext = kernels.extents(labels, n)
     out = {}
     for k in np.flatnonzero(keep):
-        sx, sy = objs[k - 1]
+        i0, i1, j0, j1 = (int(v) for v in ext[k - 1])
         out[int(k)] = {
             "h": float(height[k]), "ind": float(ind[k]), "corr": float(corr[k]),
-            "i": (sx.start, sx.stop - 1), "j": (sy.start, sy.stop - 1), "n": int(sizes[k]),
+            "i": (i0, i1), "j": (j0, j1), "n": int(sizes[k]),
         }  # fmt: skip
-    return labels, out
-
-
-def _grow(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureConfig) -> np.ndarray:
-    """Each terrace grown by up to ``grow_cells`` cells (4-neighbours) into the known cells
-    within ``grow_tol_m`` of its height: the cells by an edge are not level (their window
-    holds the step) but those still on the surface are the terrace's, so that it ends at the
-    edge (its height stays that of its level cells)."""
-    lab = labels.copy()
-    nx, ny = lab.shape
-    h = np.where(g.known, g.h, np.nan)
-    for _ in range(cfg.grow_cells):
-        free = g.known & (lab == 0)
-        if not free.any():
-            break
-        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-            nb = np.zeros_like(lab)
-            nb[max(di, 0) : nx + min(di, 0), max(dj, 0) : ny + min(dj, 0)] = lab[
-                max(-di, 0) : nx + min(-di, 0), max(-dj, 0) : ny + min(-dj, 0)
-            ]
-            with np.errstate(invalid="ignore"):
-                take = free & (nb > 0) & (np.abs(h - height[nb]) <= cfg.grow_tol_m)
-            lab[take] = nb[take]
-            free &= ~take
-    return lab
-
-
-def _transitions(g: _Grid, labels: np.ndarray, terraces: dict, cfg: FeatureConfig):
-    """Every pair of terraces met along a row (x) within the gap: row j, labels, edge x and
-    its σ, occluded flag."""
-    jj, ii = np.nonzero(labels.T)  # sorted by row j, then by i
-    lab = labels[ii, jj]
-    nxt = slice(1, None)
-    same_row = jj[:-1] == jj[nxt]
-    gap = ii[nxt] - ii[:-1]
-    cand = np.flatnonzero(same_row & (lab[:-1] != lab[nxt]) & (gap <= cfg.max_gap_cells + 1))
-    if cand.size == 0:
-        return []
-    ha = np.array([terraces[la]["h"] for la in lab[cand]])
-    hb = np.array([terraces[lb]["h"] for lb in lab[cand + 1]])
-    rise = hb - ha
-    ok = np.abs(rise) >= cfg.min_rise_m
-    cand, ha, rise = cand[ok], ha[ok], rise[ok]
-    if cand.size == 0:
-        return []
-    i1, i2, j = ii[cand], ii[cand + 1], jj[cand]
-    width = cfg.max_gap_cells + 2
-    idx = i1[:, None] + np.arange(width)[None, :]
-    inside = idx <= i2[:, None]
-    idx = np.minimum(idx, g.h.shape[0] - 1)
-    hw = g.h[idx, j[:, None]]
-    vw = g.var[idx, j[:, None]]
-    # beyond a drop, a cell of flying pixels is not seen; up a riser, the cells across it are
-    # mixtures of the two surfaces and of the riser, whatever their noise
-    flying = g.noisy[idx, j[:, None]] & (rise < 0)[:, None]
-    unknown = inside & (~np.isfinite(hw) | flying)
-    f = np.clip((hw - ha[:, None]) / rise[:, None], 0.0, 1.0)
-    f = np.where(unknown, 1.0, np.where(inside, f, 0.0))
-    occluded = unknown.any(axis=1)
-    # Occluded: the cells past the last one mostly of the near surface, before the first cell
-    # not seen, are the far surface's (flying pixels of the edge fill the shadow's first cells
-    # with heights in between: counted as fractions they put the edge up to a cell late).
-    pos = np.arange(width)[None, :]
-    first_unknown = np.where(occluded, np.argmax(unknown, axis=1), width)[:, None]
-    near = inside & ~unknown & (f < 0.5) & (pos < first_unknown)
-    last_near = np.max(np.where(near, pos, 0), axis=1)[:, None]
-    f = np.where(occluded[:, None] & (pos > last_near) & inside, 1.0, f)
-    x = g.x0 + (i2 + 1) * g.cell - g.cell * f.sum(axis=1)
-    seen, counted = _seen_part(g, i1 + last_near[:, 0], j, cfg)
-    x = x - np.where(occluded, 1.0 - seen, 0.0) * g.cell
-    noise = np.where(inside & ~unknown, np.nan_to_num(vw) / rise[:, None] ** 2, 0.0).sum(axis=1)
-    sigma = g.cell * np.sqrt(noise)
-    carried = _carried(g, i1, i2, j)
-    return [
-        (int(a), int(b), float(yy), float(xx), float(ss), bool(oc), bool(ct), bool(ca))
-        for a, b, yy, xx, ss, oc, ct, ca in zip(
-            lab[cand], lab[cand + 1], g.y_of(j), x, sigma, occluded, counted, carried,
-            strict=True,
-        )
-    ]
-
-
-def _carried(g: _Grid, i1: np.ndarray, i2: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """Per row: whether the cells on both sides of the edge hold no point of this stride
-    (carried from the previous one); False when the counts are not known."""
-    if g.count is None:
-        return np.zeros(len(i1), bool)
-    return (g.count[i1, j] == 0) & (g.count[i2, j] == 0)
-
-
-def _centre_x(g: _Grid, terrace: dict) -> float:
-    """The middle of a terrace's extent along x."""
-    return g.x0 + (terrace["i"][0] + terrace["i"][1] + 1) * g.cell / 2
-
-
-def _seen_part(g: _Grid, i: np.ndarray, j: np.ndarray, cfg: FeatureConfig):
-    """Per row: the part of cell ``(i, j)`` (the last seen before a shadow) that lies before
-    the shadow, and whether the counts gave it (else ``shadow_cell_seen``): its points over
-    the mean of the two cells before it (``FeatureConfig.shadow_from_counts``)."""
-    seen = np.full(len(i), cfg.shadow_cell_seen)
-    if g.count is None or not cfg.shadow_from_counts or len(i) == 0:
-        return seen, np.zeros(len(i), bool)
-    c = g.count
-    before = np.stack([c[np.maximum(i - k, 0), j] for k in (1, 2)], axis=1)
-    before = np.where((i[:, None] - np.array([1, 2])) >= 0, before, 0.0)
-    ref = before.mean(axis=1)
-    ok = before.min(axis=1) >= cfg.shadow_count_min
-    with np.errstate(invalid="ignore", divide="ignore"):
-        part = np.clip(c[i, j] / ref, 0.0, 1.0)
-    return np.where(ok, part, seen), ok
-
-
-def _fit_line(
-    y: np.ndarray,
-    x: np.ndarray,
-    s: np.ndarray,
-    occluded: bool,
-    y_ref: float = 0.0,
-    common_sigma_m: float = 0.0,
-):
-    """x = x̄ + b (y - ȳ) through the rows (3σ outliers out), reported at ``y_ref`` clipped into
-    the rows seen; ``common_sigma_m``: an error every row shares (it does not average out)."""
-    keep = np.ones(len(y), bool)
-    for _ in range(2):
-        yy, xx = y[keep], x[keep]
-        ym = yy.mean()
-        syy = float(((yy - ym) ** 2).sum())
-        b = float(((yy - ym) * (xx - xx.mean())).sum() / syy) if syy > 0 else 0.0
-        res = x - (xx.mean() + b * (y - ym))
-        scale = max(1.4826 * float(np.median(np.abs(res[keep]))), float(np.median(s)), 1e-4)
-        new = np.abs(res) <= 3 * scale
-        if new.sum() < 2 or (new == keep).all():
-            break
-        keep = new
-    yy, xx, ss = y[keep], x[keep], s[keep]
-    n = len(yy)
-    ym, xm = float(yy.mean()), float(xx.mean())
-    syy = float(((yy - ym) ** 2).sum())
-    b = float(((yy - ym) * (xx - xm)).sum() / syy) if syy > 0 else 0.0
-    res = xx - (xm + b * (yy - ym))
-    var = max(float((res**2).sum()) / max(n - 2, 1), float(np.mean(ss**2)))
-    sb = math.sqrt(var / syy) if syy > 0 else math.inf
-    lo, hi = float(yy.min()), float(yy.max())
-    yr = min(max(y_ref, lo), hi)
-    sigma = math.sqrt(var / n + ((yr - ym) * sb) ** 2 + common_sigma_m**2)
-    yaw = math.atan(-b)
-    return EdgeLine(
-        x_m=xm + b * (yr - ym), y_m=yr, yaw_rad=yaw, sigma_m=sigma * math.cos(yaw),
-        yaw_sigma_rad=sb / (1 + b * b), y_range_m=(lo, hi), rows=n, occluded=occluded,
-    )  # fmt: skip
-
-
-def _edges(g: _Grid, labels, terraces: dict, cfg: FeatureConfig) -> list[dict]:
-    """Per terrace pair met in enough rows: its edge line, rise and σ."""
-    pairs: dict[tuple[int, int], list] = {}
-    for a, b, y, x, s, oc, ct, ca in _transitions(g, labels, terraces, cfg):
-        pairs.setdefault((a, b), []).append((y, x, s, oc, ct, ca))
-    out = []
-    for (a, b), rows in pairs.items():
-        if len(rows) < cfg.min_edge_rows:
-            continue
-        y, x, s, oc, ct, ca = (np.array(v) for v in zip(*rows, strict=True))
-        occluded = bool(oc.mean() > 0.5)
-        # where the shadow begins inside the last cell seen: the same guess in every row, or
-        # the counts' ratio (its error common to the rows too: the density's trend)
-        counted = occluded and bool(ct[oc].mean() > 0.5)
-        part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma
-        common = g.cell * part_sigma if occluded else 0.0
-        if ca.mean() > 0.5:  # moved here with the previous stride's cells
-            common = math.hypot(common, cfg.carried_edge_sigma_m)
-        line = _fit_line(y, x, s, occluded, common_sigma_m=common)
-        ta, tb = terraces[a], terraces[b]
-        tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))
-        out.append({
-            "a": a, "b": b, "line": line, "rise": tb["h"] - ta["h"],
-            "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2
-                                    + (ta["corr"] - tb["corr"]) ** 2 + tilt**2),
-        })  # fmt: skip
-    out.sort(key=lambda e: e["line"].x_m)
-    return out
+    return labels, out, height
 
 
 def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list[Ramp]:
     """One plane per component of sloped cells; its start line on the terrace it is entered
     from (the adjacent terrace nearest the heel)."""
-    from scipy import ndimage
-
-    comp, n = ndimage.label(sloped)
+    comp, n = kernels.label4(sloped)
+    sizes = np.bincount(comp.ravel(), minlength=n + 1)
     out = []
-    for k in range(1, n + 1):
-        i, j = np.nonzero(comp == k)
-        if i.size < cfg.min_ramp_cells:
+    for k in np.flatnonzero(sizes >= cfg.min_ramp_cells):
+        if k == 0:
             continue
+        mask = comp == k
+        i, j = np.nonzero(mask)
         x, y, z = g.x_of(i), g.y_of(j), g.h[i, j]
         w = 1.0 / np.maximum(g.var[i, j], 1e-12)
         xm, ym = float(np.average(x, weights=w)), float(np.average(y, weights=w))
@@ -386,7 +207,7 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         )
         perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
         yaw_sigma = math.sqrt(max(float(perp @ cov[1:, 1:] @ perp), 0.0))
-        start = _ramp_start(g, comp == k, labels, terraces, coef, (xm, ym), cov)
+        start = _ramp_start(g, mask, labels, terraces, coef, (xm, ym), cov)
         out.append(
             Ramp(
                 slope_rad=math.atan(grad),
@@ -405,19 +226,24 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
 def _ramp_start(g: _Grid, mask, labels, terraces: dict, coef, centre, cov) -> EdgeLine | None:
     from scipy import ndimage
 
-    ring = ndimage.binary_dilation(mask, iterations=4) & ~mask
     c, gx, gy = (float(v) for v in coef)
     if abs(gx) < 1e-6:
         return None
     xm, ym = centre
+    # the ring of cells within 4 of the ramp (4-neighbour steps), on the ramp's extent and 4
+    # cells around it (the ring lies nowhere else)
+    i, j = np.nonzero(mask)
+    i0, j0 = max(int(i.min()) - 4, 0), max(int(j.min()) - 4, 0)
+    box = (slice(i0, int(i.max()) + 5), slice(j0, int(j.max()) + 5))
+    ring = ndimage.binary_dilation(mask[box], iterations=4) & ~mask[box]
+    lab = labels[box]
     # the terrace the ramp is entered from lies before it along x: a terrace met only beyond
     # it (the landing at its top, the ramp's start out of view) gives no start line
-    near = [t for t in np.unique(labels[ring]) if t in terraces
-            and float(np.mean(g.x_of(np.nonzero(ring & (labels == t))[0]))) < xm]  # fmt: skip
+    near = [t for t in np.unique(lab[ring]) if t in terraces
+            and float(np.mean(g.x_of(i0 + np.nonzero(ring & (lab == t))[0]))) < xm]  # fmt: skip
     if not near:
         return None
     t = min(near, key=lambda t: terraces[t]["i"][0])
-    j = np.nonzero(mask)[1]
     lo, hi = float(g.y_of(j.min())), float(g.y_of(j.max()))
     yr = min(max(0.0, lo), hi)
     h0 = terraces[t]["h"]

@@ -34,6 +34,7 @@ from graph_slam.terrain.features.clearance import (
     _grid_heights,
     clearance_along,
     edge_clearance,
+    finite_or,
 )
 from graph_slam.terrain.features.model import BoxFeature, TerrainFeatures
 
@@ -105,13 +106,13 @@ def reference_swing(
     kind, rise = terrain_type(features, x0, x0 + cfg.stride_length_m, y0)
     xy = np.column_stack([x, np.full_like(x, y0)])
     ground, _ = _grid_heights(view, xy[[0, -1]], cfg.toe_radius_m)
-    z0 = float(np.nan_to_num(ground[0]))
+    z0 = finite_or(ground[0])
     lift = cfg.lift_m * np.sqrt(np.sin(np.pi * s))  # a plateau: the toe stays up mid-swing
     if kind == "step_over":
         box = box_ahead(features, x0, x0 + cfg.stride_length_m, y0)
         over = box.floor_height_m + step_over_base(x, box, y0, cfg.step_over_run_m)
         return np.column_stack([xy, np.maximum(z0, over) + lift]), kind
-    z1 = z0 + rise if kind != "ramp" else float(np.nan_to_num(ground[1], nan=z0))
+    z1 = z0 + rise if kind != "ramp" else finite_or(ground[1], nan=z0)
     # up to the landing level by mid-swing when stepping up; down from mid-swing when stepping
     # down (the toe clears the nosing of the tread it leaves first: lowered over the whole
     # swing it passed that nosing a centimetre up); over the whole swing otherwise

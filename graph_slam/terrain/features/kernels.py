@@ -1,0 +1,317 @@
+"""Compiled loops of the feature extraction (numba): the terraces and the edge rows.
+
+The grid is small (100 × 60 cells) and the features' numpy formulation spent its time in
+dozens of whole-grid temporaries and per-edge calls, not in arithmetic. Here each step is one
+loop with the same arithmetic in the same order, so the results equal the numpy formulation
+bit for bit: sums are taken in numpy's own pairwise order (:func:`psum`), medians as numpy
+takes them, components numbered as :func:`scipy.ndimage.label` numbers them
+(``tests/test_terrain_feature_kernels.py`` checks each against it).
+
+Compiled on first use and cached on disk next to this file (``cache=True``): the first call in
+a fresh checkout takes a few seconds, later processes load the cache; a live run compiles them
+in its warm-up (:mod:`graph_slam.live.warmup`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def psum(a):  # pragma: no cover - compiled
+    """Sum of a 1-D float array in numpy's order (its pairwise summation: blocks of 128, eight
+    running sums inside a block), so that it equals ``a.sum()`` bit for bit."""
+    n = a.size
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += a[i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = a[0], a[1], a[2], a[3]
+        r4, r5, r6, r7 = a[4], a[5], a[6], a[7]
+        i = 8
+        stop = n - n % 8
+        while i < stop:
+            r0 += a[i]
+            r1 += a[i + 1]
+            r2 += a[i + 2]
+            r3 += a[i + 3]
+            r4 += a[i + 4]
+            r5 += a[i + 5]
+            r6 += a[i + 6]
+            r7 += a[i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += a[i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return psum(a[:n2]) + psum(a[n2:])
+
+
+@numba.njit(cache=True, nogil=True)
+def median(a):  # pragma: no cover - compiled
+    """``np.median`` of a 1-D float array without NaN (the middle one, or the mean of the
+    middle two)."""
+    s = np.sort(a)
+    n = s.size
+    if n % 2 == 1:
+        return s[n // 2]
+    return (s[n // 2 - 1] + s[n // 2]) / 2.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _find(parent, k):  # pragma: no cover - compiled
+    while parent[k] != k:
+        parent[k] = parent[parent[k]]
+        k = parent[k]
+    return k
+
+
+@numba.njit(cache=True, nogil=True)
+def label4(mask):  # pragma: no cover - compiled
+    """4-connected components of a 2-D mask, numbered 1… in the order of their first cell in
+    row-major order (as :func:`scipy.ndimage.label` with its default structure); 0 outside."""
+    nx, ny = mask.shape
+    parent = np.arange(nx * ny)
+    for i in range(nx):
+        for j in range(ny):
+            if not mask[i, j]:
+                continue
+            k = i * ny + j
+            if i > 0 and mask[i - 1, j]:
+                a, b = _find(parent, k), _find(parent, k - ny)
+                if a != b:
+                    parent[max(a, b)] = min(a, b)
+            if j > 0 and mask[i, j - 1]:
+                a, b = _find(parent, k), _find(parent, k - 1)
+                if a != b:
+                    parent[max(a, b)] = min(a, b)
+    labels = np.zeros((nx, ny), np.int64)
+    number = np.zeros(nx * ny, np.int64)
+    n = 0
+    for i in range(nx):
+        for j in range(ny):
+            if mask[i, j]:
+                root = _find(parent, i * ny + j)
+                if number[root] == 0:
+                    n += 1
+                    number[root] = n
+                labels[i, j] = number[root]
+    return labels, n
+
+
+@numba.njit(cache=True, nogil=True)
+def terrace_sums(labels, n, h, var, corr):  # pragma: no cover - compiled
+    """Per component 0…n: its cells, and the inverse-variance weighted sums of height, of the
+    squared weights times the variance less its pose part, and of the pose part (the cells in
+    row-major order, as ``np.bincount`` takes them)."""
+    sizes = np.zeros(n + 1, np.int64)
+    sw = np.zeros(n + 1)
+    swh = np.zeros(n + 1)
+    sind = np.zeros(n + 1)
+    scorr = np.zeros(n + 1)
+    nx, ny = labels.shape
+    for i in range(nx):
+        for j in range(ny):
+            k = labels[i, j]
+            sizes[k] += 1
+            if k == 0:
+                continue
+            w = 1.0 / max(var[i, j], 1e-12)
+            sw[k] += w
+            swh[k] += w * h[i, j]
+            sind[k] += w * w * max(var[i, j] - corr[i, j] * corr[i, j], 0.0)
+            scorr[k] += w * corr[i, j]
+    return sizes, sw, swh, sind, scorr
+
+
+@numba.njit(cache=True, nogil=True)
+def grow(labels, known, h, height, steps, tol):  # pragma: no cover - compiled
+    """Each labelled component grown by up to ``steps`` cells into the known unlabelled cells
+    within ``tol`` of its ``height``: per step the four neighbours in turn (+x, -x, +y, -y),
+    each pass reading the labels as the previous pass left them."""
+    lab = labels.copy()
+    nx, ny = lab.shape
+    free = np.zeros((nx, ny), np.bool_)
+    for _ in range(steps):
+        any_free = False
+        for i in range(nx):
+            for j in range(ny):
+                free[i, j] = known[i, j] and lab[i, j] == 0
+                any_free = any_free or free[i, j]
+        if not any_free:
+            break
+        for d in range(4):
+            di = 1 if d == 0 else -1 if d == 1 else 0
+            dj = 1 if d == 2 else -1 if d == 3 else 0
+            before = lab.copy()
+            for i in range(nx):
+                for j in range(ny):
+                    a, b = i - di, j - dj
+                    if not free[i, j] or a < 0 or a >= nx or b < 0 or b >= ny:
+                        continue
+                    nb = before[a, b]
+                    if nb > 0 and abs(h[i, j] - height[nb]) <= tol:
+                        lab[i, j] = nb
+                        free[i, j] = False
+    return lab
+
+
+@numba.njit(cache=True, nogil=True)
+def extents(labels, n):  # pragma: no cover - compiled
+    """Per component 1…n (row k-1): first and last i, first and last j (-1: no cell)."""
+    out = np.full((n, 4), -1, np.int64)
+    nx, ny = labels.shape
+    for i in range(nx):
+        for j in range(ny):
+            k = labels[i, j] - 1
+            if k < 0:
+                continue
+            if out[k, 0] < 0:
+                out[k, 0], out[k, 1], out[k, 2], out[k, 3] = i, i, j, j
+            else:
+                out[k, 1] = max(out[k, 1], i)
+                out[k, 2] = min(out[k, 2], j)
+                out[k, 3] = max(out[k, 3], j)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _nan_to_num(v):  # pragma: no cover - compiled
+    if np.isnan(v):
+        return 0.0
+    if np.isinf(v):
+        return np.finfo(np.float64).max if v > 0 else -np.finfo(np.float64).max
+    return v
+
+
+@numba.njit(cache=True, nogil=True)
+def transitions(
+    labels, height, h, var, noisy, count, has_count, max_gap, min_rise, seen_default,
+    from_counts, count_min, x0, cell,
+):  # pragma: no cover - compiled
+    """Every pair of labelled components met along a grid row (x) within ``max_gap`` cells
+    whose heights differ by at least ``min_rise``, rows in order, then x: per pair the two
+    labels, its row j, the edge's x and σ, and whether it is occluded, its shadow part came
+    from the counts and both its cells were carried (the steps of
+    :func:`graph_slam.terrain.features.edges.transitions`)."""
+    nx, ny = labels.shape
+    width = max_gap + 2
+    cap = nx * ny
+    out_a = np.empty(cap, np.int64)
+    out_b = np.empty(cap, np.int64)
+    out_j = np.empty(cap, np.int64)
+    out_x = np.empty(cap)
+    out_s = np.empty(cap)
+    out_flags = np.empty((cap, 3), np.bool_)
+    f = np.empty(width)
+    noise = np.empty(width)
+    inside = np.empty(width, np.bool_)
+    unknown = np.empty(width, np.bool_)
+    m = 0
+    for j in range(ny):
+        i1 = -1
+        for i2 in range(nx):
+            if labels[i2, j] == 0:
+                continue
+            if i1 < 0:
+                i1 = i2
+                continue
+            la, lb = labels[i1, j], labels[i2, j]
+            if la == lb or i2 - i1 > max_gap + 1:
+                i1 = i2
+                continue
+            ha = height[la]
+            rise = height[lb] - ha
+            if not abs(rise) >= min_rise:
+                i1 = i2
+                continue
+            occluded = False
+            first_unknown = width
+            for k in range(width):
+                idx = min(i1 + k, nx - 1)
+                inside[k] = i1 + k <= i2
+                hw = h[idx, j]
+                flying = noisy[idx, j] and rise < 0
+                unknown[k] = inside[k] and (not np.isfinite(hw) or flying)
+                if unknown[k]:
+                    f[k] = 1.0
+                    if not occluded:
+                        occluded = True
+                        first_unknown = k
+                elif inside[k]:
+                    f[k] = min(max((hw - ha) / rise, 0.0), 1.0)
+                else:
+                    f[k] = 0.0
+                if inside[k] and not unknown[k]:
+                    noise[k] = _nan_to_num(var[idx, j]) / (rise * rise)
+                else:
+                    noise[k] = 0.0
+            last_near = 0
+            for k in range(width):
+                if inside[k] and not unknown[k] and f[k] < 0.5 and k < first_unknown:
+                    last_near = max(last_near, k)
+            if occluded:
+                for k in range(last_near + 1, width):
+                    if inside[k]:
+                        f[k] = 1.0
+            x = x0 + (i2 + 1) * cell - cell * psum(f)
+            seen, counted = seen_default, False
+            if has_count and from_counts:
+                i = i1 + last_near
+                b1 = count[max(i - 1, 0), j] if i - 1 >= 0 else 0.0
+                b2 = count[max(i - 2, 0), j] if i - 2 >= 0 else 0.0
+                if min(b1, b2) >= count_min:
+                    seen = min(max(count[i, j] / ((b1 + b2) / 2.0), 0.0), 1.0)
+                    counted = True
+            if occluded:
+                x = x - (1.0 - seen) * cell
+            out_a[m], out_b[m], out_j[m] = la, lb, j
+            out_x[m] = x
+            out_s[m] = cell * np.sqrt(psum(noise))
+            out_flags[m, 0] = occluded
+            out_flags[m, 1] = counted
+            out_flags[m, 2] = has_count and count[i1, j] == 0 and count[i2, j] == 0
+            m += 1
+            i1 = i2
+    return out_a[:m], out_b[:m], out_j[:m], out_x[:m], out_s[:m], out_flags[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def _line(y, x):  # pragma: no cover - compiled
+    """Means and slope of x = x̄ + b (y - ȳ) (numpy's sums), and Σ(y - ȳ)²."""
+    n = y.size
+    ym = psum(y) / n
+    xm = psum(x) / n
+    dy = y - ym
+    syy = psum(dy * dy)
+    b = psum(dy * (x - xm)) / syy if syy > 0 else 0.0
+    return ym, xm, b, syy
+
+
+@numba.njit(cache=True, nogil=True)
+def fit_line(y, x, s):  # pragma: no cover - compiled
+    """The robust line fit of :func:`graph_slam.terrain.features.edges.fit_line` (two rounds
+    of 3σ rejection): the rows kept's mean y and x, slope, Σ(y - ȳ)², residual variance
+    (at least their mean σ²), count and y range."""
+    keep = np.ones(y.size, np.bool_)
+    med_s = median(s)
+    for _ in range(2):
+        ym, xm, b, _syy = _line(y[keep], x[keep])
+        res = np.abs(x - (xm + b * (y - ym)))
+        scale = max(1.4826 * median(res[keep]), med_s, 1e-4)
+        new = res <= 3 * scale
+        if new.sum() < 2 or (new == keep).all():
+            break
+        keep = new
+    yy, xx, ss = y[keep], x[keep], s[keep]
+    n = yy.size
+    ym, xm, b, syy = _line(yy, xx)
+    res = xx - (xm + b * (yy - ym))
+    var = max(psum(res * res) / max(n - 2, 1), psum(ss * ss) / n)
+    return ym, xm, b, syy, var, n, yy.min(), yy.max()
