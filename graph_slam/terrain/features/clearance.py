@@ -41,6 +41,7 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
+from graph_slam.terrain.features.kernels import highest_cells
 from graph_slam.terrain.features.model import TerrainFeatures, _plain
 
 
@@ -97,6 +98,9 @@ class ClearanceConfig(ConfigModel):
         """Which of ``n`` evenly timed swing samples lie in ``mid_swing``."""
         s = np.linspace(0.0, 1.0, n)
         return (s >= self.mid_swing[0]) & (s <= self.mid_swing[1])
+
+
+_DEFAULT = ClearanceConfig()
 
 
 @dataclass(frozen=True)
@@ -181,19 +185,13 @@ def _independent_sigma(view, i: np.ndarray, j: np.ndarray) -> np.ndarray:
 def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per point: the highest known cell within ``radius`` (the 3×3 offsets of it) and its σ
     without the pose part (NaN: none)."""
-    h = view.height_m
-    nx, ny = h.shape
-    q = (xy[:, None, :] + radius * _OFFSETS[None]) - np.asarray(view.origin_xy_m)
-    ij = np.floor(q / view.cell_m).astype(np.int64)
-    on = (ij[..., 0] >= 0) & (ij[..., 0] < nx) & (ij[..., 1] >= 0) & (ij[..., 1] < ny)
-    i, j = np.where(on, ij[..., 0], 0), np.where(on, ij[..., 1], 0)
-    hh = np.where(on, h[i, j], np.nan)
-    hh = np.where(np.isfinite(hh), hh, -np.inf)
-    k = np.argmax(hh, axis=1)
-    rows = np.arange(len(xy))
-    best = hh[rows, k]
-    sig = _independent_sigma(view, i[rows, k], j[rows, k])
+    ox, oy = (float(v) for v in view.origin_xy_m)
+    best, i, j = highest_cells(
+        np.ascontiguousarray(xy, np.float64), float(radius), _OFFSETS, ox, oy,
+        float(view.cell_m), view.height_m,
+    )  # fmt: skip
     found = np.isfinite(best)
+    sig = _independent_sigma(view, i, j)
     return np.where(found, best, np.nan), np.where(found, sig, np.nan)
 
 
@@ -203,7 +201,7 @@ def clearance_profile(
     """Per point of the toe path (N×3): its clearance ``z_toe − terrain`` (NaN: the terrain
     there unknown, or a cell whose σ exceeds ``max_cell_sigma_m``), the terrain's σ and the
     edge it passes (``ground`` away from edges)."""
-    cfg = config or ClearanceConfig()
+    cfg = config or _DEFAULT
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
     ground, sigma = _grid_heights(view, p[:, :2], cfg.toe_radius_m)
     ground = np.where(sigma <= cfg.max_cell_sigma_m, ground, np.nan)
@@ -286,7 +284,7 @@ def edge_clearances(
 ) -> list[tuple[object, Clearance]]:
     """Per feature edge the path comes within ``edge_band_m`` of: (its EdgeLine, the toe's
     clearance over it) (module docstring)."""
-    cfg = config or ClearanceConfig()
+    cfg = config or _DEFAULT
     p = resample_path(toe_xyz_m, cfg.resample_m)
     out = []
     for label, line, near, far, rise_sigma in _edges(features):

@@ -174,34 +174,23 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
     from (the adjacent terrace nearest the heel)."""
     comp, n = kernels.label4(sloped)
     sizes = np.bincount(comp.ravel(), minlength=n + 1)
+    min_grad = math.tan(math.radians(cfg.ramp_min_deg))
     out = []
     for k in np.flatnonzero(sizes >= cfg.min_ramp_cells):
         if k == 0:
             continue
         mask = comp == k
         i, j = np.nonzero(mask)
-        x, y, z = g.x_of(i), g.y_of(j), g.h[i, j]
-        w = 1.0 / np.maximum(g.var[i, j], 1e-12)
-        xm, ym = float(np.average(x, weights=w)), float(np.average(y, weights=w))
-        a = np.column_stack([np.ones_like(x), x - xm, y - ym])
-        normal = a.T @ (a * w[:, None])
-        if np.linalg.cond(normal) > 1e12:
-            continue  # cells along one line: no plane
-        coef = np.linalg.solve(normal, a.T @ (w * z))
-        res = z - a @ coef
-        dof = max(i.size - 3, 1)
-        s2 = float((w * res**2).sum() / dof)
-        cov = np.linalg.inv(normal) * s2
+        status, xm, ym, coef, cov, tilt, rms, x_lo, x_hi = kernels.ramp_plane(
+            i, j, g.h, g.var, g.corr, g.x0, g.y0, g.cell, min_grad, cfg.min_ramp_length_m
+        )
+        if status < 2:
+            continue  # cells along one line (no plane), or the flanks of an edge (no ramp)
         gx, gy = float(coef[1]), float(coef[2])
         grad = math.hypot(gx, gy)
-        along = ((x - xm) * gx + (y - ym) * gy) / max(grad, 1e-12)
-        if grad < math.tan(math.radians(cfg.ramp_min_deg)) or np.ptp(along) < cfg.min_ramp_length_m:
-            continue  # the flanks of an edge, not a ramp
         jac = np.array([gx, gy]) / max(grad, 1e-12)
         # a pose's tilt tilts the whole plane: the pose part of the cells' σ (correlated, it
-        # does not average) changes along the slope by about that tilt's σ per metre
-        c = g.corr[i, j]
-        tilt = abs(float(np.polyfit(along, c, 1)[0])) if np.ptp(c) > 0 else 0.0
+        # does not average) changes along the slope by about that tilt's σ per metre (tilt)
         slope_sigma = math.hypot(math.sqrt(float(jac @ cov[1:, 1:] @ jac)), tilt) / (
             1 + grad * grad
         )
@@ -216,34 +205,28 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
                 uphill_yaw_sigma_rad=yaw_sigma,
                 start=start,
                 n_cells=int(i.size),
-                rms_m=float(np.sqrt(np.mean(res**2))),
-                x_range_m=(float(x.min() - g.cell / 2), float(x.max() + g.cell / 2)),
+                rms_m=float(rms),
+                x_range_m=(float(x_lo - g.cell / 2), float(x_hi + g.cell / 2)),
             )
         )
     return out
 
 
 def _ramp_start(g: _Grid, mask, labels, terraces: dict, coef, centre, cov) -> EdgeLine | None:
-    from scipy import ndimage
-
     c, gx, gy = (float(v) for v in coef)
     if abs(gx) < 1e-6:
         return None
     xm, ym = centre
-    # the ring of cells within 4 of the ramp (4-neighbour steps), on the ramp's extent and 4
-    # cells around it (the ring lies nowhere else)
-    i, j = np.nonzero(mask)
-    i0, j0 = max(int(i.min()) - 4, 0), max(int(j.min()) - 4, 0)
-    box = (slice(i0, int(i.max()) + 5), slice(j0, int(j.max()) + 5))
-    ring = ndimage.binary_dilation(mask[box], iterations=4) & ~mask[box]
-    lab = labels[box]
+    ri, rj = kernels.ring(mask, 4)  # the cells within 4 (4-neighbour steps) of the ramp
+    lab = labels[ri, rj]
     # the terrace the ramp is entered from lies before it along x: a terrace met only beyond
     # it (the landing at its top, the ramp's start out of view) gives no start line
-    near = [t for t in np.unique(lab[ring]) if t in terraces
-            and float(np.mean(g.x_of(i0 + np.nonzero(ring & (lab == t))[0]))) < xm]  # fmt: skip
+    near = [t for t in np.unique(lab) if t in terraces
+            and float(np.mean(g.x_of(ri[lab == t]))) < xm]  # fmt: skip
     if not near:
         return None
     t = min(near, key=lambda t: terraces[t]["i"][0])
+    j = np.nonzero(mask)[1]
     lo, hi = float(g.y_of(j.min())), float(g.y_of(j.max()))
     yr = min(max(0.0, lo), hi)
     h0 = terraces[t]["h"]

@@ -65,43 +65,31 @@ def median(a):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _find(parent, k):  # pragma: no cover - compiled
-    while parent[k] != k:
-        parent[k] = parent[parent[k]]
-        k = parent[k]
-    return k
-
-
-@numba.njit(cache=True, nogil=True)
 def label4(mask):  # pragma: no cover - compiled
     """4-connected components of a 2-D mask, numbered 1… in the order of their first cell in
     row-major order (as :func:`scipy.ndimage.label` with its default structure); 0 outside."""
     nx, ny = mask.shape
-    parent = np.arange(nx * ny)
-    for i in range(nx):
-        for j in range(ny):
-            if not mask[i, j]:
-                continue
-            k = i * ny + j
-            if i > 0 and mask[i - 1, j]:
-                a, b = _find(parent, k), _find(parent, k - ny)
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
-            if j > 0 and mask[i, j - 1]:
-                a, b = _find(parent, k), _find(parent, k - 1)
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
     labels = np.zeros((nx, ny), np.int64)
-    number = np.zeros(nx * ny, np.int64)
+    stack = np.empty(nx * ny, np.int64)
     n = 0
-    for i in range(nx):
-        for j in range(ny):
-            if mask[i, j]:
-                root = _find(parent, i * ny + j)
-                if number[root] == 0:
-                    n += 1
-                    number[root] = n
-                labels[i, j] = number[root]
+    for i0 in range(nx):
+        for j0 in range(ny):
+            if not mask[i0, j0] or labels[i0, j0] != 0:
+                continue
+            n += 1
+            labels[i0, j0] = n
+            stack[0] = i0 * ny + j0
+            top = 1
+            while top > 0:
+                top -= 1
+                i, j = stack[top] // ny, stack[top] % ny
+                for d in range(4):
+                    a = i + (1 if d == 0 else -1 if d == 1 else 0)
+                    b = j + (1 if d == 2 else -1 if d == 3 else 0)
+                    if 0 <= a < nx and 0 <= b < ny and mask[a, b] and labels[a, b] == 0:
+                        labels[a, b] = n
+                        stack[top] = a * ny + b
+                        top += 1
     return labels, n
 
 
@@ -134,31 +122,44 @@ def terrace_sums(labels, n, h, var, corr):  # pragma: no cover - compiled
 def grow(labels, known, h, height, steps, tol):  # pragma: no cover - compiled
     """Each labelled component grown by up to ``steps`` cells into the known unlabelled cells
     within ``tol`` of its ``height``: per step the four neighbours in turn (+x, -x, +y, -y),
-    each pass reading the labels as the previous pass left them."""
+    each pass reading the labels as the previous pass left them (a pass's own writes land
+    after it: they fill only unlabelled cells, which it reads as 0)."""
     lab = labels.copy()
     nx, ny = lab.shape
-    free = np.zeros((nx, ny), np.bool_)
+    free = np.empty(nx * ny, np.int64)
+    n_free = 0
+    for i in range(nx):
+        for j in range(ny):
+            if known[i, j] and lab[i, j] == 0:
+                free[n_free] = i * ny + j
+                n_free += 1
+    taken = np.empty(nx * ny, np.int64)
+    value = np.empty(nx * ny, np.int64)
     for _ in range(steps):
-        any_free = False
-        for i in range(nx):
-            for j in range(ny):
-                free[i, j] = known[i, j] and lab[i, j] == 0
-                any_free = any_free or free[i, j]
-        if not any_free:
+        if n_free == 0:
             break
         for d in range(4):
             di = 1 if d == 0 else -1 if d == 1 else 0
             dj = 1 if d == 2 else -1 if d == 3 else 0
-            before = lab.copy()
-            for i in range(nx):
-                for j in range(ny):
-                    a, b = i - di, j - dj
-                    if not free[i, j] or a < 0 or a >= nx or b < 0 or b >= ny:
-                        continue
-                    nb = before[a, b]
-                    if nb > 0 and abs(h[i, j] - height[nb]) <= tol:
-                        lab[i, j] = nb
-                        free[i, j] = False
+            m = 0
+            for k in range(n_free):
+                i, j = free[k] // ny, free[k] % ny
+                a, b = i - di, j - dj
+                if a < 0 or a >= nx or b < 0 or b >= ny:
+                    continue
+                nb = lab[a, b]
+                if nb > 0 and abs(h[i, j] - height[nb]) <= tol:
+                    taken[m], value[m] = free[k], nb
+                    m += 1
+            for k in range(m):
+                lab[taken[k] // ny, taken[k] % ny] = value[k]
+            if m > 0:  # the cells still free, in order
+                kept = 0
+                for k in range(n_free):
+                    if lab[free[k] // ny, free[k] % ny] == 0:
+                        free[kept] = free[k]
+                        kept += 1
+                n_free = kept
     return lab
 
 
@@ -315,3 +316,111 @@ def fit_line(y, x, s):  # pragma: no cover - compiled
     res = xx - (xm + b * (yy - ym))
     var = max(psum(res * res) / max(n - 2, 1), psum(ss * ss) / n)
     return ym, xm, b, syy, var, n, yy.min(), yy.max()
+
+
+@numba.njit(cache=True, nogil=True)
+def ring(mask, reach):  # pragma: no cover - compiled
+    """The cells not in ``mask`` within ``reach`` 4-neighbour steps of it (its
+    ``scipy.ndimage.binary_dilation`` by the cross, ``reach`` times, less itself), row-major:
+    their i and j."""
+    nx, ny = mask.shape
+    lo_i, hi_i, lo_j, hi_j = nx, -1, ny, -1
+    for i in range(nx):
+        for j in range(ny):
+            if mask[i, j]:
+                lo_i, hi_i = min(lo_i, i), max(hi_i, i)
+                lo_j, hi_j = min(lo_j, j), max(hi_j, j)
+    cap = max((hi_i - lo_i + 1 + 2 * reach) * (hi_j - lo_j + 1 + 2 * reach), 0)
+    out_i = np.empty(cap, np.int64)
+    out_j = np.empty(cap, np.int64)
+    m = 0
+    for i in range(max(lo_i - reach, 0), min(hi_i + reach + 1, nx)):
+        for j in range(max(lo_j - reach, 0), min(hi_j + reach + 1, ny)):
+            if mask[i, j]:
+                continue
+            found = False
+            for a in range(max(i - reach, 0), min(i + reach + 1, nx)):
+                r = reach - abs(a - i)
+                for b in range(max(j - r, 0), min(j + r + 1, ny)):
+                    if mask[a, b]:
+                        found = True
+                        break
+                if found:
+                    break
+            if found:
+                out_i[m], out_j[m] = i, j
+                m += 1
+    return out_i[:m], out_j[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def highest_cells(xy, radius, offsets, ox, oy, cell, h):  # pragma: no cover - compiled
+    """Per point (N×2): the highest known cell of ``h`` among those holding the point moved by
+    ``radius`` times each offset (the first of equal ones; -inf: none known) and its i, j
+    (0, 0 when none is on the grid)."""
+    nx, ny = h.shape
+    n = xy.shape[0]
+    best = np.full(n, -np.inf)
+    bi = np.zeros(n, np.int64)
+    bj = np.zeros(n, np.int64)
+    for p in range(n):
+        for k in range(offsets.shape[0]):
+            qi = np.floor(((xy[p, 0] + radius * offsets[k, 0]) - ox) / cell)
+            qj = np.floor(((xy[p, 1] + radius * offsets[k, 1]) - oy) / cell)
+            on = qi >= 0 and qi < nx and qj >= 0 and qj < ny
+            i, j = (int(qi), int(qj)) if on else (0, 0)
+            v = h[i, j] if on else np.nan
+            if not np.isfinite(v):
+                v = -np.inf
+            if k == 0 or v > best[p]:
+                best[p], bi[p], bj[p] = v, i, j
+    return best, bi, bj
+
+
+@numba.njit(cache=True, nogil=True)
+def ramp_plane(i, j, h, var, corr, x0, y0, cell, min_grad, min_length):  # pragma: no cover
+    """The inverse-variance weighted plane z = c + gx (x - x̄) + gy (y - ȳ) through cells
+    ``(i, j)``: status (0: the cells lie along one line, no plane; 1: too gentle or too short
+    up its slope for a ramp; 2: a ramp), the centre (x̄, ȳ), the coefficients, their
+    covariance, the change of the cells' pose σ per metre up the slope (its least-squares
+    slope; 0 when it is the same everywhere), the RMS residual and the cells' x range."""
+    n = i.size
+    x, y, z = np.empty(n), np.empty(n), np.empty(n)
+    w, c = np.empty(n), np.empty(n)
+    for k in range(n):
+        x[k] = x0 + (i[k] + 0.5) * cell
+        y[k] = y0 + (j[k] + 0.5) * cell
+        z[k] = h[i[k], j[k]]
+        w[k] = 1.0 / max(var[i[k], j[k]], 1e-12)
+        c[k] = corr[i[k], j[k]]
+    sw = psum(w)
+    xm, ym = psum(x * w) / sw, psum(y * w) / sw
+    normal = np.zeros((3, 3))
+    rhs = np.zeros(3)
+    for k in range(n):
+        a = (1.0, x[k] - xm, y[k] - ym)
+        for p in range(3):
+            rhs[p] += a[p] * w[k] * z[k]
+            for q in range(3):
+                normal[p, q] += a[p] * a[q] * w[k]
+    coef = np.zeros(3)
+    cov = np.zeros((3, 3))
+    out = (0, xm, ym, coef, cov, 0.0, 0.0, 0.0, 0.0)
+    if np.linalg.cond(normal) > 1e12:
+        return out
+    coef = np.linalg.solve(normal, rhs)
+    res = z - (coef[0] + coef[1] * (x - xm) + coef[2] * (y - ym))
+    s2 = psum(w * res * res) / max(n - 3, 1)
+    cov = np.linalg.inv(normal) * s2
+    gx, gy = coef[1], coef[2]
+    grad = np.hypot(gx, gy)
+    along = ((x - xm) * gx + (y - ym) * gy) / max(grad, 1e-12)
+    if grad < min_grad or along.max() - along.min() < min_length:
+        return (1, xm, ym, coef, cov, 0.0, 0.0, 0.0, 0.0)
+    tilt = 0.0
+    if c.max() - c.min() > 0:
+        am, cm = psum(along) / n, psum(c) / n
+        da = along - am
+        tilt = abs(psum(da * (c - cm)) / psum(da * da))
+    rms = np.sqrt(psum(res * res) / n)
+    return (2, xm, ym, coef, cov, tilt, rms, x.min(), x.max())

@@ -38,6 +38,8 @@ from graph_slam.terrain.features.clearance import (
 )
 from graph_slam.terrain.features.model import BoxFeature, TerrainFeatures
 
+_DEFAULT = ClearanceConfig()
+
 
 def _on_path(line, y_m: float, margin_m: float = 0.05) -> bool:
     return line.y_range_m[0] - margin_m <= y_m <= line.y_range_m[1] + margin_m
@@ -99,7 +101,7 @@ def reference_swing(
     view, features: TerrainFeatures, toe_xy_m=(0.2, 0.0), config: ClearanceConfig | None = None
 ) -> tuple[np.ndarray, str]:
     """The reference toe path (N×3) of the coming swing from ``toe_xy_m``, and its type."""
-    cfg = config or ClearanceConfig()
+    cfg = config or _DEFAULT
     x0, y0 = float(toe_xy_m[0]), float(toe_xy_m[1])
     s = np.linspace(0.0, 1.0, cfg.samples)
     x = x0 + s * cfg.stride_length_m
@@ -143,7 +145,7 @@ def predict_clearance(
 ) -> Clearance:
     """The coming swing's clearance on its reference path over the current terrain, with the
     warning flag (see the module docstring)."""
-    cfg = config or ClearanceConfig()
+    cfg = config or _DEFAULT
     feats = view.features if features is None else features
     toe = (view.toe_x_m, 0.0) if toe_xy_m is None else toe_xy_m
     path, kind = reference_swing(view, feats, toe, cfg)
