@@ -41,7 +41,11 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
-from graph_slam.terrain.features.kernels import highest_cells
+from graph_slam.terrain.features.clearance_kernels import (
+    edge_bands,
+    edge_profile_min,
+    highest_cells,
+)
 from graph_slam.terrain.features.model import TerrainFeatures, _plain
 
 
@@ -205,18 +209,31 @@ def clearance_profile(
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
     ground, sigma = _grid_heights(view, p[:, :2], cfg.toe_radius_m)
     ground = np.where(sigma <= cfg.max_cell_sigma_m, ground, np.nan)
-    name = np.full(len(p), "ground", dtype=object)
-    for label, line, near, far, rise_sigma in _edges(features):
-        lo, hi = line.y_range_m
-        c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
-        d = (p[:, 0] - line.x_m) * c + (p[:, 1] - line.y_m) * s  # signed, along the normal
-        along = p[:, 1]
-        band = (np.abs(d) <= cfg.edge_band_m) & (along >= lo - 0.02) & (along <= hi + 0.02)
-        model = np.where(d >= 0, far, near)
-        ground = np.where(band, model, ground)
-        sigma = np.where(band, rise_sigma, sigma)
-        name = np.where(band, label, name)
-    return p[:, 2] - ground, sigma, name
+    edges = _edges(features)
+    if not edges:
+        return p[:, 2] - ground, sigma, np.full(len(p), "ground", dtype=object)
+    lines = [e[1] for e in edges]
+    which, far_side = edge_bands(
+        p[:, 0].copy(), p[:, 1].copy(), *_line_arrays(lines), cfg.edge_band_m
+    )  # fmt: skip
+    near = np.array([e[2] for e in edges], dtype=np.float64)
+    far = np.array([e[3] for e in edges], dtype=np.float64)
+    rise_sigma = np.array([e[4] for e in edges], dtype=np.float64)
+    band = which >= 0
+    k = np.where(band, which, 0)
+    ground = np.where(band, np.where(far_side, far[k], near[k]), ground)
+    sigma = np.where(band, rise_sigma[k], sigma)
+    labels = np.array(["ground"] + [e[0] for e in edges], dtype=object)
+    return p[:, 2] - ground, sigma, labels[which + 1]
+
+
+def _line_arrays(lines) -> tuple[np.ndarray, ...]:
+    """Of edge lines: x_m, y_m, cos and sin of the yaw, the y range's ends."""
+    return tuple(
+        np.array(v, dtype=np.float64)
+        for v in zip(*[(ln.x_m, ln.y_m, math.cos(ln.yaw_rad), math.sin(ln.yaw_rad),
+                        ln.y_range_m[0], ln.y_range_m[1]) for ln in lines], strict=True)
+    )  # fmt: skip
 
 
 def clearance_along(
@@ -286,21 +303,22 @@ def edge_clearances(
     clearance over it) (module docstring)."""
     cfg = config or _DEFAULT
     p = resample_path(toe_xyz_m, cfg.resample_m)
+    px, py, pz = (np.ascontiguousarray(p[:, k]) for k in range(3))
     out = []
     for label, line, near, far, rise_sigma in _edges(features):
+        if not (math.isfinite(near) and math.isfinite(far)):
+            continue
         lo, hi = line.y_range_m
         c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
-        d = (p[:, 0] - line.x_m) * c + (p[:, 1] - line.y_m) * s
-        band = (np.abs(d) <= cfg.edge_band_m) & (p[:, 1] >= lo - 0.02) & (p[:, 1] <= hi + 0.02)
-        if not band.any() or not (math.isfinite(near) and math.isfinite(far)):
+        i, dist, by_x, by_h = edge_profile_min(
+            px, py, pz, line.x_m, line.y_m, c, s, lo, hi, cfg.edge_band_m, near, far
+        )  # fmt: skip
+        if i < 0:
             continue
-        dist, by_x, by_h = _profile(d[band], p[band, 2], near, far)
-        k = int(np.argmin(dist))
-        i = int(np.flatnonzero(band)[k])
         along = math.hypot(line.sigma_m, cfg.toe_along_sigma_m)
-        sigma = math.hypot(by_x[k] * along, by_h[k] * rise_sigma, cfg.toe_sigma_m)
-        out.append((line, Clearance(float(dist[k]), sigma, float(p[i, 0]),
-                                    float(p[i, 1]), i, label, "edge", edge_m=float(dist[k]))))  # fmt: skip
+        sigma = math.hypot(by_x * along, by_h * rise_sigma, cfg.toe_sigma_m)
+        out.append((line, Clearance(float(dist), sigma, float(p[i, 0]),
+                                    float(p[i, 1]), int(i), label, "edge", edge_m=float(dist))))  # fmt: skip
     return out
 
 

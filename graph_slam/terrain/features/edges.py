@@ -46,18 +46,23 @@ def fit_line(
 ) -> EdgeLine:
     """x = x̄ + b (y - ȳ) through the rows (3σ outliers out), reported at ``y_ref`` clipped into
     the rows seen; ``common_sigma_m``: an error every row shares (it does not average out)."""
-    ym, xm, b, syy, var, n, lo, hi = kernels.fit_line(
+    fit = kernels.fit_line(
         np.ascontiguousarray(y, np.float64), np.ascontiguousarray(x, np.float64),
         np.ascontiguousarray(s, np.float64),
     )  # fmt: skip
+    return _line_of(fit, occluded, y_ref, common_sigma_m)
+
+
+def _line_of(fit, occluded: bool, y_ref: float, common_sigma_m: float) -> EdgeLine:
+    """The EdgeLine of a fit (:func:`graph_slam.terrain.features.kernels.fit_line`)."""
+    ym, xm, b, syy, var, n, lo, hi = (float(v) for v in fit)
     sb = math.sqrt(var / syy) if syy > 0 else math.inf
     yr = min(max(y_ref, lo), hi)
     sigma = math.sqrt(var / n + ((yr - ym) * sb) ** 2 + common_sigma_m**2)
     yaw = math.atan(-b)
     return EdgeLine(
         x_m=xm + b * (yr - ym), y_m=yr, yaw_rad=yaw, sigma_m=sigma * math.cos(yaw),
-        yaw_sigma_rad=sb / (1 + b * b), y_range_m=(float(lo), float(hi)), rows=int(n),
-        occluded=occluded,
+        yaw_sigma_rad=sb / (1 + b * b), y_range_m=(lo, hi), rows=int(n), occluded=occluded,
     )  # fmt: skip
 
 
@@ -67,32 +72,26 @@ def _centre_x(g: _Grid, terrace: dict) -> float:
 
 
 def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureConfig):
-    """Per terrace pair met in enough rows (pairs in the order first met): its edge line,
-    rise and σ, sorted by the line's x."""
+    """Per terrace pair met in at least ``min_edge_rows`` rows (pairs in the order first met):
+    its edge line, rise and σ, sorted by the line's x. Where the shadow begins inside the
+    last cell seen is the same guess in every row, or the counts' ratio (its error common to
+    the rows too: the density's trend); an edge carried with the previous stride's cells
+    moved with them."""
     a, b, y, x, s, flags = transitions(g, labels, height, cfg)
     if a.size == 0:
         return []
-    key = a * (len(height) + 1) + b
-    _, first, group = np.unique(key, return_index=True, return_inverse=True)
+    pairs, fits = kernels.edge_groups(a, b, y, x, s, flags, len(height), cfg.min_edge_rows)
     out = []
-    for k in np.argsort(first, kind="stable"):
-        rows = np.flatnonzero(group == k)
-        if rows.size < cfg.min_edge_rows:
-            continue
-        oc, ct, ca = flags[rows, 0], flags[rows, 1], flags[rows, 2]
-        occluded = bool(oc.mean() > 0.5)
-        # where the shadow begins inside the last cell seen: the same guess in every row, or
-        # the counts' ratio (its error common to the rows too: the density's trend)
-        counted = occluded and bool(ct[oc].mean() > 0.5)
+    for (la, lb, occluded, counted, carried), fit in zip(pairs, fits, strict=True):
         part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma
         common = g.cell * part_sigma if occluded else 0.0
-        if ca.mean() > 0.5:  # moved here with the previous stride's cells
+        if carried:
             common = math.hypot(common, cfg.carried_edge_sigma_m)
-        line = fit_line(y[rows], x[rows], s[rows], occluded, common_sigma_m=common)
-        ta, tb = terraces[int(a[rows[0]])], terraces[int(b[rows[0]])]
+        line = _line_of(fit, bool(occluded), 0.0, common)
+        ta, tb = terraces[int(la)], terraces[int(lb)]
         tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))
         out.append({
-            "a": int(a[rows[0]]), "b": int(b[rows[0]]), "line": line, "rise": tb["h"] - ta["h"],
+            "a": int(la), "b": int(lb), "line": line, "rise": tb["h"] - ta["h"],
             "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2
                                     + (ta["corr"] - tb["corr"]) ** 2 + tilt**2),
         })  # fmt: skip

@@ -24,15 +24,17 @@ _DEFAULT = FeatureConfig()
 
 def features_of_view(view, config: FeatureConfig | None = None, source: str = "online"):
     """The features of a :class:`~graph_slam.terrain.grid.view.TerrainView` (online or re-fused)."""
-    s = view.sums
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = (s.b / s.w).reshape(view.shape)
-        noise = (np.sqrt(s.a) / s.w).reshape(view.shape)
-    return extract_features(
-        view.height_m, view.variance_m2, view.origin_xy_m, view.cell_m,
-        corr_sigma_m=corr, noise_sigma_m=noise, config=config, t_s=view.t_s,
-        stride_index=view.stride_index, source=source, count=view.count,
+    cfg = config or _DEFAULT
+    s, shape = view.sums, view.shape
+    h, var = view.height_m, view.variance_m2
+    corr, noisy, known = kernels.view_cells(
+        h, var, s.a.reshape(shape), s.b.reshape(shape), s.w.reshape(shape),
+        cfg.max_noise_sigma_m,
     )  # fmt: skip
+    cnt = np.asarray(view.count, dtype=np.float64)
+    x0, y0 = (float(v) for v in view.origin_xy_m)
+    g = _Grid(h, var, corr, x0, y0, view.cell_m, noisy, cnt, known)
+    return _features(g, cfg, float(view.t_s), view.stride_index, source)
 
 
 def extract_features(
@@ -68,17 +70,14 @@ def extract_features(
     cnt = None if count is None else np.asarray(count, dtype=np.float64).reshape(h.shape)
     g = _Grid(h, var, np.nan_to_num(corr), float(origin_xy_m[0]), float(origin_xy_m[1]), cell_m,
               noisy, cnt)  # fmt: skip
-    out = TerrainFeatures(stride_index, float(t_s), source)
+    return _features(g, cfg, float(t_s), stride_index, source)
+
+
+def _features(g: _Grid, cfg: FeatureConfig, t_s: float, stride_index: int, source: str):
+    out = TerrainFeatures(stride_index, t_s, source)
     if g.known.sum() < cfg.min_window_cells:
         return out
-    slope, rms, valid = _local_planes(g, cfg)
-    level = valid & (slope < math.tan(math.radians(cfg.level_max_deg))) & (rms < cfg.fit_rms_max_m)
-    sloped = (
-        valid
-        & (slope >= math.tan(math.radians(cfg.ramp_min_deg)))
-        & (slope <= math.tan(math.radians(cfg.ramp_max_deg)))
-        & (rms < cfg.fit_rms_max_m)
-    )
+    level, sloped = _local_planes(g, cfg)
     labels, terraces, heights = _terraces(g, level, cfg)
     edges = edges_of(g, labels, heights, terraces, cfg)
     boxes, used = boxes_of(edges, terraces, cfg)
@@ -86,17 +85,19 @@ def extract_features(
     stairs, curbs = chains_of(rest, g, labels, terraces, cfg)
     ramps = _ramps(g, sloped, labels, terraces, cfg)
     return TerrainFeatures(
-        stride_index, float(t_s), source, tuple(stairs), tuple(ramps), tuple(curbs), tuple(boxes)
+        stride_index, t_s, source, tuple(stairs), tuple(ramps), tuple(curbs), tuple(boxes)
     )
 
 
 @numba.njit(cache=True, nogil=True)
-def _plane_kernel(h, known, half, min_cells):  # pragma: no cover - compiled
-    """Per cell: slope (height per cell), RMS residual of the plane over its window, valid."""
+def _plane_kernel(h, known, half, min_cells, cell, level_max, ramp_min, ramp_max, rms_max):
+    """Per known cell: the least-squares plane over its window's known cells (height per
+    cell: slope over ``cell`` is its tan), and whether it is level (slope under
+    ``level_max``) or sloped (between ``ramp_min`` and ``ramp_max``) with an RMS residual
+    under ``rms_max``; neither where the window holds fewer than ``min_cells``."""
     nx, ny = h.shape
-    slope = np.zeros((nx, ny))
-    rms = np.zeros((nx, ny))
-    valid = np.zeros((nx, ny), dtype=np.bool_)
+    level = np.zeros((nx, ny), dtype=np.bool_)
+    sloped = np.zeros((nx, ny), dtype=np.bool_)
     for i in range(nx):
         for j in range(ny):
             if not known[i, j]:
@@ -127,17 +128,22 @@ def _plane_kernel(h, known, half, min_cells):  # pragma: no cover - compiled
                 continue
             gx = (cyy * cxz - cxy * cyz) / det
             gy = (cxx * cyz - cxy * cxz) / det
-            slope[i, j] = np.sqrt(gx * gx + gy * gy)
-            rms[i, j] = np.sqrt(max(czz - gx * cxz - gy * cyz, 0.0))
-            valid[i, j] = True
-    return slope, rms, valid
+            slope = np.sqrt(gx * gx + gy * gy) / cell
+            rms = np.sqrt(max(czz - gx * cxz - gy * cyz, 0.0))
+            if rms < rms_max:
+                level[i, j] = slope < level_max
+                sloped[i, j] = slope >= ramp_min and slope <= ramp_max
+    return level, sloped
 
 
-def _local_planes(g: _Grid, cfg: FeatureConfig):
-    """Per cell: slope (tan) and RMS residual of the plane over its window; enough cells."""
-    h = np.where(g.known, g.h, 0.0)
-    slope, rms, valid = _plane_kernel(h, g.known, cfg.window_cells // 2, cfg.min_window_cells)
-    return slope / g.cell, rms, valid
+def _local_planes(g: _Grid, cfg: FeatureConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell: whether its local plane (over its window, enough known cells) is level, and
+    whether it is sloped as a ramp's."""
+    tan = [math.tan(math.radians(d)) for d in (cfg.level_max_deg, cfg.ramp_min_deg,
+                                               cfg.ramp_max_deg)]  # fmt: skip
+    return _plane_kernel(
+        g.h, g.known, cfg.window_cells // 2, cfg.min_window_cells, g.cell, *tan, cfg.fit_rms_max_m
+    )
 
 
 def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):

@@ -354,30 +354,6 @@ def ring(mask, reach):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def highest_cells(xy, radius, offsets, ox, oy, cell, h):  # pragma: no cover - compiled
-    """Per point (N×2): the highest known cell of ``h`` among those holding the point moved by
-    ``radius`` times each offset (the first of equal ones; -inf: none known) and its i, j
-    (0, 0 when none is on the grid)."""
-    nx, ny = h.shape
-    n = xy.shape[0]
-    best = np.full(n, -np.inf)
-    bi = np.zeros(n, np.int64)
-    bj = np.zeros(n, np.int64)
-    for p in range(n):
-        for k in range(offsets.shape[0]):
-            qi = np.floor(((xy[p, 0] + radius * offsets[k, 0]) - ox) / cell)
-            qj = np.floor(((xy[p, 1] + radius * offsets[k, 1]) - oy) / cell)
-            on = qi >= 0 and qi < nx and qj >= 0 and qj < ny
-            i, j = (int(qi), int(qj)) if on else (0, 0)
-            v = h[i, j] if on else np.nan
-            if not np.isfinite(v):
-                v = -np.inf
-            if k == 0 or v > best[p]:
-                best[p], bi[p], bj[p] = v, i, j
-    return best, bi, bj
-
-
-@numba.njit(cache=True, nogil=True)
 def ramp_plane(i, j, h, var, corr, x0, y0, cell, min_grad, min_length):  # pragma: no cover
     """The inverse-variance weighted plane z = c + gx (x - x̄) + gy (y - ȳ) through cells
     ``(i, j)``: status (0: the cells lie along one line, no plane; 1: too gentle or too short
@@ -424,3 +400,117 @@ def ramp_plane(i, j, h, var, corr, x0, y0, cell, min_grad, min_length):  # pragm
         tilt = abs(psum(da * (c - cm)) / psum(da * da))
     rms = np.sqrt(psum(res * res) / n)
     return (2, xm, ym, coef, cov, tilt, rms, x.min(), x.max())
+
+
+@numba.njit(cache=True, nogil=True)
+def far_end(labels, label, y_lo, y_hi, x0, y0, cell):  # pragma: no cover - compiled
+    """The far x edge of component ``label``'s cells whose row's y lies in [y_lo, y_hi] and
+    the median of those cells' y (NaN, NaN: none)."""
+    nx, ny = labels.shape
+    ys = np.empty(nx * ny)
+    m = 0
+    x_far = -np.inf
+    for i in range(nx):
+        for j in range(ny):
+            if labels[i, j] != label:
+                continue
+            y = y0 + (j + 0.5) * cell
+            if y >= y_lo and y <= y_hi:
+                ys[m] = y
+                m += 1
+                x_far = max(x_far, x0 + (i + 0.5) * cell + cell / 2)
+    if m == 0:
+        return np.nan, np.nan
+    return x_far, median(ys[:m])
+
+
+@numba.njit(cache=True, nogil=True)
+def rows_rising_on(labels, label, h, j0, j1, look, sign, h_top, min_rise):  # pragma: no cover
+    """In how many rows j0…j1 a known cell within ``look`` cells past component ``label``'s
+    last cell lies at least ``min_rise`` further on (``sign``: +1 up, -1 down) from ``h_top``."""
+    nx = labels.shape[0]
+    rows = 0
+    for j in range(j0, j1 + 1):
+        last = -1
+        for i in range(nx):
+            if labels[i, j] == label:
+                last = i
+        if last < 0:
+            continue
+        best = -np.inf
+        seen = False
+        for i in range(last + 1, min(last + 1 + look, nx)):
+            v = h[i, j]
+            if np.isfinite(v):
+                seen = True
+                best = max(best, sign * (v - h_top))
+        if seen and best >= min_rise:
+            rows += 1
+    return rows
+
+
+@numba.njit(cache=True, nogil=True)
+def view_cells(h, var, a, b, w, max_noise):  # pragma: no cover - compiled
+    """Per cell of a grid's sums: the pose part of its σ ``b/w`` (0 where not finite, as
+    ``np.nan_to_num``; ±inf as the largest float), whether only a depth edge's flying pixels
+    hold it (a height, and its depth-noise σ ``√a/w`` not at most ``max_noise``) and whether
+    it is known (finite height and variance, not noisy)."""
+    nx, ny = h.shape
+    corr = np.empty((nx, ny))
+    noisy = np.zeros((nx, ny), np.bool_)
+    known = np.zeros((nx, ny), np.bool_)
+    for i in range(nx):
+        for j in range(ny):
+            corr[i, j] = _nan_to_num(b[i, j] / w[i, j]) if w[i, j] != 0 else _nan_to_num(
+                np.nan if b[i, j] == 0 or np.isnan(b[i, j]) else np.copysign(np.inf, b[i, j])
+            )
+            if np.isfinite(h[i, j]):
+                noise = np.sqrt(a[i, j]) / w[i, j] if w[i, j] != 0 else np.inf
+                noisy[i, j] = not noise <= max_noise
+                known[i, j] = np.isfinite(var[i, j]) and not noisy[i, j]
+    return corr, noisy, known
+
+
+@numba.njit(cache=True, nogil=True)
+def edge_groups(a, b, y, x, s, flags, n_labels, min_rows):  # pragma: no cover - compiled
+    """The rows of :func:`transitions` grouped by terrace pair (pairs in the order first met,
+    rows in order), those of at least ``min_rows`` rows fitted (:func:`fit_line`): per pair
+    kept its two labels, whether most rows are occluded, most occluded ones counted and most
+    carried, and the fit (ȳ, x̄, slope, Σ(y - ȳ)², variance, rows, y range) as a row of
+    ``fits``."""
+    m = a.size
+    key = a * (n_labels + 1) + b
+    order = np.argsort(key, kind="mergesort")
+    starts = np.empty(m + 1, np.int64)
+    g = 0
+    for k in range(m):
+        if k == 0 or key[order[k]] != key[order[k - 1]]:
+            starts[g] = k
+            g += 1
+    starts[g] = m
+    first = np.empty(g, np.int64)
+    for q in range(g):
+        first[q] = order[starts[q]]
+    pairs = np.empty((g, 5), np.int64)
+    fits = np.empty((g, 8))
+    kept = 0
+    for q in np.argsort(first, kind="mergesort"):
+        rows = np.sort(order[starts[q] : starts[q + 1]])
+        n = rows.size
+        if n < min_rows:
+            continue
+        n_oc = n_ct = n_ca = 0
+        for r in rows:
+            n_oc += flags[r, 0]
+            n_ct += flags[r, 0] and flags[r, 1]
+            n_ca += flags[r, 2]
+        occluded = n_oc / n > 0.5
+        pairs[kept, 0], pairs[kept, 1] = a[rows[0]], b[rows[0]]
+        pairs[kept, 2] = occluded
+        pairs[kept, 3] = occluded and n_ct / n_oc > 0.5
+        pairs[kept, 4] = n_ca / n > 0.5
+        ym, xm, slope, syy, var, nk, lo, hi = fit_line(y[rows], x[rows], s[rows])
+        fits[kept, 0], fits[kept, 1], fits[kept, 2], fits[kept, 3] = ym, xm, slope, syy
+        fits[kept, 4], fits[kept, 5], fits[kept, 6], fits[kept, 7] = var, nk, lo, hi
+        kept += 1
+    return pairs[:kept], fits[:kept]

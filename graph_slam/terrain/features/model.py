@@ -47,7 +47,7 @@ yaw) is not in the grid and not in these σ (docs/terrain.md, *Limits*).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 from pydantic import Field
@@ -353,12 +353,14 @@ class _Grid:
     seen beyond a drop."""
     count: np.ndarray | None = None
     """Points per cell (None: unknown); where a shadow begins inside the last cell seen."""
-    known: np.ndarray = field(init=False)
+    known: np.ndarray | None = None
+    """Cells with a finite height and variance that are not noisy (None: from those)."""
 
     def __post_init__(self) -> None:
         if self.noisy is None:
             self.noisy = np.zeros(self.h.shape, dtype=bool)
-        self.known = np.isfinite(self.h) & np.isfinite(self.var) & ~self.noisy
+        if self.known is None:
+            self.known = np.isfinite(self.h) & np.isfinite(self.var) & ~self.noisy
 
     def x_of(self, i):
         return self.x0 + (np.asarray(i) + 0.5) * self.cell

@@ -1,0 +1,99 @@
+"""Compiled loops of the clearance (numba): the grid heights under a toe path and the path
+against the features' edges, the same arithmetic in the same order as their numpy formulation
+(``tests/test_terrain_feature_kernels.py``). Compiled on first use, cached on disk
+(:mod:`graph_slam.terrain.features.kernels`)."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def highest_cells(xy, radius, offsets, ox, oy, cell, h):  # pragma: no cover - compiled
+    """Per point (N×2): the highest known cell of ``h`` among those holding the point moved by
+    ``radius`` times each offset (the first of equal ones; -inf: none known) and its i, j
+    (0, 0 when none is on the grid)."""
+    nx, ny = h.shape
+    n = xy.shape[0]
+    best = np.full(n, -np.inf)
+    bi = np.zeros(n, np.int64)
+    bj = np.zeros(n, np.int64)
+    for p in range(n):
+        for k in range(offsets.shape[0]):
+            qi = np.floor(((xy[p, 0] + radius * offsets[k, 0]) - ox) / cell)
+            qj = np.floor(((xy[p, 1] + radius * offsets[k, 1]) - oy) / cell)
+            on = qi >= 0 and qi < nx and qj >= 0 and qj < ny
+            i, j = (int(qi), int(qj)) if on else (0, 0)
+            v = h[i, j] if on else np.nan
+            if not np.isfinite(v):
+                v = -np.inf
+            if k == 0 or v > best[p]:
+                best[p], bi[p], bj[p] = v, i, j
+    return best, bi, bj
+
+
+@numba.njit(cache=True, nogil=True)
+def edge_bands(px, py, x_m, y_m, cos_yaw, sin_yaw, lo, hi, band_m):  # pragma: no cover
+    """Per point: the last edge (index; -1: none) within ``band_m`` of it along the edge's
+    normal, inside the edge's y range (± 2 cm), and whether it lies on the edge's far side."""
+    n = px.size
+    which = np.full(n, -1, np.int64)
+    far_side = np.zeros(n, np.bool_)
+    for e in range(x_m.size):
+        for p in range(n):
+            d = (px[p] - x_m[e]) * cos_yaw[e] + (py[p] - y_m[e]) * sin_yaw[e]
+            if abs(d) <= band_m and py[p] >= lo[e] - 0.02 and py[p] <= hi[e] + 0.02:
+                which[p] = e
+                far_side[p] = d >= 0
+    return which, far_side
+
+
+@numba.njit(cache=True, nogil=True)
+def _nan_min(a, b):  # pragma: no cover - compiled
+    """``np.minimum`` of two numbers (NaN when either is)."""
+    if np.isnan(a) or np.isnan(b):
+        return np.nan
+    return min(a, b)
+
+
+@numba.njit(cache=True, nogil=True)
+def _sign(v):  # pragma: no cover - compiled
+    if v > 0:
+        return 1.0
+    if v < 0:
+        return -1.0
+    return v  # ±0 or NaN, as np.sign
+
+
+@numba.njit(cache=True, nogil=True)
+def edge_profile_min(px, py, pz, x_m, y_m, cos_yaw, sin_yaw, lo, hi, band_m, near, far):
+    """Of the path's points (N each) within ``band_m`` of an edge line along its normal and
+    inside its y range (± 2 cm): the one nearest the edge's profile (its vertical face and
+    higher surface; the first of equal ones, a NaN distance first), its signed distance and
+    the derivatives by the edge's position and by the higher surface's height
+    (:func:`graph_slam.terrain.features.clearance._profile`); index -1: no point in the band."""
+    z_lo, z_hi = min(near, far), max(near, far)
+    best_k, best, best_x, best_h = -1, np.inf, 0.0, 0.0
+    for k in range(px.size):
+        d = (px[k] - x_m) * cos_yaw + (py[k] - y_m) * sin_yaw
+        if not (abs(d) <= band_m and py[k] >= lo - 0.02 and py[k] <= hi + 0.02):
+            continue
+        z = pz[k]
+        high_side = d >= 0 if far >= near else d <= 0
+        to_high = abs(z - z_hi) if high_side else np.inf
+        dz = z - min(max(z, z_lo), z_hi)
+        to_face = np.hypot(d, dz)
+        below = z < z_hi if high_side else z < z_lo
+        sign = -1.0 if below else 1.0
+        dist = sign * _nan_min(to_high, to_face)
+        if best_k >= 0 and np.isnan(best):
+            break
+        if best_k < 0 or np.isnan(dist) or dist < best:
+            if to_high <= to_face:
+                by_x, by_h = 0.0, -_sign(z - z_hi)
+            else:
+                by_x = -d / max(to_face, 1e-9)
+                by_h = -dz / max(to_face, 1e-9) if z > z_hi else 0.0
+            best_k, best, best_x, best_h = k, dist, sign * by_x, sign * by_h
+    return best_k, best, best_x, best_h
