@@ -174,29 +174,24 @@ def finite_or(v, nan: float = 0.0) -> float:
 _OFFSETS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
 
 
-def _independent_sigma(view, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """Cells ``(i, j)``'s σ less their pose part (the grid's ``B/W``): a toe path placed by
-    the same poses as the grid shares that error, and it cancels in the clearance."""
-    sums = getattr(view, "sums", None)
-    if sums is None:
-        return view.sigma_m[i, j]
-    flat = i * view.shape[1] + j
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = sums.b[flat] / sums.w[flat]
-    return np.sqrt(np.maximum(view.variance_m2[i, j] - np.nan_to_num(corr) ** 2, 0.0))
-
-
 def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per point: the highest known cell within ``radius`` (the 3×3 offsets of it) and its σ
-    without the pose part (NaN: none)."""
+    without the pose part (the grid's ``B/W``: a toe path placed by the same poses as the grid
+    shares that error, and it cancels in the clearance) (NaN: none)."""
+    h = view.height_m
+    sums = getattr(view, "sums", None)
+    if sums is None:  # no pose part known: the cells' σ
+        var, b, w = np.zeros_like(h), np.zeros_like(h), np.ones_like(h)
+    else:
+        var, b, w = view.variance_m2, sums.b.reshape(h.shape), sums.w.reshape(h.shape)
     ox, oy = (float(v) for v in view.origin_xy_m)
-    best, i, j = highest_cells(
+    ground, sigma, cells = highest_cells(
         np.ascontiguousarray(xy, np.float64), float(radius), _OFFSETS, ox, oy,
-        float(view.cell_m), view.height_m,
+        float(view.cell_m), h, var, b, w,
     )  # fmt: skip
-    found = np.isfinite(best)
-    sig = _independent_sigma(view, i, j)
-    return np.where(found, best, np.nan), np.where(found, sig, np.nan)
+    if sums is None:
+        sigma = np.where(np.isfinite(ground), view.sigma_m[cells[:, 0], cells[:, 1]], np.nan)
+    return ground, sigma
 
 
 def clearance_profile(

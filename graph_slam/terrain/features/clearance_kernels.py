@@ -10,27 +10,36 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def highest_cells(xy, radius, offsets, ox, oy, cell, h):  # pragma: no cover - compiled
+def highest_cells(xy, radius, offsets, ox, oy, cell, h, var, b, w):  # pragma: no cover
     """Per point (N×2): the highest known cell of ``h`` among those holding the point moved by
-    ``radius`` times each offset (the first of equal ones; -inf: none known) and its i, j
-    (0, 0 when none is on the grid)."""
+    ``radius`` times each offset (the first of equal ones), its σ less the pose part,
+    ``√max(var - (b/w)², 0)`` (``b/w`` 0 where not finite, as ``np.nan_to_num``), and its
+    i, j; NaN, NaN, 0, 0 where none is known."""
     nx, ny = h.shape
     n = xy.shape[0]
-    best = np.full(n, -np.inf)
-    bi = np.zeros(n, np.int64)
-    bj = np.zeros(n, np.int64)
+    ground = np.full(n, np.nan)
+    sigma = np.full(n, np.nan)
+    cells = np.zeros((n, 2), np.int64)
     for p in range(n):
+        best, bi, bj = -np.inf, 0, 0
         for k in range(offsets.shape[0]):
             qi = np.floor(((xy[p, 0] + radius * offsets[k, 0]) - ox) / cell)
             qj = np.floor(((xy[p, 1] + radius * offsets[k, 1]) - oy) / cell)
-            on = qi >= 0 and qi < nx and qj >= 0 and qj < ny
-            i, j = (int(qi), int(qj)) if on else (0, 0)
-            v = h[i, j] if on else np.nan
-            if not np.isfinite(v):
-                v = -np.inf
-            if k == 0 or v > best[p]:
-                best[p], bi[p], bj[p] = v, i, j
-    return best, bi, bj
+            if not (qi >= 0 and qi < nx and qj >= 0 and qj < ny):
+                continue
+            i, j = int(qi), int(qj)
+            v = h[i, j]
+            if np.isfinite(v) and v > best:
+                best, bi, bj = v, i, j
+        if best > -np.inf:
+            ground[p] = best
+            cells[p, 0], cells[p, 1] = bi, bj
+            corr = b[bi, bj] / w[bi, bj] if w[bi, bj] != 0 else 0.0
+            corr = corr if np.isfinite(corr) else 0.0 if np.isnan(corr) else np.copysign(
+                np.finfo(np.float64).max, corr)
+            rest = var[bi, bj] - corr * corr
+            sigma[p] = np.sqrt(rest if rest > 0.0 or np.isnan(rest) else 0.0)
+    return ground, sigma, cells
 
 
 @numba.njit(cache=True, nogil=True)

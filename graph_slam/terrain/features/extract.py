@@ -185,8 +185,7 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
     for k in np.flatnonzero(sizes >= cfg.min_ramp_cells):
         if k == 0:
             continue
-        mask = comp == k
-        i, j = np.nonzero(mask)
+        i, j = np.nonzero(comp == k)
         status, xm, ym, coef, cov, tilt, rms, x_lo, x_hi = kernels.ramp_plane(
             i, j, g.h, g.var, g.corr, g.x0, g.y0, g.cell, min_grad, cfg.min_ramp_length_m
         )
@@ -202,7 +201,7 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         )
         perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
         yaw_sigma = math.sqrt(max(float(perp @ cov[1:, 1:] @ perp), 0.0))
-        start = _ramp_start(g, mask, labels, terraces, coef, (xm, ym), cov)
+        start = _ramp_start(g, comp, k, j, labels, terraces, coef, (xm, ym), cov)
         out.append(
             Ramp(
                 slope_rad=math.atan(grad),
@@ -218,21 +217,21 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
     return out
 
 
-def _ramp_start(g: _Grid, mask, labels, terraces: dict, coef, centre, cov) -> EdgeLine | None:
+def _ramp_start(g: _Grid, comp, k, j, labels, terraces: dict, coef, centre, cov) -> EdgeLine | None:
+    """The start line of ramp ``k`` of ``comp`` (cells in rows ``j``): the plane's
+    intersection with the terrace it is entered from (None: none seen before it)."""
     c, gx, gy = (float(v) for v in coef)
     if abs(gx) < 1e-6:
         return None
     xm, ym = centre
-    ri, rj = kernels.ring(mask, 4)  # the cells within 4 (4-neighbour steps) of the ramp
-    lab = labels[ri, rj]
+    # the labels within 4 cells (4-neighbour steps) of the ramp, their cells' mean x there
+    found, mean_x = kernels.ring_terraces(comp, k, labels, 4, g.x0, g.cell)
     # the terrace the ramp is entered from lies before it along x: a terrace met only beyond
     # it (the landing at its top, the ramp's start out of view) gives no start line
-    near = [t for t in np.unique(lab) if t in terraces
-            and float(np.mean(g.x_of(ri[lab == t]))) < xm]  # fmt: skip
+    near = [int(t) for t, mx in zip(found, mean_x, strict=True) if int(t) in terraces and mx < xm]
     if not near:
         return None
     t = min(near, key=lambda t: terraces[t]["i"][0])
-    j = np.nonzero(mask)[1]
     lo, hi = float(g.y_of(j.min())), float(g.y_of(j.max()))
     yr = min(max(0.0, lo), hi)
     h0 = terraces[t]["h"]

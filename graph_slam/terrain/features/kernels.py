@@ -70,7 +70,8 @@ def label4(mask):  # pragma: no cover - compiled
     row-major order (as :func:`scipy.ndimage.label` with its default structure); 0 outside."""
     nx, ny = mask.shape
     labels = np.zeros((nx, ny), np.int64)
-    stack = np.empty(nx * ny, np.int64)
+    si = np.empty(nx * ny, np.int64)
+    sj = np.empty(nx * ny, np.int64)
     n = 0
     for i0 in range(nx):
         for j0 in range(ny):
@@ -78,17 +79,17 @@ def label4(mask):  # pragma: no cover - compiled
                 continue
             n += 1
             labels[i0, j0] = n
-            stack[0] = i0 * ny + j0
+            si[0], sj[0] = i0, j0
             top = 1
             while top > 0:
                 top -= 1
-                i, j = stack[top] // ny, stack[top] % ny
+                i, j = si[top], sj[top]
                 for d in range(4):
                     a = i + (1 if d == 0 else -1 if d == 1 else 0)
                     b = j + (1 if d == 2 else -1 if d == 3 else 0)
                     if 0 <= a < nx and 0 <= b < ny and mask[a, b] and labels[a, b] == 0:
                         labels[a, b] = n
-                        stack[top] = a * ny + b
+                        si[top], sj[top] = a, b
                         top += 1
     return labels, n
 
@@ -126,12 +127,13 @@ def grow(labels, known, h, height, steps, tol):  # pragma: no cover - compiled
     after it: they fill only unlabelled cells, which it reads as 0)."""
     lab = labels.copy()
     nx, ny = lab.shape
-    free = np.empty(nx * ny, np.int64)
+    fi = np.empty(nx * ny, np.int64)
+    fj = np.empty(nx * ny, np.int64)
     n_free = 0
     for i in range(nx):
         for j in range(ny):
             if known[i, j] and lab[i, j] == 0:
-                free[n_free] = i * ny + j
+                fi[n_free], fj[n_free] = i, j
                 n_free += 1
     taken = np.empty(nx * ny, np.int64)
     value = np.empty(nx * ny, np.int64)
@@ -143,23 +145,23 @@ def grow(labels, known, h, height, steps, tol):  # pragma: no cover - compiled
             dj = 1 if d == 2 else -1 if d == 3 else 0
             m = 0
             for k in range(n_free):
-                i, j = free[k] // ny, free[k] % ny
-                a, b = i - di, j - dj
+                a, b = fi[k] - di, fj[k] - dj
                 if a < 0 or a >= nx or b < 0 or b >= ny:
                     continue
                 nb = lab[a, b]
-                if nb > 0 and abs(h[i, j] - height[nb]) <= tol:
-                    taken[m], value[m] = free[k], nb
+                if nb > 0 and abs(h[fi[k], fj[k]] - height[nb]) <= tol:
+                    taken[m], value[m] = k, nb
                     m += 1
-            for k in range(m):
-                lab[taken[k] // ny, taken[k] % ny] = value[k]
-            if m > 0:  # the cells still free, in order
-                kept = 0
-                for k in range(n_free):
-                    if lab[free[k] // ny, free[k] % ny] == 0:
-                        free[kept] = free[k]
-                        kept += 1
-                n_free = kept
+            if m == 0:
+                continue
+            for q in range(m):
+                lab[fi[taken[q]], fj[taken[q]]] = value[q]
+            kept = 0  # the cells still free, in order
+            for k in range(n_free):
+                if lab[fi[k], fj[k]] == 0:
+                    fi[kept], fj[kept] = fi[k], fj[k]
+                    kept += 1
+            n_free = kept
     return lab
 
 
@@ -319,15 +321,15 @@ def fit_line(y, x, s):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def ring(mask, reach):  # pragma: no cover - compiled
-    """The cells not in ``mask`` within ``reach`` 4-neighbour steps of it (its
-    ``scipy.ndimage.binary_dilation`` by the cross, ``reach`` times, less itself), row-major:
-    their i and j."""
-    nx, ny = mask.shape
+def ring(comp, k, reach):  # pragma: no cover - compiled
+    """The cells not in component ``k`` of ``comp`` within ``reach`` 4-neighbour steps of it
+    (its ``scipy.ndimage.binary_dilation`` by the cross, ``reach`` times, less itself),
+    row-major: their i and j."""
+    nx, ny = comp.shape
     lo_i, hi_i, lo_j, hi_j = nx, -1, ny, -1
     for i in range(nx):
         for j in range(ny):
-            if mask[i, j]:
+            if comp[i, j] == k:
                 lo_i, hi_i = min(lo_i, i), max(hi_i, i)
                 lo_j, hi_j = min(lo_j, j), max(hi_j, j)
     cap = max((hi_i - lo_i + 1 + 2 * reach) * (hi_j - lo_j + 1 + 2 * reach), 0)
@@ -336,13 +338,13 @@ def ring(mask, reach):  # pragma: no cover - compiled
     m = 0
     for i in range(max(lo_i - reach, 0), min(hi_i + reach + 1, nx)):
         for j in range(max(lo_j - reach, 0), min(hi_j + reach + 1, ny)):
-            if mask[i, j]:
+            if comp[i, j] == k:
                 continue
             found = False
             for a in range(max(i - reach, 0), min(i + reach + 1, nx)):
                 r = reach - abs(a - i)
                 for b in range(max(j - r, 0), min(j + r + 1, ny)):
-                    if mask[a, b]:
+                    if comp[a, b] == k:
                         found = True
                         break
                 if found:
@@ -351,6 +353,27 @@ def ring(mask, reach):  # pragma: no cover - compiled
                 out_i[m], out_j[m] = i, j
                 m += 1
     return out_i[:m], out_j[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def ring_terraces(comp, k, labels, reach, x0, cell):  # pragma: no cover - compiled
+    """The labels met in component ``k``'s :func:`ring` (sorted, 0 included when met) and per
+    label the mean x of its ring cells (numpy's sum, row-major order)."""
+    ri, rj = ring(comp, k, reach)
+    lab = np.empty(ri.size, np.int64)
+    for q in range(ri.size):
+        lab[q] = labels[ri[q], rj[q]]
+    found = np.unique(lab)
+    mean_x = np.empty(found.size)
+    xs = np.empty(ri.size)
+    for u in range(found.size):
+        m = 0
+        for q in range(ri.size):
+            if lab[q] == found[u]:
+                xs[m] = x0 + (ri[q] + 0.5) * cell
+                m += 1
+        mean_x[u] = psum(xs[:m]) / m
+    return found, mean_x
 
 
 @numba.njit(cache=True, nogil=True)
