@@ -90,36 +90,69 @@ def _features(g: _Grid, cfg: FeatureConfig, t_s: float, stride_index: int, sourc
 
 
 @numba.njit(cache=True, nogil=True)
+def _box(table, a0, a1, b0, b1):  # pragma: no cover - compiled
+    """The sum over cells [a0, a1) × [b0, b1) of a summed-area table."""
+    return table[a1, b1] - table[a0, b1] - table[a1, b0] + table[a0, b0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _moment_tables(known):  # pragma: no cover - compiled
+    """Summed-area tables of the known cells' count, a, b, a², ab and b² (integers: exact)."""
+    nx, ny = known.shape
+    t = np.zeros((6, nx + 1, ny + 1), np.int64)
+    for a in range(nx):
+        r = np.zeros(6, np.int64)
+        for b in range(ny):
+            if known[a, b]:
+                r[0] += 1
+                r[1] += a
+                r[2] += b
+                r[3] += a * a
+                r[4] += a * b
+                r[5] += b * b
+            for m in range(6):
+                t[m, a + 1, b + 1] = t[m, a, b + 1] + r[m]
+    return t
+
+
+@numba.njit(cache=True, nogil=True)
 def _plane_kernel(h, known, half, min_cells, cell, level_max, ramp_min, ramp_max, rms_max):
     """Per known cell: the least-squares plane over its window's known cells (height per
     cell: slope over ``cell`` is its tan), and whether it is level (slope under
     ``level_max``) or sloped (between ``ramp_min`` and ``ramp_max``) with an RMS residual
-    under ``rms_max``; neither where the window holds fewer than ``min_cells``."""
+    under ``rms_max``; neither where the window holds fewer than ``min_cells``. The window's
+    cell offsets' moments are whole numbers, taken from summed-area tables (exact); the
+    heights' sums run over the window in order."""
     nx, ny = h.shape
+    t = _moment_tables(known)
     level = np.zeros((nx, ny), dtype=np.bool_)
     sloped = np.zeros((nx, ny), dtype=np.bool_)
     for i in range(nx):
+        a0, a1 = max(i - half, 0), min(i + half + 1, nx)
         for j in range(ny):
             if not known[i, j]:
                 continue
-            n = sx = sy = sz = sxx = sxy = syy = sxz = syz = szz = 0.0
-            z0 = h[i, j]
-            for a in range(max(i - half, 0), min(i + half + 1, nx)):
-                for b in range(max(j - half, 0), min(j + half + 1, ny)):
-                    if known[a, b]:
-                        x, y, z = a - i, b - j, h[a, b] - z0
-                        n += 1.0
-                        sx += x
-                        sy += y
-                        sz += z
-                        sxx += x * x
-                        sxy += x * y
-                        syy += y * y
-                        sxz += x * z
-                        syz += y * z
-                        szz += z * z
+            b0, b1 = max(j - half, 0), min(j + half + 1, ny)
+            k = _box(t[0], a0, a1, b0, b1)
+            n = float(k)
             if n < min_cells:
                 continue
+            sa, sb = _box(t[1], a0, a1, b0, b1), _box(t[2], a0, a1, b0, b1)
+            sx, sy = float(sa - i * k), float(sb - j * k)
+            sxx = float(_box(t[3], a0, a1, b0, b1) - 2 * i * sa + i * i * k)
+            sxy = float(_box(t[4], a0, a1, b0, b1) - i * sb - j * sa + i * j * k)
+            syy = float(_box(t[5], a0, a1, b0, b1) - 2 * j * sb + j * j * k)
+            z0 = h[i, j]
+            sz = sxz = syz = szz = 0.0
+            for a in range(a0, a1):
+                x = float(a - i)
+                for b in range(b0, b1):
+                    if known[a, b]:
+                        z = h[a, b] - z0
+                        sz += z
+                        sxz += x * z
+                        syz += (b - j) * z
+                        szz += z * z
             mx, my, mz = sx / n, sy / n, sz / n
             cxx, cxy, cyy = sxx / n - mx * mx, sxy / n - mx * my, syy / n - my * my
             cxz, cyz, czz = sxz / n - mx * mz, syz / n - my * mz, szz / n - mz * mz

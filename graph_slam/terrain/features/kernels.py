@@ -120,48 +120,68 @@ def terrace_sums(labels, n, h, var, corr):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _add_free_neighbours(lab, known, queued, ci, cj, n, i, j):  # pragma: no cover - compiled
+    """Queue the known unlabelled 4-neighbours of cell (i, j) not queued yet."""
+    nx, ny = lab.shape
+    for d in range(4):
+        a = i + (1 if d == 0 else -1 if d == 1 else 0)
+        b = j + (1 if d == 2 else -1 if d == 3 else 0)
+        if 0 <= a < nx and 0 <= b < ny and known[a, b] and lab[a, b] == 0 and not queued[a, b]:
+            queued[a, b] = True
+            ci[n], cj[n] = a, b
+            n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True)
 def grow(labels, known, h, height, steps, tol):  # pragma: no cover - compiled
     """Each labelled component grown by up to ``steps`` cells into the known unlabelled cells
     within ``tol`` of its ``height``: per step the four neighbours in turn (+x, -x, +y, -y),
     each pass reading the labels as the previous pass left them (a pass's own writes land
-    after it: they fill only unlabelled cells, which it reads as 0)."""
+    after it: they fill only unlabelled cells, which it reads as 0). A pass can only take a
+    free cell next to a labelled one: those are the candidates it visits (the free
+    neighbours of the labelled cells, and of each cell it labels), in any order (its writes
+    land after it)."""
     lab = labels.copy()
     nx, ny = lab.shape
-    fi = np.empty(nx * ny, np.int64)
-    fj = np.empty(nx * ny, np.int64)
-    n_free = 0
+    queued = np.zeros((nx, ny), np.bool_)
+    ci = np.empty(nx * ny, np.int64)
+    cj = np.empty(nx * ny, np.int64)
+    n = 0
     for i in range(nx):
         for j in range(ny):
-            if known[i, j] and lab[i, j] == 0:
-                fi[n_free], fj[n_free] = i, j
-                n_free += 1
-    taken = np.empty(nx * ny, np.int64)
+            if lab[i, j] > 0:
+                n = _add_free_neighbours(lab, known, queued, ci, cj, n, i, j)
+    ti = np.empty(nx * ny, np.int64)
+    tj = np.empty(nx * ny, np.int64)
     value = np.empty(nx * ny, np.int64)
     for _ in range(steps):
-        if n_free == 0:
+        if n == 0:
             break
         for d in range(4):
             di = 1 if d == 0 else -1 if d == 1 else 0
             dj = 1 if d == 2 else -1 if d == 3 else 0
             m = 0
-            for k in range(n_free):
-                a, b = fi[k] - di, fj[k] - dj
+            for k in range(n):
+                a, b = ci[k] - di, cj[k] - dj
                 if a < 0 or a >= nx or b < 0 or b >= ny:
                     continue
                 nb = lab[a, b]
-                if nb > 0 and abs(h[fi[k], fj[k]] - height[nb]) <= tol:
-                    taken[m], value[m] = k, nb
+                if nb > 0 and abs(h[ci[k], cj[k]] - height[nb]) <= tol:
+                    ti[m], tj[m], value[m] = ci[k], cj[k], nb
                     m += 1
             if m == 0:
                 continue
             for q in range(m):
-                lab[fi[taken[q]], fj[taken[q]]] = value[q]
-            kept = 0  # the cells still free, in order
-            for k in range(n_free):
-                if lab[fi[k], fj[k]] == 0:
-                    fi[kept], fj[kept] = fi[k], fj[k]
+                lab[ti[q], tj[q]] = value[q]
+            kept = 0  # the candidates still free
+            for k in range(n):
+                if lab[ci[k], cj[k]] == 0:
+                    ci[kept], cj[kept] = ci[k], cj[k]
                     kept += 1
-            n_free = kept
+            n = kept
+            for q in range(m):  # and the new cells' free neighbours
+                n = _add_free_neighbours(lab, known, queued, ci, cj, n, ti[q], tj[q])
     return lab
 
 
