@@ -35,8 +35,13 @@ def highest_cells(xy, radius, offsets, ox, oy, cell, h, var, b, w):  # pragma: n
             ground[p] = best
             cells[p, 0], cells[p, 1] = bi, bj
             corr = b[bi, bj] / w[bi, bj] if w[bi, bj] != 0 else 0.0
-            corr = corr if np.isfinite(corr) else 0.0 if np.isnan(corr) else np.copysign(
-                np.finfo(np.float64).max, corr)
+            corr = (
+                corr
+                if np.isfinite(corr)
+                else 0.0
+                if np.isnan(corr)
+                else np.copysign(np.finfo(np.float64).max, corr)
+            )
             rest = var[bi, bj] - corr * corr
             sigma[p] = np.sqrt(rest if rest > 0.0 or np.isnan(rest) else 0.0)
     return ground, sigma, cells

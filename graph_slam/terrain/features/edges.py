@@ -1,6 +1,6 @@
 """Step 3 of :mod:`graph_slam.terrain.features.model`: the edges across x between terraces
 (each a dict: terraces ``a`` → ``b``, its ``line``, ``rise`` and ``rise_sigma``), from the rows
-where two terraces meet (:func:`graph_slam.terrain.features.kernels.transitions`) through a
+where two terraces meet (:func:`graph_slam.terrain.features.edge_kernels.transitions`) through a
 robust line fit per terrace pair."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from graph_slam.terrain.features import kernels
+from graph_slam.terrain.features import edge_kernels
 from graph_slam.terrain.features.model import EdgeLine, FeatureConfig, _Grid
 
 
@@ -28,7 +28,7 @@ def transitions(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureCo
     (``FeatureConfig.shadow_from_counts``). Carried: both cells hold no point of this stride."""
     has_count = g.count is not None
     count = g.count if has_count else np.zeros((1, 1))
-    a, b, j, x, s, flags = kernels.transitions(
+    a, b, j, x, s, flags = edge_kernels.transitions(
         labels, height, g.h, g.var, g.noisy, count, has_count, cfg.max_gap_cells,
         cfg.min_rise_m, cfg.shadow_cell_seen, cfg.shadow_from_counts,
         float(cfg.shadow_count_min), g.x0, g.cell,
@@ -46,7 +46,7 @@ def fit_line(
 ) -> EdgeLine:
     """x = x̄ + b (y - ȳ) through the rows (3σ outliers out), reported at ``y_ref`` clipped into
     the rows seen; ``common_sigma_m``: an error every row shares (it does not average out)."""
-    fit = kernels.fit_line(
+    fit = edge_kernels.fit_line(
         np.ascontiguousarray(y, np.float64), np.ascontiguousarray(x, np.float64),
         np.ascontiguousarray(s, np.float64),
     )  # fmt: skip
@@ -54,7 +54,7 @@ def fit_line(
 
 
 def _line_of(fit, occluded: bool, y_ref: float, common_sigma_m: float) -> EdgeLine:
-    """The EdgeLine of a fit (:func:`graph_slam.terrain.features.kernels.fit_line`)."""
+    """The EdgeLine of a fit (:func:`graph_slam.terrain.features.edge_kernels.fit_line`)."""
     ym, xm, b, syy, var, n, lo, hi = (float(v) for v in fit)
     sb = math.sqrt(var / syy) if syy > 0 else math.inf
     yr = min(max(y_ref, lo), hi)
@@ -80,7 +80,7 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
     a, b, y, x, s, flags = transitions(g, labels, height, cfg)
     if a.size == 0:
         return []
-    pairs, fits = kernels.edge_groups(a, b, y, x, s, flags, len(height), cfg.min_edge_rows)
+    pairs, fits = edge_kernels.edge_groups(a, b, y, x, s, flags, len(height), cfg.min_edge_rows)
     out = []
     for (la, lb, occluded, counted, carried), fit in zip(pairs, fits, strict=True):
         part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma

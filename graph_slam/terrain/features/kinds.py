@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from graph_slam.terrain.features import kernels
+from graph_slam.terrain.features import edge_kernels
 from graph_slam.terrain.features.model import (
     BoxFeature,
     Curb,
@@ -64,7 +64,7 @@ def _same_box(edges: list[dict], top: int, floor_m: float, terraces: dict, cfg: 
 def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, ascending_x: bool) -> float:
     """How far the terrace runs on beyond the edge (m, along x in the edge's rows)."""
     lo, hi = line.y_range_m
-    x_far, y_mid = kernels.far_end(labels, terrace, lo - 1e-9, hi + 1e-9, g.x0, g.y0, g.cell)
+    x_far, y_mid = edge_kernels.far_end(labels, terrace, lo - 1e-9, hi + 1e-9, g.x0, g.y0, g.cell)
     if not math.isfinite(x_far):
         return 0.0
     return float(x_far - line.x_at(float(y_mid)))
@@ -81,7 +81,7 @@ def _further_rise(g: _Grid, labels, edge: dict, terraces: dict, cfg: FeatureConf
     j0 = max(math.floor((lo - g.y0) / g.cell), 0)
     j1 = min(math.floor((hi - g.y0) / g.cell), g.h.shape[1] - 1)
     look = cfg.max_gap_cells + 1
-    rows = kernels.rows_rising_on(
+    rows = edge_kernels.rows_rising_on(
         labels, b, g.h, j0, j1, look, sign, terraces[b]["h"], cfg.min_rise_m
     )
     return rows >= cfg.min_edge_rows
