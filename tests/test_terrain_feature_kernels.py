@@ -406,3 +406,35 @@ def test_toe_cells_and_edge_profile(seed):
                                         np.array([c]), np.array([sn]), np.array([-0.15]),
                                         np.array([0.15]), 0.04)  # fmt: skip
         assert np.array_equal(which >= 0, band) and np.array_equal(far_side[band], d[band] >= 0)
+
+
+def test_warm_up_takes_every_compiled_loop():
+    """The live warm-up's made-up grid reaches every kernel the features and the prediction
+    call (each has a compiled signature after it) and finds what it was made of."""
+
+    from graph_slam.terrain.features import extract
+    from graph_slam.terrain.features.warm import warm_up
+    from graph_slam.terrain.grid import view
+
+    features, clearance = warm_up()
+    assert [s.n_steps for s in features.stairs] == [3] and len(features.curbs) == 1
+    assert len(features.ramps) == 1 and features.ramps[0].start is not None
+    assert clearance.terrain == "curb" and math.isfinite(clearance.edge_m)
+    called = {  # the loops the features and the prediction call from Python
+        K: (
+            "label4",
+            "terrace_sums",
+            "grow",
+            "extents",
+            "ring_terraces",
+            "ramp_plane",
+            "view_cells",
+        ),
+        E: ("transitions", "edge_groups", "far_end", "rows_rising_on"),
+        ck: ("highest_cells", "edge_bands", "edge_profile_min"),
+        extract: ("_plane_kernel",),
+        view: ("_height_variance",),
+    }
+    for module, names in called.items():
+        for name in names:
+            assert getattr(module, name).signatures, f"{module.__name__}.{name} not compiled"
