@@ -408,6 +408,27 @@ def test_toe_cells_and_edge_profile(seed):
         assert np.array_equal(which >= 0, band) and np.array_equal(far_side[band], d[band] >= 0)
 
 
+def test_resampled_path_as_numpy():
+    def ref(p, step):
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        s = np.concatenate([[0.0], np.cumsum(seg)])
+        if not math.isfinite(s[-1]) or s[-1] <= 0:
+            return p
+        u = np.unique(np.concatenate([s, np.arange(0.0, s[-1], step)]))
+        return np.column_stack([np.interp(u, s, p[:, k]) for k in range(3)])
+
+    rng = np.random.default_rng(5)
+    for t in range(200):
+        n = int(rng.integers(2, 80))
+        p = np.cumsum(rng.normal(0, 0.01, (n, 3)), axis=0)
+        if t % 4 == 0:  # repeated points: zero-length segments
+            p[1 : min(4, n)] = p[0]
+        got = ck.resample(p, 0.005)
+        assert got.shape == ref(p, 0.005).shape and np.array_equal(got, ref(p, 0.005))
+    still = np.zeros((5, 3))
+    assert np.array_equal(ck.resample(still, 0.005), still)
+
+
 def test_warm_up_takes_every_compiled_loop():
     """The live warm-up's made-up grid reaches every kernel the features and the prediction
     call (each has a compiled signature after it) and finds what it was made of."""
@@ -431,7 +452,7 @@ def test_warm_up_takes_every_compiled_loop():
             "view_cells",
         ),
         E: ("transitions", "edge_groups", "far_end", "rows_rising_on"),
-        ck: ("highest_cells", "edge_bands", "edge_profile_min"),
+        ck: ("highest_cells", "edge_bands", "edge_profile_min", "resample"),
         extract: ("_plane_kernel",),
         view: ("_height_variance",),
     }

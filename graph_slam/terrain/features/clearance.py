@@ -45,6 +45,7 @@ from graph_slam.terrain.features.clearance_kernels import (
     edge_bands,
     edge_profile_min,
     highest_cells,
+    resample,
 )
 from graph_slam.terrain.features.model import TerrainFeatures, _plain
 
@@ -256,12 +257,7 @@ def resample_path(toe_xyz_m: np.ndarray, step_m: float) -> np.ndarray:
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
     if len(p) < 2:
         return p
-    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if not math.isfinite(s[-1]) or s[-1] <= 0:
-        return p
-    u = np.unique(np.concatenate([s, np.arange(0.0, s[-1], step_m)]))
-    return np.column_stack([np.interp(u, s, p[:, k]) for k in range(3)])
+    return resample(np.ascontiguousarray(p), float(step_m))
 
 
 def _profile_distance(d: np.ndarray, z: np.ndarray, near: float, far: float) -> np.ndarray:

@@ -111,3 +111,23 @@ def edge_profile_min(px, py, pz, x_m, y_m, cos_yaw, sin_yaw, lo, hi, band_m, nea
                 by_h = -dz / max(to_face, 1e-9) if z > z_hi else 0.0
             best_k, best, best_x, best_h = k, dist, sign * by_x, sign * by_h
     return best_k, best, best_x, best_h
+
+
+@numba.njit(cache=True, nogil=True)
+def resample(p, step):  # pragma: no cover - compiled
+    """A path (N×3, N ≥ 2) linearly resampled at its vertices and every ``step`` of its length
+    from its start (:func:`graph_slam.terrain.features.clearance.resample_path`); the path
+    itself when its length is not finite and positive."""
+    n = p.shape[0]
+    s = np.empty(n)
+    s[0] = 0.0
+    for k in range(n - 1):
+        dx, dy, dz = p[k + 1, 0] - p[k, 0], p[k + 1, 1] - p[k, 1], p[k + 1, 2] - p[k, 2]
+        s[k + 1] = s[k] + np.sqrt(dx * dx + dy * dy + dz * dz)  # 0 + x is x: as np.cumsum
+    if not (np.isfinite(s[-1]) and s[-1] > 0):
+        return p.copy()
+    u = np.unique(np.concatenate((s, np.arange(0.0, s[-1], step))))
+    out = np.empty((u.size, 3))
+    for c in range(3):
+        out[:, c] = np.interp(u, s, np.ascontiguousarray(p[:, c]))
+    return out
