@@ -122,7 +122,8 @@ def _plane_kernel(h, known, half, min_cells, cell, level_max, ramp_min, ramp_max
     ``level_max``) or sloped (between ``ramp_min`` and ``ramp_max``) with an RMS residual
     under ``rms_max``; neither where the window holds fewer than ``min_cells``. The window's
     cell offsets' moments are whole numbers, taken from summed-area tables (exact); the
-    heights' sums run over the window in order."""
+    heights' sums run over the window in order (a window all known: without testing each
+    cell)."""
     nx, ny = h.shape
     t = _moment_tables(known)
     level = np.zeros((nx, ny), dtype=np.bool_)
@@ -144,15 +145,25 @@ def _plane_kernel(h, known, half, min_cells, cell, level_max, ramp_min, ramp_max
             syy = float(_box(t[5], a0, a1, b0, b1) - 2 * j * sb + j * j * k)
             z0 = h[i, j]
             sz = sxz = syz = szz = 0.0
-            for a in range(a0, a1):
-                x = float(a - i)
-                for b in range(b0, b1):
-                    if known[a, b]:
-                        z = h[a, b] - z0
+            if half == 2 and k == 25:  # the default window, all known: unrolled, no test
+                for da in range(-2, 3):
+                    x = float(da)
+                    for db in range(-2, 3):
+                        z = h[i + da, j + db] - z0
                         sz += z
                         sxz += x * z
-                        syz += (b - j) * z
+                        syz += db * z
                         szz += z * z
+            else:
+                for a in range(a0, a1):
+                    x = float(a - i)
+                    for b in range(b0, b1):
+                        if known[a, b]:
+                            z = h[a, b] - z0
+                            sz += z
+                            sxz += x * z
+                            syz += (b - j) * z
+                            szz += z * z
             mx, my, mz = sx / n, sy / n, sz / n
             cxx, cxy, cyy = sxx / n - mx * mx, sxy / n - mx * my, syy / n - my * my
             cxz, cyz, czz = sxz / n - mx * mz, syz / n - my * mz, szz / n - mz * mz
