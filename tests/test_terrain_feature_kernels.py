@@ -194,6 +194,36 @@ def test_components_numbered_as_scipy(density):
     assert n == n_ref and np.array_equal(labels, ref)
 
 
+@pytest.mark.parametrize("density", [0.5, 0.65])
+def test_big_components_and_their_cells(density):
+    mask = np.random.default_rng(int(density * 100)).uniform(size=(NX, NY)) < density
+    comp, ks, starts, ci, cj = K.big_components(mask, 20)
+    ref, n = ndimage.label(mask)
+    sizes = np.bincount(ref.ravel(), minlength=n + 1)
+    want = [k for k in np.flatnonzero(sizes >= 20) if k > 0]
+    assert np.array_equal(comp, ref) and list(ks) == want and len(want) > 0
+    for q, k in enumerate(ks):
+        i, j = np.nonzero(ref == k)
+        assert np.array_equal(ci[starts[q] : starts[q + 1]], i)
+        assert np.array_equal(cj[starts[q] : starts[q + 1]], j)
+
+
+def test_slope_sigmas_as_numpy():
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        m = rng.normal(size=(3, 3))
+        cov = m @ m.T * 1e-6
+        gx, gy, tilt = rng.normal(0.1, 0.05), rng.normal(0.0, 0.05), rng.uniform(0, 1e-3)
+        grad = math.hypot(gx, gy)
+        jac = np.array([gx, gy]) / grad
+        perp = np.array([-gy, gx]) / grad**2
+        want = (
+            math.hypot(math.sqrt(float(jac @ cov[1:, 1:] @ jac)), tilt) / (1 + grad * grad),
+            math.sqrt(max(float(perp @ cov[1:, 1:] @ perp), 0.0)),
+        )
+        np.testing.assert_allclose(K.slope_sigmas(gx, gy, cov, tilt), want, rtol=1e-12)
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 def test_planes_as_the_window_loop(seed):
     g = scene(seed)

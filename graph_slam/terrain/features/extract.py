@@ -222,14 +222,11 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
 def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list[Ramp]:
     """One plane per component of sloped cells; its start line on the terrace it is entered
     from (the adjacent terrace nearest the heel)."""
-    comp, n = kernels.label4(sloped)
-    sizes = np.bincount(comp.ravel(), minlength=n + 1)
+    comp, ks, starts, ci, cj = kernels.big_components(sloped, cfg.min_ramp_cells)
     min_grad = math.tan(math.radians(cfg.ramp_min_deg))
     out = []
-    for k in np.flatnonzero(sizes >= cfg.min_ramp_cells):
-        if k == 0:
-            continue
-        i, j = np.nonzero(comp == k)
+    for q, k in enumerate(ks):
+        i, j = ci[starts[q] : starts[q + 1]], cj[starts[q] : starts[q + 1]]
         status, xm, ym, coef, cov, tilt, rms, x_lo, x_hi = kernels.ramp_plane(
             i, j, g.h, g.var, g.corr, g.x0, g.y0, g.cell, min_grad, cfg.min_ramp_length_m
         )
@@ -237,21 +234,16 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
             continue  # cells along one line (no plane), or the flanks of an edge (no ramp)
         gx, gy = float(coef[1]), float(coef[2])
         grad = math.hypot(gx, gy)
-        jac = np.array([gx, gy]) / max(grad, 1e-12)
         # a pose's tilt tilts the whole plane: the pose part of the cells' σ (correlated, it
         # does not average) changes along the slope by about that tilt's σ per metre (tilt)
-        slope_sigma = math.hypot(math.sqrt(float(jac @ cov[1:, 1:] @ jac)), tilt) / (
-            1 + grad * grad
-        )
-        perp = np.array([-gy, gx]) / max(grad * grad, 1e-12)
-        yaw_sigma = math.sqrt(max(float(perp @ cov[1:, 1:] @ perp), 0.0))
+        slope_sigma, yaw_sigma = kernels.slope_sigmas(gx, gy, cov, tilt)
         start = _ramp_start(g, comp, k, j, labels, terraces, coef, (xm, ym), cov)
         out.append(
             Ramp(
                 slope_rad=math.atan(grad),
-                slope_sigma_rad=slope_sigma,
+                slope_sigma_rad=float(slope_sigma),
                 uphill_yaw_rad=math.atan2(gy, gx),
-                uphill_yaw_sigma_rad=yaw_sigma,
+                uphill_yaw_sigma_rad=float(yaw_sigma),
                 start=start,
                 n_cells=int(i.size),
                 rms_m=float(rms),

@@ -324,6 +324,53 @@ def ramp_plane(i, j, h, var, corr, x0, y0, cell, min_grad, min_length):  # pragm
 
 
 @numba.njit(cache=True, nogil=True)
+def slope_sigmas(gx, gy, cov, tilt):  # pragma: no cover - compiled
+    """σ of a plane's slope angle (its gradient's σ along the gradient, and ``tilt``) and of
+    its uphill direction, from the covariance of (c, gx, gy)."""
+    grad = np.hypot(gx, gy)
+    jx, jy = gx / max(grad, 1e-12), gy / max(grad, 1e-12)
+    along = (jx * cov[1, 1] + jy * cov[2, 1]) * jx + (jx * cov[1, 2] + jy * cov[2, 2]) * jy
+    slope_sigma = np.hypot(np.sqrt(along), tilt) / (1 + grad * grad)
+    px, py = -gy / max(grad * grad, 1e-12), gx / max(grad * grad, 1e-12)
+    across = (px * cov[1, 1] + py * cov[2, 1]) * px + (px * cov[1, 2] + py * cov[2, 2]) * py
+    return slope_sigma, np.sqrt(max(across, 0.0))
+
+
+@numba.njit(cache=True, nogil=True)
+def big_components(mask, min_cells):  # pragma: no cover - compiled
+    """The 4-connected components of ``mask`` (:func:`label4`) and, of those with at least
+    ``min_cells`` cells (in label order), the labels and the cells (row-major): component q's
+    cells are ``i[starts[q]:starts[q + 1]]``, ``j[…]``."""
+    comp, n = label4(mask)
+    nx, ny = comp.shape
+    sizes = np.zeros(n + 1, np.int64)
+    for a in range(nx):
+        for b in range(ny):
+            sizes[comp[a, b]] += 1
+    slot = np.full(n + 1, -1, np.int64)
+    ks = np.empty(n, np.int64)
+    m = 0
+    for k in range(1, n + 1):
+        if sizes[k] >= min_cells:
+            slot[k] = m
+            ks[m] = k
+            m += 1
+    starts = np.zeros(m + 1, np.int64)
+    for q in range(m):
+        starts[q + 1] = starts[q] + sizes[ks[q]]
+    fill = starts[:m].copy()
+    ci = np.empty(starts[m], np.int64)
+    cj = np.empty(starts[m], np.int64)
+    for a in range(nx):
+        for b in range(ny):
+            q = slot[comp[a, b]]
+            if q >= 0:
+                ci[fill[q]], cj[fill[q]] = a, b
+                fill[q] += 1
+    return comp, ks[:m], starts, ci, cj
+
+
+@numba.njit(cache=True, nogil=True)
 def view_cells(h, var, a, b, w, max_noise):  # pragma: no cover - compiled
     """Per cell of a grid's sums: the pose part of its σ ``b/w`` (0 where not finite, as
     ``np.nan_to_num``; ±inf as the largest float), whether only a depth edge's flying pixels
