@@ -432,10 +432,20 @@ def test_toe_cells_and_edge_profile(seed):
         m = int(np.argmin(dist))
         got = ck.edge_profile_min(px, py, pz, 0.5, 0.01, c, sn, -0.15, 0.15, 0.04, near, far)
         assert got == (int(np.flatnonzero(band)[m]), dist[m], by_x[m], by_h[m])
-        which, far_side = ck.edge_bands(px, py, np.array([0.5]), np.array([0.01]),
-                                        np.array([c]), np.array([sn]), np.array([-0.15]),
-                                        np.array([0.15]), 0.04)  # fmt: skip
-        assert np.array_equal(which >= 0, band) and np.array_equal(far_side[band], d[band] >= 0)
+    # two overlapping edges: the later one's step model wins, as the per-edge numpy passes
+    rows = np.array([[0.5, 0.01, c, sn, -0.15, 0.15, 0.0, 0.17, 0.003],
+                     [0.52, 0.0, 1.0, 0.0, -0.1, 0.3, 0.17, 0.34, 0.004]])  # fmt: skip
+    g0, s0 = rng.uniform(0, 0.2, 300), rng.uniform(0, 0.01, 300)
+    ground, sigma, which = ck.edge_bands(px, py, rows, 0.04, g0, s0)
+    want_g, want_s, want_w = g0.copy(), s0.copy(), np.full(300, -1)
+    for e, (x_m, y_m, ce, se, lo, hi, near, far, rs) in enumerate(rows):
+        d = (px - x_m) * ce + (py - y_m) * se
+        band = (np.abs(d) <= 0.04) & (py >= lo - 0.02) & (py <= hi + 0.02)
+        want_g = np.where(band, np.where(d >= 0, far, near), want_g)
+        want_s, want_w = np.where(band, rs, want_s), np.where(band, e, want_w)
+    assert (want_w == 0).any() and (want_w == 1).any()
+    assert np.array_equal(ground, want_g) and np.array_equal(sigma, want_s)
+    assert np.array_equal(which, want_w)
 
 
 def test_resampled_path_as_numpy():
@@ -473,12 +483,11 @@ def test_warm_up_takes_every_compiled_loop():
     assert clearance.terrain == "curb" and math.isfinite(clearance.edge_m)
     called = {  # the loops the features and the prediction call from Python
         K: (
-            "label4",
-            "terrace_sums",
-            "grow",
-            "extents",
+            "terraces",
+            "big_components",
             "ring_terraces",
             "ramp_plane",
+            "slope_sigmas",
             "view_cells",
         ),
         E: ("transitions", "edge_groups", "far_end", "rows_rising_on"),

@@ -201,35 +201,26 @@ def clearance_profile(
     """Per point of the toe path (N×3): its clearance ``z_toe − terrain`` (NaN: the terrain
     there unknown, or a cell whose σ exceeds ``max_cell_sigma_m``), the terrain's σ and the
     edge it passes (``ground`` away from edges)."""
-    cfg = config or _DEFAULT
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    clear, sigma, which, names = _profile_of(view, features, p, config or _DEFAULT)
+    return clear, sigma, np.array(["ground", *names], dtype=object)[which + 1]
+
+
+def _profile_of(view, features: TerrainFeatures, p: np.ndarray, cfg: ClearanceConfig):
+    """:func:`clearance_profile` with the edges as indices into their names (-1: ground)."""
     ground, sigma = _grid_heights(view, p[:, :2], cfg.toe_radius_m)
     ground = np.where(sigma <= cfg.max_cell_sigma_m, ground, np.nan)
     edges = _edges(features)
     if not edges:
-        return p[:, 2] - ground, sigma, np.full(len(p), "ground", dtype=object)
-    lines = [e[1] for e in edges]
-    which, far_side = edge_bands(
-        p[:, 0].copy(), p[:, 1].copy(), *_line_arrays(lines), cfg.edge_band_m
+        return p[:, 2] - ground, sigma, np.full(len(p), -1), []
+    rows = np.array([(ln.x_m, ln.y_m, math.cos(ln.yaw_rad), math.sin(ln.yaw_rad),
+                      ln.y_range_m[0], ln.y_range_m[1], near, far, rise_sigma)
+                     for _, ln, near, far, rise_sigma in edges], dtype=np.float64)  # fmt: skip
+    ground, sigma, which = edge_bands(
+        np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]), rows, cfg.edge_band_m,
+        ground, sigma,
     )  # fmt: skip
-    near = np.array([e[2] for e in edges], dtype=np.float64)
-    far = np.array([e[3] for e in edges], dtype=np.float64)
-    rise_sigma = np.array([e[4] for e in edges], dtype=np.float64)
-    band = which >= 0
-    k = np.where(band, which, 0)
-    ground = np.where(band, np.where(far_side, far[k], near[k]), ground)
-    sigma = np.where(band, rise_sigma[k], sigma)
-    labels = np.array(["ground"] + [e[0] for e in edges], dtype=object)
-    return p[:, 2] - ground, sigma, labels[which + 1]
-
-
-def _line_arrays(lines) -> tuple[np.ndarray, ...]:
-    """Of edge lines: x_m, y_m, cos and sin of the yaw, the y range's ends."""
-    return tuple(
-        np.array(v, dtype=np.float64)
-        for v in zip(*[(ln.x_m, ln.y_m, math.cos(ln.yaw_rad), math.sin(ln.yaw_rad),
-                        ln.y_range_m[0], ln.y_range_m[1]) for ln in lines], strict=True)
-    )  # fmt: skip
+    return p[:, 2] - ground, sigma, which, [e[0] for e in edges]
 
 
 def clearance_along(
@@ -242,13 +233,14 @@ def clearance_along(
 ) -> Clearance:
     """The least clearance of the toe path over the grid and the features' edges."""
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
-    clear, sigma, name = clearance_profile(view, features, p, config)
+    clear, sigma, which, names = _profile_of(view, features, p, config or _DEFAULT)
     if not np.isfinite(clear).any():
         return Clearance(float("nan"), float("nan"), float("nan"), float("nan"), -1, "unknown",
                          terrain)  # fmt: skip
     k = int(np.nanargmin(clear))
     sig = math.hypot(finite_or(sigma[k]), toe_sigma_m)
-    return Clearance(float(clear[k]), sig, float(p[k, 0]), float(p[k, 1]), k, str(name[k]),
+    name = "ground" if which[k] < 0 else names[which[k]]
+    return Clearance(float(clear[k]), sig, float(p[k, 0]), float(p[k, 1]), k, name,
                      terrain)  # fmt: skip
 
 

@@ -48,19 +48,32 @@ def highest_cells(xy, radius, offsets, ox, oy, cell, h, var, b, w):  # pragma: n
 
 
 @numba.njit(cache=True, nogil=True)
-def edge_bands(px, py, x_m, y_m, cos_yaw, sin_yaw, lo, hi, band_m):  # pragma: no cover
-    """Per point: the last edge (index; -1: none) within ``band_m`` of it along the edge's
-    normal, inside the edge's y range (± 2 cm), and whether it lies on the edge's far side."""
+def edge_bands(px, py, edges, band_m, ground, sigma):  # pragma: no cover - compiled
+    """Per point: the terrain under it where an edge's step model holds (the last edge, rows of
+    ``edges``: x_m, y_m, cos and sin of the yaw, the y range's ends, the heights before and
+    beyond, the rise's σ, within ``band_m`` of the point along its normal and inside its y
+    range ± 2 cm): the height beyond the line on its far side, before it on its near side,
+    and the rise's σ; ``ground`` and ``sigma`` elsewhere. Also which edge (-1: none)."""
     n = px.size
     which = np.full(n, -1, np.int64)
-    far_side = np.zeros(n, np.bool_)
-    for e in range(x_m.size):
+    ground = ground.copy()
+    sigma = sigma.copy()
+    for e in range(edges.shape[0]):
+        x_m, y_m, c, s, lo, hi = (
+            edges[e, 0],
+            edges[e, 1],
+            edges[e, 2],
+            edges[e, 3],
+            edges[e, 4],
+            edges[e, 5],
+        )
         for p in range(n):
-            d = (px[p] - x_m[e]) * cos_yaw[e] + (py[p] - y_m[e]) * sin_yaw[e]
-            if abs(d) <= band_m and py[p] >= lo[e] - 0.02 and py[p] <= hi[e] + 0.02:
+            d = (px[p] - x_m) * c + (py[p] - y_m) * s
+            if abs(d) <= band_m and py[p] >= lo - 0.02 and py[p] <= hi + 0.02:
                 which[p] = e
-                far_side[p] = d >= 0
-    return which, far_side
+                ground[p] = edges[e, 7] if d >= 0 else edges[e, 6]
+                sigma[p] = edges[e, 8]
+    return ground, sigma, which
 
 
 @numba.njit(cache=True, nogil=True)

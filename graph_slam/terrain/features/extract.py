@@ -191,28 +191,19 @@ def _local_planes(g: _Grid, cfg: FeatureConfig) -> tuple[np.ndarray, np.ndarray]
 
 
 def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
-    """Components of level cells, and per component its height, σ parts and extent; and per
-    label the terrace's height."""
-    labels, n = kernels.label4(level)
-    if n == 0:
-        return labels, {}, np.zeros(1)
-    sizes, sw, swh, sind, scorr = kernels.terrace_sums(labels, n, g.h, g.var, g.corr)
-    height = swh / np.maximum(sw, 1e-300)
-    ind = np.sqrt(sind) / np.maximum(sw, 1e-300)
-    corr = scorr / np.maximum(sw, 1e-300)
-    keep = sizes >= cfg.min_terrace_cells
-    keep[0] = False
-    labels = np.where(keep[labels], labels, 0)
-    # grown by up to grow_cells cells (4-neighbours) into the known cells within grow_tol_m
-    # of its height: the cells by an edge are not level (their window holds the step) but
-    # those still on the surface are the terrace's, so that it ends at the edge (its height
-    # stays that of its level cells)
-    labels = kernels.grow(labels, g.known, g.h, height, cfg.grow_cells, cfg.grow_tol_m)
-    ext = kernels.extents(labels, n)
+    """Components of level cells with ``min_terrace_cells``, and per component its height,
+    σ parts and extent; and per label the terrace's height. Each terrace is grown by up to
+    ``grow_cells`` cells (4-neighbours) into the known cells within ``grow_tol_m`` of its
+    height: the cells by an edge are not level (their window holds the step) but those still
+    on the surface are the terrace's, so that it ends at the edge (its height stays that of
+    its level cells)."""
+    labels, sizes, height, ind, corr, keep, ext = kernels.terraces(
+        level, g.known, g.h, g.var, g.corr, cfg.min_terrace_cells, cfg.grow_cells, cfg.grow_tol_m
+    )
     out = {}
-    for k in np.flatnonzero(keep):
-        i0, i1, j0, j1 = (int(v) for v in ext[k - 1])
-        out[int(k)] = {
+    for k in np.flatnonzero(keep).tolist():
+        i0, i1, j0, j1 = ext[k - 1].tolist()
+        out[k] = {
             "h": float(height[k]), "ind": float(ind[k]), "corr": float(corr[k]),
             "i": (i0, i1), "j": (j0, j1), "n": int(sizes[k]),
         }  # fmt: skip

@@ -394,3 +394,30 @@ def view_cells(h, var, a, b, w, max_noise):  # pragma: no cover - compiled
                 noisy[i, j] = not noise <= max_noise
                 known[i, j] = np.isfinite(var[i, j]) and not noisy[i, j]
     return corr, noisy, known
+
+
+@numba.njit(cache=True, nogil=True)
+def terraces(level, known, h, var, corr, min_cells, steps, tol):  # pragma: no cover - compiled
+    """The terraces of the level cells in one call: their components (:func:`label4`), per
+    component its cells, inverse-variance height, σ parts (independent, pose) and whether it
+    has ``min_cells`` (the others' cells unlabelled), the kept ones grown (:func:`grow`), and
+    their extents after it (:func:`extents`)."""
+    labels, n = label4(level)
+    sizes, sw, swh, sind, scorr = terrace_sums(labels, n, h, var, corr)
+    height = np.empty(n + 1)
+    ind = np.empty(n + 1)
+    pose = np.empty(n + 1)
+    keep = np.zeros(n + 1, np.bool_)
+    for k in range(n + 1):
+        d = max(sw[k], 1e-300)
+        height[k] = swh[k] / d
+        ind[k] = np.sqrt(sind[k]) / d
+        pose[k] = scorr[k] / d
+        keep[k] = k > 0 and sizes[k] >= min_cells
+    nx, ny = labels.shape
+    for a in range(nx):
+        for b in range(ny):
+            if not keep[labels[a, b]]:
+                labels[a, b] = 0
+    grown = grow(labels, known, h, height, steps, tol)
+    return grown, sizes, height, ind, pose, keep, extents(grown, n)
