@@ -206,6 +206,8 @@ def test_big_components_and_their_cells(density):
         i, j = np.nonzero(ref == k)
         assert np.array_equal(ci[starts[q] : starts[q + 1]], i)
         assert np.array_equal(cj[starts[q] : starts[q + 1]], j)
+        ring = ndimage.binary_dilation(ref == k, iterations=4) & (ref != k)  # grid edges too
+        assert np.array_equal(np.stack(K.ring(comp, k, 4)), np.stack(np.nonzero(ring)))
 
 
 def test_slope_sigmas_as_numpy():
@@ -361,7 +363,8 @@ def test_ramp_plane_and_ring(seed):
     ring = ndimage.binary_dilation(mask, iterations=4) & ~mask
     ri, rj = K.ring(comp, k, 4)
     assert np.array_equal(np.stack([ri, rj]), np.stack(np.nonzero(ring)))
-    found, mean_x = K.ring_terraces(comp, k, labels, 4, g.x0, g.cell)
+    found, mean_x, j_lo, j_hi, rows = K.ring_terraces(comp, k, labels, 4, g.x0, g.cell)
+    assert (j_lo, j_hi, rows) == (j.min(), j.max(), np.unique(j).size)
     assert np.array_equal(found, np.unique(labels[ring]))
     for t, mx in zip(found, mean_x, strict=True):
         assert mx == np.mean(g.x_of(np.nonzero(ring & (labels == t))[0]))

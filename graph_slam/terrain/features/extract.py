@@ -228,7 +228,7 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         # a pose's tilt tilts the whole plane: the pose part of the cells' σ (correlated, it
         # does not average) changes along the slope by about that tilt's σ per metre (tilt)
         slope_sigma, yaw_sigma = kernels.slope_sigmas(gx, gy, cov, tilt)
-        start = _ramp_start(g, comp, k, j, labels, terraces, coef, (xm, ym), cov)
+        start = _ramp_start(g, comp, k, labels, terraces, coef, (xm, ym), cov)
         out.append(
             Ramp(
                 slope_rad=math.atan(grad),
@@ -244,22 +244,22 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
     return out
 
 
-def _ramp_start(g: _Grid, comp, k, j, labels, terraces: dict, coef, centre, cov) -> EdgeLine | None:
-    """The start line of ramp ``k`` of ``comp`` (cells in rows ``j``): the plane's
+def _ramp_start(g: _Grid, comp, k, labels, terraces: dict, coef, centre, cov) -> EdgeLine | None:
+    """The start line of ramp ``k`` of ``comp``: the plane's
     intersection with the terrace it is entered from (None: none seen before it)."""
     c, gx, gy = (float(v) for v in coef)
     if abs(gx) < 1e-6:
         return None
     xm, ym = centre
     # the labels within 4 cells (4-neighbour steps) of the ramp, their cells' mean x there
-    found, mean_x = kernels.ring_terraces(comp, k, labels, 4, g.x0, g.cell)
+    found, mean_x, j_lo, j_hi, rows = kernels.ring_terraces(comp, k, labels, 4, g.x0, g.cell)
     # the terrace the ramp is entered from lies before it along x: a terrace met only beyond
     # it (the landing at its top, the ramp's start out of view) gives no start line
     near = [int(t) for t, mx in zip(found, mean_x, strict=True) if int(t) in terraces and mx < xm]
     if not near:
         return None
     t = min(near, key=lambda t: terraces[t]["i"][0])
-    lo, hi = float(g.y_of(j.min())), float(g.y_of(j.max()))
+    lo, hi = float(g.y_of(j_lo)), float(g.y_of(j_hi))
     yr = min(max(0.0, lo), hi)
     h0 = terraces[t]["h"]
     x = xm + (h0 - c - gy * (yr - ym)) / gx
@@ -268,5 +268,5 @@ def _ramp_start(g: _Grid, comp, k, j, labels, terraces: dict, coef, centre, cov)
     b = -gy / gx
     return EdgeLine(
         x_m=float(x), y_m=yr, yaw_rad=math.atan(-b), sigma_m=math.sqrt(var_c) / math.hypot(gx, gy),
-        yaw_sigma_rad=float("nan"), y_range_m=(lo, hi), rows=int(np.unique(j).size),
+        yaw_sigma_rad=float("nan"), y_range_m=(lo, hi), rows=int(rows),
     )  # fmt: skip

@@ -222,7 +222,8 @@ def _nan_to_num(v):  # pragma: no cover - compiled
 def ring(comp, k, reach):  # pragma: no cover - compiled
     """The cells not in component ``k`` of ``comp`` within ``reach`` 4-neighbour steps of it
     (its ``scipy.ndimage.binary_dilation`` by the cross, ``reach`` times, less itself),
-    row-major: their i and j."""
+    row-major: their i and j. The steps are the city-block distance to the component (two
+    passes over its extent and ``reach`` cells around it, where the ring lies)."""
     nx, ny = comp.shape
     lo_i, hi_i, lo_j, hi_j = nx, -1, ny, -1
     for i in range(nx):
@@ -230,24 +231,34 @@ def ring(comp, k, reach):  # pragma: no cover - compiled
             if comp[i, j] == k:
                 lo_i, hi_i = min(lo_i, i), max(hi_i, i)
                 lo_j, hi_j = min(lo_j, j), max(hi_j, j)
-    cap = max((hi_i - lo_i + 1 + 2 * reach) * (hi_j - lo_j + 1 + 2 * reach), 0)
-    out_i = np.empty(cap, np.int64)
-    out_j = np.empty(cap, np.int64)
+    if hi_i < 0:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    i0, i1 = max(lo_i - reach, 0), min(hi_i + reach + 1, nx)
+    j0, j1 = max(lo_j - reach, 0), min(hi_j + reach + 1, ny)
+    far = reach + 1
+    d = np.empty((i1 - i0, j1 - j0), np.int64)
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            v = 0 if comp[i, j] == k else far
+            if i > i0:
+                v = min(v, d[i - 1 - i0, j - j0] + 1)
+            if j > j0:
+                v = min(v, d[i - i0, j - 1 - j0] + 1)
+            d[i - i0, j - j0] = v
+    for i in range(i1 - 1, i0 - 1, -1):
+        for j in range(j1 - 1, j0 - 1, -1):
+            v = d[i - i0, j - j0]
+            if i < i1 - 1:
+                v = min(v, d[i + 1 - i0, j - j0] + 1)
+            if j < j1 - 1:
+                v = min(v, d[i - i0, j + 1 - j0] + 1)
+            d[i - i0, j - j0] = v
+    out_i = np.empty(d.size, np.int64)
+    out_j = np.empty(d.size, np.int64)
     m = 0
-    for i in range(max(lo_i - reach, 0), min(hi_i + reach + 1, nx)):
-        for j in range(max(lo_j - reach, 0), min(hi_j + reach + 1, ny)):
-            if comp[i, j] == k:
-                continue
-            found = False
-            for a in range(max(i - reach, 0), min(i + reach + 1, nx)):
-                r = reach - abs(a - i)
-                for b in range(max(j - r, 0), min(j + r + 1, ny)):
-                    if comp[a, b] == k:
-                        found = True
-                        break
-                if found:
-                    break
-            if found:
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            if 0 < d[i - i0, j - j0] <= reach:
                 out_i[m], out_j[m] = i, j
                 m += 1
     return out_i[:m], out_j[:m]
@@ -256,7 +267,8 @@ def ring(comp, k, reach):  # pragma: no cover - compiled
 @numba.njit(cache=True, nogil=True)
 def ring_terraces(comp, k, labels, reach, x0, cell):  # pragma: no cover - compiled
     """The labels met in component ``k``'s :func:`ring` (sorted, 0 included when met) and per
-    label the mean x of its ring cells (numpy's sum, row-major order)."""
+    label the mean x of its ring cells (numpy's sum, row-major order); and the component's
+    first and last row j and how many rows it spans."""
     ri, rj = ring(comp, k, reach)
     lab = np.empty(ri.size, np.int64)
     for q in range(ri.size):
@@ -271,7 +283,14 @@ def ring_terraces(comp, k, labels, reach, x0, cell):  # pragma: no cover - compi
                 xs[m] = x0 + (ri[q] + 0.5) * cell
                 m += 1
         mean_x[u] = psum(xs[:m]) / m
-    return found, mean_x
+    nx, ny = comp.shape
+    in_row = np.zeros(ny, np.bool_)
+    for i in range(nx):
+        for j in range(ny):
+            if comp[i, j] == k:
+                in_row[j] = True
+    rows = np.flatnonzero(in_row)
+    return found, mean_x, rows[0], rows[-1], rows.size
 
 
 @numba.njit(cache=True, nogil=True)
