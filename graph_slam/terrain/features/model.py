@@ -6,7 +6,8 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
 <graph_slam.terrain.grid.view.TerrainView.features_ahead>`, or a stride's re-fused grid):
 
 1. **Local planes**: every known cell gets a least-squares plane over its
-   ``window_cells``² neighbourhood (box sums, no loop): slope and RMS residual.
+   ``window_cells``² neighbourhood (one compiled loop: the cell offsets' moments from
+   summed-area tables, the heights' sums over the window): slope and RMS residual.
 2. **Terraces**: 4-connected components of *level* cells (slope under ``level_max_deg``,
    residual under ``fit_rms_max_m``); the cells by a height jump are not level (a step inside
    the window leaves a residual of about a third of its rise), so every tread, the floor and a
