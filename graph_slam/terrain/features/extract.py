@@ -8,7 +8,7 @@ import numba
 import numpy as np
 
 from graph_slam.errors import MappingError
-from graph_slam.terrain.features import kernels
+from graph_slam.terrain.features import kernels, ramp_kernels
 from graph_slam.terrain.features.edges import edges_of
 from graph_slam.terrain.features.kinds import boxes_of, chains_of
 from graph_slam.terrain.features.model import (
@@ -213,12 +213,12 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
 def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list[Ramp]:
     """One plane per component of sloped cells; its start line on the terrace it is entered
     from (the adjacent terrace nearest the heel)."""
-    comp, ks, starts, ci, cj = kernels.big_components(sloped, cfg.min_ramp_cells)
+    comp, ks, starts, ci, cj = ramp_kernels.big_components(sloped, cfg.min_ramp_cells)
     min_grad = math.tan(math.radians(cfg.ramp_min_deg))
     out = []
     for q, k in enumerate(ks):
         i, j = ci[starts[q] : starts[q + 1]], cj[starts[q] : starts[q + 1]]
-        status, xm, ym, coef, cov, tilt, rms, x_lo, x_hi = kernels.ramp_plane(
+        status, xm, ym, coef, cov, tilt, rms, x_lo, x_hi = ramp_kernels.ramp_plane(
             i, j, g.h, g.var, g.corr, g.x0, g.y0, g.cell, min_grad, cfg.min_ramp_length_m
         )
         if status < 2:
@@ -227,7 +227,7 @@ def _ramps(g: _Grid, sloped, labels, terraces: dict, cfg: FeatureConfig) -> list
         grad = math.hypot(gx, gy)
         # a pose's tilt tilts the whole plane: the pose part of the cells' σ (correlated, it
         # does not average) changes along the slope by about that tilt's σ per metre (tilt)
-        slope_sigma, yaw_sigma = kernels.slope_sigmas(gx, gy, cov, tilt)
+        slope_sigma, yaw_sigma = ramp_kernels.slope_sigmas(gx, gy, cov, tilt)
         start = _ramp_start(g, comp, k, labels, terraces, coef, (xm, ym), cov)
         out.append(
             Ramp(
@@ -252,7 +252,7 @@ def _ramp_start(g: _Grid, comp, k, labels, terraces: dict, coef, centre, cov) ->
         return None
     xm, ym = centre
     # the labels within 4 cells (4-neighbour steps) of the ramp, their cells' mean x there
-    found, mean_x, j_lo, j_hi, rows = kernels.ring_terraces(comp, k, labels, 4, g.x0, g.cell)
+    found, mean_x, j_lo, j_hi, rows = ramp_kernels.ring_terraces(comp, k, labels, 4, g.x0, g.cell)
     # the terrace the ramp is entered from lies before it along x: a terrace met only beyond
     # it (the landing at its top, the ramp's start out of view) gives no start line
     near = [int(t) for t, mx in zip(found, mean_x, strict=True) if int(t) in terraces and mx < xm]
