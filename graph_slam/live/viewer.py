@@ -39,6 +39,7 @@ class LiveViewer:
             raise ConfigError(f"live viewer: grid_step must be ≥ 1, got {grid_step}")
         self.path, self.grid_step = Path(path), int(grid_step)
         self.counts = {"drawn": 0, "dropped": 0, "failed": 0, "lost": 0}
+        self._sent = 0
         cmd = [sys.executable, "-m", "graph_slam.live.view_worker", str(self.path),
                "--nice", str(int(nice))]  # fmt: skip
         if spawn:
@@ -83,6 +84,7 @@ class LiveViewer:
             try:
                 pipe.write(frame_message(out, int(out.frame_index) % self.grid_step == 0))
                 pipe.flush()
+                self._sent += 1
             except (BrokenPipeError, OSError, ValueError) as err:
                 log.warning("rerun: the viewer's process stopped (%s); not drawing", err)
                 self.counts["lost"] += 1
@@ -109,6 +111,8 @@ class LiveViewer:
             worker = {}
         for key in ("drawn", "failed"):
             self.counts[key] = int(worker.get(key, 0))
+        # frames the pipe took but the worker never drew (it stopped with them unread)
+        self.counts["lost"] += max(self._sent - self.counts["drawn"] - self.counts["failed"], 0)
         if proc.returncode != 0:
             log.warning("rerun: the viewer's process ended with status %s", proc.returncode)
 

@@ -26,7 +26,8 @@ def warm_up(pipe, setup, n: int = 6) -> None:
     1 cm per frame; every third one with colour, as a 30 Hz colour stream beside 90 Hz depth
     gives), IMU and joint samples and a foot strike (the stride's kinematic anchor), and the
     colour registration compiled for this camera pair, so that the first real frames are not
-    the ones that load and compile everything."""
+    the ones that load and compile everything; then the terrain features' and the clearance
+    prediction's compiled loops (:func:`graph_slam.terrain.features.warm.warm_up`)."""
     import importlib
 
     for name in _LAZY_IMPORTS:
@@ -55,3 +56,6 @@ def warm_up(pipe, setup, n: int = 6) -> None:
         color = np.roll(texture, i, axis=1) if register is not None and i % 3 == 0 else None
         pipe.add_frame(RgbdFrame(t, depth, color, i), True)
     pipe.finish()
+    from graph_slam.terrain.features.warm import warm_up as warm_up_features
+
+    warm_up_features()  # a controller reads the features and the clearance every frame

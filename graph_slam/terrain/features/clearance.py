@@ -36,12 +36,19 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
+from graph_slam.terrain.features.clearance_kernels import (
+    edge_bands,
+    edge_profile_min,
+    highest_cells,
+    resample,
+)
 from graph_slam.terrain.features.model import TerrainFeatures, _plain
 
 
@@ -99,6 +106,9 @@ class ClearanceConfig(ConfigModel):
         """Which of ``n`` evenly timed swing samples lie in ``mid_swing``."""
         s = np.linspace(0.0, 1.0, n)
         return (s >= self.mid_swing[0]) & (s <= self.mid_swing[1])
+
+
+_DEFAULT = ClearanceConfig()
 
 
 @dataclass(frozen=True)
@@ -159,37 +169,35 @@ def _edges(features: TerrainFeatures) -> list[tuple[str, object, float, float, f
     return out
 
 
+def finite_or(v, nan: float = 0.0) -> float:
+    """``np.nan_to_num`` of one number: ``nan`` for NaN, the largest float for ±inf."""
+    v = float(v)
+    if math.isnan(v):
+        return nan
+    return math.copysign(sys.float_info.max, v) if math.isinf(v) else v
+
+
 _OFFSETS = np.array([(a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=np.float64)
-
-
-def _independent_sigma(view) -> np.ndarray:
-    """The cells' σ less their pose part (the grid's ``B/W``): a toe path placed by the same
-    poses as the grid shares that error, and it cancels in the clearance."""
-    sums = getattr(view, "sums", None)
-    if sums is None:
-        return view.sigma_m
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = (sums.b / sums.w).reshape(view.shape)
-    return np.sqrt(np.maximum(view.variance_m2 - np.nan_to_num(corr) ** 2, 0.0))
 
 
 def _grid_heights(view, xy: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Per point: the highest known cell within ``radius`` (the 3×3 offsets of it) and its σ
-    without the pose part (NaN: none)."""
-    h, s = view.height_m, _independent_sigma(view)
-    nx, ny = h.shape
-    q = (xy[:, None, :] + radius * _OFFSETS[None]) - np.asarray(view.origin_xy_m)
-    ij = np.floor(q / view.cell_m).astype(np.int64)
-    on = (ij[..., 0] >= 0) & (ij[..., 0] < nx) & (ij[..., 1] >= 0) & (ij[..., 1] < ny)
-    i, j = np.where(on, ij[..., 0], 0), np.where(on, ij[..., 1], 0)
-    hh = np.where(on, h[i, j], np.nan)
-    hh = np.where(np.isfinite(hh), hh, -np.inf)
-    k = np.argmax(hh, axis=1)
-    rows = np.arange(len(xy))
-    best = hh[rows, k]
-    sig = s[i[rows, k], j[rows, k]]
-    found = np.isfinite(best)
-    return np.where(found, best, np.nan), np.where(found, sig, np.nan)
+    without the pose part (the grid's ``B/W``: a toe path placed by the same poses as the grid
+    shares that error, and it cancels in the clearance) (NaN: none)."""
+    h = view.height_m
+    sums = getattr(view, "sums", None)
+    if sums is None:  # no pose part known: the cells' σ
+        var, b, w = np.zeros_like(h), np.zeros_like(h), np.ones_like(h)
+    else:
+        var, b, w = view.variance_m2, sums.b.reshape(h.shape), sums.w.reshape(h.shape)
+    ox, oy = (float(v) for v in view.origin_xy_m)
+    ground, sigma, cells = highest_cells(
+        np.ascontiguousarray(xy, np.float64), float(radius), _OFFSETS, ox, oy,
+        float(view.cell_m), h, var, b, w,
+    )  # fmt: skip
+    if sums is None:
+        sigma = np.where(np.isfinite(ground), view.sigma_m[cells[:, 0], cells[:, 1]], np.nan)
+    return ground, sigma
 
 
 def clearance_profile(
@@ -198,22 +206,26 @@ def clearance_profile(
     """Per point of the toe path (N×3): its clearance ``z_toe − terrain`` (NaN: the terrain
     there unknown, or a cell whose σ exceeds ``max_cell_sigma_m``), the terrain's σ and the
     edge it passes (``ground`` away from edges)."""
-    cfg = config or ClearanceConfig()
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
+    clear, sigma, which, names = _profile_of(view, features, p, config or _DEFAULT)
+    return clear, sigma, np.array(["ground", *names], dtype=object)[which + 1]
+
+
+def _profile_of(view, features: TerrainFeatures, p: np.ndarray, cfg: ClearanceConfig):
+    """:func:`clearance_profile` with the edges as indices into their names (-1: ground)."""
     ground, sigma = _grid_heights(view, p[:, :2], cfg.toe_radius_m)
     ground = np.where(sigma <= cfg.max_cell_sigma_m, ground, np.nan)
-    name = np.full(len(p), "ground", dtype=object)
-    for label, line, near, far, rise_sigma in _edges(features):
-        lo, hi = line.y_range_m
-        c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
-        d = (p[:, 0] - line.x_m) * c + (p[:, 1] - line.y_m) * s  # signed, along the normal
-        along = p[:, 1]
-        band = (np.abs(d) <= cfg.edge_band_m) & (along >= lo - 0.02) & (along <= hi + 0.02)
-        model = np.where(d >= 0, far, near)
-        ground = np.where(band, model, ground)
-        sigma = np.where(band, rise_sigma, sigma)
-        name = np.where(band, label, name)
-    return p[:, 2] - ground, sigma, name
+    edges = _edges(features)
+    if not edges:
+        return p[:, 2] - ground, sigma, np.full(len(p), -1), []
+    rows = np.array([(ln.x_m, ln.y_m, math.cos(ln.yaw_rad), math.sin(ln.yaw_rad),
+                      ln.y_range_m[0], ln.y_range_m[1], near, far, rise_sigma)
+                     for _, ln, near, far, rise_sigma in edges], dtype=np.float64)  # fmt: skip
+    ground, sigma, which = edge_bands(
+        np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]), rows, cfg.edge_band_m,
+        ground, sigma,
+    )  # fmt: skip
+    return p[:, 2] - ground, sigma, which, [e[0] for e in edges]
 
 
 def clearance_along(
@@ -226,13 +238,14 @@ def clearance_along(
 ) -> Clearance:
     """The least clearance of the toe path over the grid and the features' edges."""
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
-    clear, sigma, name = clearance_profile(view, features, p, config)
+    clear, sigma, which, names = _profile_of(view, features, p, config or _DEFAULT)
     if not np.isfinite(clear).any():
         return Clearance(float("nan"), float("nan"), float("nan"), float("nan"), -1, "unknown",
                          terrain)  # fmt: skip
     k = int(np.nanargmin(clear))
-    sig = math.hypot(float(np.nan_to_num(sigma[k])), toe_sigma_m)
-    return Clearance(float(clear[k]), sig, float(p[k, 0]), float(p[k, 1]), k, str(name[k]),
+    sig = math.hypot(finite_or(sigma[k]), toe_sigma_m)
+    name = "ground" if which[k] < 0 else names[which[k]]
+    return Clearance(float(clear[k]), sig, float(p[k, 0]), float(p[k, 1]), k, name,
                      terrain)  # fmt: skip
 
 
@@ -241,12 +254,7 @@ def resample_path(toe_xyz_m: np.ndarray, step_m: float) -> np.ndarray:
     p = np.asarray(toe_xyz_m, dtype=np.float64).reshape(-1, 3)
     if len(p) < 2:
         return p
-    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if not math.isfinite(s[-1]) or s[-1] <= 0:
-        return p
-    u = np.unique(np.concatenate([s, np.arange(0.0, s[-1], step_m)]))
-    return np.column_stack([np.interp(u, s, p[:, k]) for k in range(3)])
+    return resample(np.ascontiguousarray(p), float(step_m))
 
 
 def _profile_distance(d: np.ndarray, z: np.ndarray, near: float, far: float) -> np.ndarray:
@@ -281,23 +289,24 @@ def edge_clearances(
 ) -> list[tuple[object, Clearance]]:
     """Per feature edge the path comes within ``edge_band_m`` of: (its EdgeLine, the toe's
     clearance over it) (module docstring)."""
-    cfg = config or ClearanceConfig()
+    cfg = config or _DEFAULT
     p = resample_path(toe_xyz_m, cfg.resample_m)
+    px, py, pz = (np.ascontiguousarray(p[:, k]) for k in range(3))
     out = []
     for label, line, near, far, rise_sigma in _edges(features):
+        if not (math.isfinite(near) and math.isfinite(far)):
+            continue
         lo, hi = line.y_range_m
         c, s = math.cos(line.yaw_rad), math.sin(line.yaw_rad)
-        d = (p[:, 0] - line.x_m) * c + (p[:, 1] - line.y_m) * s
-        band = (np.abs(d) <= cfg.edge_band_m) & (p[:, 1] >= lo - 0.02) & (p[:, 1] <= hi + 0.02)
-        if not band.any() or not (math.isfinite(near) and math.isfinite(far)):
+        i, dist, by_x, by_h = edge_profile_min(
+            px, py, pz, line.x_m, line.y_m, c, s, lo, hi, cfg.edge_band_m, near, far
+        )  # fmt: skip
+        if i < 0:
             continue
-        dist, by_x, by_h = _profile(d[band], p[band, 2], near, far)
-        k = int(np.argmin(dist))
-        i = int(np.flatnonzero(band)[k])
         along = math.hypot(line.sigma_m, cfg.toe_along_sigma_m)
-        sigma = math.hypot(by_x[k] * along, by_h[k] * rise_sigma, cfg.toe_sigma_m)
-        out.append((line, Clearance(float(dist[k]), sigma, float(p[i, 0]),
-                                    float(p[i, 1]), i, label, "edge", edge_m=float(dist[k]))))  # fmt: skip
+        sigma = math.hypot(by_x * along, by_h * rise_sigma, cfg.toe_sigma_m)
+        out.append((line, Clearance(float(dist), sigma, float(p[i, 0]),
+                                    float(p[i, 1]), int(i), label, "edge", edge_m=float(dist))))  # fmt: skip
     return out
 
 

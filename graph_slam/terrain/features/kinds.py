@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from graph_slam.terrain.features import edge_kernels
 from graph_slam.terrain.features.model import (
     BoxFeature,
     Curb,
@@ -62,13 +63,11 @@ def _same_box(edges: list[dict], top: int, floor_m: float, terraces: dict, cfg: 
 
 def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, ascending_x: bool) -> float:
     """How far the terrace runs on beyond the edge (m, along x in the edge's rows)."""
-    i, j = np.nonzero(labels == terrace)
-    y = g.y_of(j)
-    rows = (y >= line.y_range_m[0] - 1e-9) & (y <= line.y_range_m[1] + 1e-9)
-    if not rows.any():
+    lo, hi = line.y_range_m
+    x_far, y_mid = edge_kernels.far_end(labels, terrace, lo - 1e-9, hi + 1e-9, g.x0, g.y0, g.cell)
+    if not math.isfinite(x_far):
         return 0.0
-    x = g.x_of(i[rows]) + g.cell / 2
-    return float(x.max() - line.x_at(float(np.median(y[rows]))))
+    return float(x_far - line.x_at(float(y_mid)))
 
 
 def _further_rise(g: _Grid, labels, edge: dict, terraces: dict, cfg: FeatureConfig) -> bool:
@@ -82,16 +81,9 @@ def _further_rise(g: _Grid, labels, edge: dict, terraces: dict, cfg: FeatureConf
     j0 = max(math.floor((lo - g.y0) / g.cell), 0)
     j1 = min(math.floor((hi - g.y0) / g.cell), g.h.shape[1] - 1)
     look = cfg.max_gap_cells + 1
-    h_top = terraces[b]["h"]
-    rows = 0
-    for j in range(j0, j1 + 1):
-        ii = np.flatnonzero(labels[:, j] == b)
-        if ii.size == 0:
-            continue
-        beyond = g.h[ii[-1] + 1 : ii[-1] + 1 + look, j]
-        beyond = beyond[np.isfinite(beyond)]
-        if beyond.size and (sign * (beyond - h_top)).max() >= cfg.min_rise_m:
-            rows += 1
+    rows = edge_kernels.rows_rising_on(
+        labels, b, g.h, j0, j1, look, sign, terraces[b]["h"], cfg.min_rise_m
+    )
     return rows >= cfg.min_edge_rows
 
 

@@ -6,7 +6,8 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
 <graph_slam.terrain.grid.view.TerrainView.features_ahead>`, or a stride's re-fused grid):
 
 1. **Local planes**: every known cell gets a least-squares plane over its
-   ``window_cells``² neighbourhood (box sums, no loop): slope and RMS residual.
+   ``window_cells``² neighbourhood (one compiled loop: the cell offsets' moments from
+   summed-area tables, the heights' sums over the window): slope and RMS residual.
 2. **Terraces**: 4-connected components of *level* cells (slope under ``level_max_deg``,
    residual under ``fit_rms_max_m``); the cells by a height jump are not level (a step inside
    the window leaves a residual of about a third of its rise), so every tread, the floor and a
@@ -51,7 +52,7 @@ yaw) is not in the grid and not in these σ (docs/terrain.md, *Limits*).
 from __future__ import annotations
 
 import math
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import MISSING, dataclass, fields
 
 import numpy as np
 from pydantic import Field
@@ -375,12 +376,14 @@ class _Grid:
     seen beyond a drop."""
     count: np.ndarray | None = None
     """Points per cell (None: unknown); where a shadow begins inside the last cell seen."""
-    known: np.ndarray = field(init=False)
+    known: np.ndarray | None = None
+    """Cells with a finite height and variance that are not noisy (None: from those)."""
 
     def __post_init__(self) -> None:
         if self.noisy is None:
             self.noisy = np.zeros(self.h.shape, dtype=bool)
-        self.known = np.isfinite(self.h) & np.isfinite(self.var) & ~self.noisy
+        if self.known is None:
+            self.known = np.isfinite(self.h) & np.isfinite(self.var) & ~self.noisy
 
     def x_of(self, i):
         return self.x0 + (np.asarray(i) + 0.5) * self.cell

@@ -24,6 +24,7 @@ up mid-swing).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -34,8 +35,11 @@ from graph_slam.terrain.features.clearance import (
     _grid_heights,
     clearance_along,
     edge_clearance,
+    finite_or,
 )
 from graph_slam.terrain.features.model import BoxFeature, TerrainFeatures
+
+_DEFAULT = ClearanceConfig()
 
 
 def _on_path(line, y_m: float, margin_m: float = 0.05) -> bool:
@@ -98,20 +102,19 @@ def reference_swing(
     view, features: TerrainFeatures, toe_xy_m=(0.2, 0.0), config: ClearanceConfig | None = None
 ) -> tuple[np.ndarray, str]:
     """The reference toe path (N×3) of the coming swing from ``toe_xy_m``, and its type."""
-    cfg = config or ClearanceConfig()
+    cfg = config or _DEFAULT
     x0, y0 = float(toe_xy_m[0]), float(toe_xy_m[1])
-    s = np.linspace(0.0, 1.0, cfg.samples)
+    s, lift = _fractions(cfg.samples, cfg.lift_m)
     x = x0 + s * cfg.stride_length_m
     kind, rise = terrain_type(features, x0, x0 + cfg.stride_length_m, y0)
     xy = np.column_stack([x, np.full_like(x, y0)])
     ground, _ = _grid_heights(view, xy[[0, -1]], cfg.toe_radius_m)
-    z0 = float(np.nan_to_num(ground[0]))
-    lift = cfg.lift_m * np.sqrt(np.sin(np.pi * s))  # a plateau: the toe stays up mid-swing
+    z0 = finite_or(ground[0])
     if kind == "step_over":
         box = box_ahead(features, x0, x0 + cfg.stride_length_m, y0)
         over = box.floor_height_m + step_over_base(x, box, y0, cfg.step_over_run_m)
         return np.column_stack([xy, np.maximum(z0, over) + lift]), kind
-    z1 = z0 + rise if kind != "ramp" else float(np.nan_to_num(ground[1], nan=z0))
+    z1 = z0 + rise if kind != "ramp" else finite_or(ground[1], nan=z0)
     # up to the landing level by mid-swing when stepping up; down from mid-swing when stepping
     # down (the toe clears the nosing of the tread it leaves first: lowered over the whole
     # swing it passed that nosing a centimetre up); over the whole swing otherwise
@@ -120,6 +123,29 @@ def reference_swing(
     u = np.minimum(s / reach, 1.0) if rise > 0 else np.clip(2 * s - 1, 0.0, 1.0) if rise < 0 else s
     z = z0 + (z1 - z0) * u * u * (3 - 2 * u) + lift
     return np.column_stack([xy, z]), kind
+
+
+@functools.lru_cache(maxsize=8)
+def _fractions(samples: int, lift_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """The swing's fractions (``samples`` of them, 0 to 1) and the lift at each,
+    ``lift_m · √sin(π s)`` (a plateau: the toe stays up mid-swing); read-only."""
+    s = np.linspace(0.0, 1.0, samples)
+    lift = lift_m * np.sqrt(np.sin(np.pi * s))
+    s.flags.writeable = lift.flags.writeable = False
+    return s, lift
+
+
+def _mid_swing(cfg: ClearanceConfig, n: int) -> np.ndarray:
+    """The indices of ``n`` swing samples in ``cfg.mid_swing`` (read-only)."""
+    return _mid_indices(n, tuple(cfg.mid_swing))
+
+
+@functools.lru_cache(maxsize=8)
+def _mid_indices(n: int, mid_swing: tuple[float, float]) -> np.ndarray:
+    s = np.linspace(0.0, 1.0, n)
+    out = np.flatnonzero((s >= mid_swing[0]) & (s <= mid_swing[1]))
+    out.flags.writeable = False
+    return out
 
 
 def _curb_reach(features: TerrainFeatures, x0: float, y0: float, cfg: ClearanceConfig) -> float:
@@ -142,11 +168,11 @@ def predict_clearance(
 ) -> Clearance:
     """The coming swing's clearance on its reference path over the current terrain, with the
     warning flag (see the module docstring)."""
-    cfg = config or ClearanceConfig()
+    cfg = config or _DEFAULT
     feats = view.features if features is None else features
     toe = (view.toe_x_m, 0.0) if toe_xy_m is None else toe_xy_m
     path, kind = reference_swing(view, feats, toe, cfg)
-    mid = np.flatnonzero(cfg.mid_swing_mask(len(path)))
+    mid = _mid_swing(cfg, len(path))
     c = clearance_along(view, feats, path[mid], cfg, terrain=kind)
     edge = edge_clearance(feats, path[mid], cfg)
     edge_m = float("nan") if edge is None else edge.min_m

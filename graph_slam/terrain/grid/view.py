@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
 from graph_slam.errors import MappingError
@@ -39,21 +40,21 @@ class TerrainView:
     toe_x_m: float = 0.2
 
     @cached_property
-    def height_m(self) -> np.ndarray:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            h = np.where(self.sums.w > 0, self.sums.wz / self.sums.w, np.nan)
-        return _frozen(h.reshape(self.shape))
+    def _height_variance(self) -> tuple[np.ndarray, np.ndarray]:
+        s = self.sums
+        h, v = _height_variance(s.w, s.wz, s.a, s.b, s.wz2, s.d)
+        return _frozen(h.reshape(self.shape)), _frozen(v.reshape(self.shape))
 
-    @cached_property
+    @property
+    def height_m(self) -> np.ndarray:
+        """Height: ``WZ/W`` (NaN where no point)."""
+        return self._height_variance[0]
+
+    @property
     def variance_m2(self) -> np.ndarray:
         """Height variance: depth noise (averaged) + camera pose (correlated) + the spread
         beyond the depth noise."""
-        s = self.sums
-        with np.errstate(invalid="ignore", divide="ignore"):
-            h = s.wz / s.w
-            excess = np.maximum(0.0, s.wz2 / s.w - h**2 - s.d / s.w)
-            v = np.where(s.w > 0, s.a / s.w**2 + (s.b / s.w) ** 2 + excess, np.nan)
-        return _frozen(v.reshape(self.shape))
+        return self._height_variance[1]
 
     @property
     def sigma_m(self) -> np.ndarray:
@@ -128,6 +129,23 @@ class TerrainView:
         """The features reaching beyond ``min_x_m`` (default: the toe)
         (:class:`graph_slam.terrain.features.model.TerrainFeatures`)."""
         return self.features.ahead(self.toe_x_m if min_x_m is None else min_x_m)
+
+
+@numba.njit(cache=True, nogil=True)
+def _height_variance(w, wz, a, b, wz2, d):  # pragma: no cover - compiled
+    """Per cell (flat sums): height ``wz/w`` and variance ``a/w² + (b/w)² + max(0, wz2/w -
+    h² - d/w)``, NaN where ``w`` is 0 (one loop, the numpy formulation's arithmetic)."""
+    n = w.size
+    h = np.full(n, np.nan)
+    v = np.full(n, np.nan)
+    for k in range(n):
+        if w[k] > 0:
+            hk = wz[k] / w[k]
+            excess = max(0.0, wz2[k] / w[k] - hk * hk - d[k] / w[k])
+            bw = b[k] / w[k]
+            h[k] = hk
+            v[k] = a[k] / (w[k] * w[k]) + bw * bw + excess
+    return h, v
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
