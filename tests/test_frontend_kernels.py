@@ -198,3 +198,18 @@ def test_inner_step_and_reused_system_equal_the_full_analysis() -> None:
         np.testing.assert_array_equal(
             getattr(reused.degeneracy, name), getattr(full.degeneracy, name), err_msg=name
         )
+
+
+@pytest.mark.parametrize(
+    "values",
+    [np.full(7, 0.7071), np.full(8, 0.7071), np.full(1, 1.0), np.array([0.5, 0.7, 0.7, 1.0]),
+     np.array([0.7, np.nan, 0.7]), np.broadcast_to(0.3, (10,))],
+    ids=["constant_odd", "constant_even", "one", "varying", "nan", "broadcast"],
+)  # fmt: skip
+def test_geo_scale_median_is_numpys(values) -> None:
+    """The information's σ floor uses the median of ``geo_scale``; its shortcut for a constant
+    array gives numpy's median exactly (NaN as numpy)."""
+    from graph_slam.frontend.objective import _median
+
+    with np.errstate(invalid="ignore"):
+        np.testing.assert_array_equal(_median(values), np.median(values))

@@ -200,7 +200,7 @@ def rows_information(
     ``floor_rad`` add a fixed covariance floor (σ per translation / rotation axis) in the
     constrained subspace (:func:`floor_information`); 0 (the default) adds none."""
     sigma2 = float(np.sum(rows.w * rows.r**2) / max(float(rows.w.sum()), 1e-300))
-    sigma = max(np.sqrt(sigma2), min_sigma_m * float(np.median(rows.geo_scale)))
+    sigma = max(np.sqrt(sigma2), min_sigma_m * _median(rows.geo_scale))
     info_left = (rows.jac * rows.w[:, None]).T @ rows.jac / sigma**2
     ad = adjoint_rot_first(target_T_source)
     info = scale * (ad.T @ info_left @ ad)
@@ -208,6 +208,15 @@ def rows_information(
         info = project_information(info, degeneracy, target_T_source)
     info = floor_information(info, floor_m, floor_rad, degeneracy, target_T_source)
     return info, float(sigma)
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median(values)``; a constant array's (one ``geo_scale`` for every row, as the
+    projective rows have) without the partial sort: the median of equal numbers is that
+    number (the mean of two equal doubles is exact)."""
+    if values.size and values[0] == values.min() == values.max():
+        return float(values[0])
+    return float(np.median(values))
 
 
 def exp_left(xi: np.ndarray) -> np.ndarray:
