@@ -338,3 +338,20 @@ def test_imu_integration_equals_one_sample_at_a_time_and_is_remembered(t1):
     assert buf.integrate(0.0512, t1, gtsam.imuBias.ConstantBias()) is not seg
     buf.add(np.array([0.31]), gyro[:1], accel[:1])
     assert buf.integrate(0.0512, t1, gtsam.imuBias.ConstantBias()) is not seg
+
+
+def test_fixed_transforms_are_the_per_frame_ones():
+    """The extrinsic's inverse and adjoint, computed once per matrix, are the per-frame
+    ``np.linalg.inv`` / ``adjoint_rot_first`` bit for bit, read-only, and another extrinsic
+    gets its own."""
+    from graph_slam.backend.factors import fixed_transforms
+    from kinematics.conversions import adjoint_rot_first
+
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        m = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3) * 0.1).matrix()
+        inverse, ad = fixed_transforms(m)
+        np.testing.assert_array_equal(inverse, np.linalg.inv(m))
+        np.testing.assert_array_equal(ad, adjoint_rot_first(m))
+        assert not inverse.flags.writeable and not ad.flags.writeable
+        assert fixed_transforms(m.copy())[0] is inverse
