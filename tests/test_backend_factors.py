@@ -288,3 +288,70 @@ def test_imu_interval_reads_no_sample_beyond_the_first_after_its_end():
     )
     np.testing.assert_array_equal(np.asarray(a.pim.deltaVij()), np.asarray(b.pim.deltaVij()))
     np.testing.assert_array_equal(np.asarray(a.pim.deltaPij()), np.asarray(b.pim.deltaPij()))
+
+
+def _integrate_one_sample_at_a_time(buf, t0, t1, bias):
+    """The preintegration written one sample at a time (the vectorised one's reference)."""
+    t, acc, gyr = buf._t, buf._accel, buf._gyro
+    i0 = int(np.searchsorted(t, t0, side="right")) - 1
+    i1 = int(np.searchsorted(t, t1, side="left"))
+    pim = gtsam.PreintegratedCombinedMeasurements(buf.params, bias)
+    for j in range(i0, min(i1, t.size)):
+        s, e = max(t[j], t0), min(t[j + 1] if j + 1 < min(i1, t.size) else t1, t1)
+        if e - s <= 0:
+            continue
+        mid = (s + e) / 2.0
+        if j + 1 >= t.size:
+            a, g = acc[j], gyr[j]
+        else:
+            w = (mid - t[j]) / (t[j + 1] - t[j])
+            a, g = (1 - w) * acc[j] + w * acc[j + 1], (1 - w) * gyr[j] + w * gyr[j + 1]
+        pim.integrateMeasurement(a, g, float(e - s))
+    return pim
+
+
+@pytest.mark.parametrize("t1", [0.1113, 0.1150, 0.31], ids=["inside", "on_sample", "held"])
+def test_imu_integration_equals_one_sample_at_a_time_and_is_remembered(t1):
+    """The vectorised midpoint samples give the same preintegration as the per-sample loop
+    (bit for bit, the last sample held past the buffer's end); asked again with the same
+    interval, bias and samples the same segment comes back, and new samples or another bias
+    integrate afresh."""
+    from graph_slam.backend.config import ImuNoiseConfig
+    from graph_slam.backend.imu import ImuBuffer
+
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 0.3, 0.005)
+    gyro = rng.normal(size=(t.size, 3)) * 0.5
+    accel = rng.normal(size=(t.size, 3)) + np.array([0.0, 0.0, 9.81])
+    buf = ImuBuffer(ImuNoiseConfig(max_gap_s=0.05))
+    buf.add(t, gyro, accel)
+    bias = gtsam.imuBias.ConstantBias(np.array([0.01, -0.02, 0.03]), np.array([1e-3, 0, -1e-3]))
+    seg = buf.integrate(0.0512, t1, bias)
+    ref = _integrate_one_sample_at_a_time(buf, 0.0512, t1, bias)
+    assert seg.ok
+    for name in ("deltaPij", "deltaVij", "preintMeasCov"):
+        np.testing.assert_array_equal(
+            np.asarray(getattr(seg.pim, name)()), np.asarray(getattr(ref, name)()), err_msg=name
+        )
+    np.testing.assert_array_equal(seg.pim.deltaRij().matrix(), ref.deltaRij().matrix())
+    assert buf.integrate(0.0512, t1, bias) is seg
+    assert buf.integrate(0.0512, t1, gtsam.imuBias.ConstantBias()) is not seg
+    buf.add(np.array([0.31]), gyro[:1], accel[:1])
+    assert buf.integrate(0.0512, t1, gtsam.imuBias.ConstantBias()) is not seg
+
+
+def test_fixed_transforms_are_the_per_frame_ones():
+    """The extrinsic's inverse and adjoint, computed once per matrix, are the per-frame
+    ``np.linalg.inv`` / ``adjoint_rot_first`` bit for bit, read-only, and another extrinsic
+    gets its own."""
+    from graph_slam.backend.factors import fixed_transforms
+    from kinematics.conversions import adjoint_rot_first
+
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        m = gtsam.Pose3(gtsam.Rot3.Expmap(rng.normal(size=3)), rng.normal(size=3) * 0.1).matrix()
+        inverse, ad = fixed_transforms(m)
+        np.testing.assert_array_equal(inverse, np.linalg.inv(m))
+        np.testing.assert_array_equal(ad, adjoint_rot_first(m))
+        assert not inverse.flags.writeable and not ad.flags.writeable
+        assert fixed_transforms(m.copy())[0] is inverse

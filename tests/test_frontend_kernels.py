@@ -164,3 +164,52 @@ def test_eig3_smallest_equals_eigh():
     dots = np.abs(np.einsum("ij,ij->i", vectors, want_vectors[:, :, 0]))
     assert dots[separated].min() > 1 - 1e-9
     np.testing.assert_array_equal(vectors[-2:], [[1, 0, 0], [0, 1, 0]])
+
+
+def test_tukey_weights_equal_the_numpy_kernel_weights() -> None:
+    """The compiled Tukey weights are numpy's ``kernel_weights(r, "tukey", k)`` bit for bit
+    (inside, at, beyond the scale; a NaN residual weighs 0)."""
+    from graph_slam.frontend.objective import kernel_weights
+
+    rng = np.random.default_rng(11)
+    k = 0.045
+    r = rng.normal(scale=k, size=5000)
+    r[:4] = [k, -k, 0.0, np.nan]
+    ours = kernels.tukey_weights(r, k)
+    np.testing.assert_array_equal(ours, kernel_weights(r, "tukey", k))
+    assert ours[3] == 0.0 and 0.0 < ours[4:].mean() < 1.0
+
+
+def test_inner_step_and_reused_system_equal_the_full_analysis() -> None:
+    """The inner iterations' step (``unit_system(rows).step``) and the report built from that
+    system are exactly :func:`analyse`'s own (the same arithmetic: no tolerance)."""
+    from graph_slam.frontend.objective import unit_system
+
+    config = ProjectiveConfig()
+    truth = np.linalg.solve(A, JUMP)
+    target, source, _, _ = pair(A, JUMP, config, off(truth))
+    _, rows = associated_rows(source, target, off(truth), config)
+    full = analyse(rows, config)
+    system = unit_system(rows)
+    np.testing.assert_array_equal(system.step(config.degeneracy_threshold), full.step_origin)
+    reused = analyse(rows, config, system=system)
+    np.testing.assert_array_equal(reused.step_origin, full.step_origin)
+    for name in ("eigenvalues", "eigenvectors", "center_m", "significant", "share"):
+        np.testing.assert_array_equal(
+            getattr(reused.degeneracy, name), getattr(full.degeneracy, name), err_msg=name
+        )
+
+
+@pytest.mark.parametrize(
+    "values",
+    [np.full(7, 0.7071), np.full(8, 0.7071), np.full(1, 1.0), np.array([0.5, 0.7, 0.7, 1.0]),
+     np.array([0.7, np.nan, 0.7]), np.broadcast_to(0.3, (10,))],
+    ids=["constant_odd", "constant_even", "one", "varying", "nan", "broadcast"],
+)  # fmt: skip
+def test_geo_scale_median_is_numpys(values) -> None:
+    """The information's σ floor uses the median of ``geo_scale``; its shortcut for a constant
+    array gives numpy's median exactly (NaN as numpy)."""
+    from graph_slam.frontend.objective import _median
+
+    with np.errstate(invalid="ignore"):
+        np.testing.assert_array_equal(_median(values), np.median(values))

@@ -14,6 +14,7 @@ from graph_slam.terrain.grid.online import (
     CellSums,
     OnlineElevationMap,
     OnlineTerrainConfig,
+    PointTerms,
     fuse_frames,
     z_variance,
 )
@@ -265,3 +266,46 @@ def test_grid_obstacles_find_a_box_on_a_floor():
     )
     assert [o.complete for o in grid_obstacles(view).obstacles] == [False]
     assert grid_obstacles(view, complete_only=True).obstacles == ()
+
+
+def _plus_reference(sums, terms, t_s):
+    """``CellSums.plus`` written with numpy's bincount (the compiled pass's reference)."""
+    n = len(sums.w)
+    w = 1.0 / (terms.var_depth_m2 + terms.var_pose_m2)
+    touched = np.bincount(terms.flat, minlength=n)
+    last = sums.last_t_s.copy()
+    last[touched > 0] = t_s
+    f = terms.flat
+    return CellSums(
+        sums.w + np.bincount(f, w, n),
+        sums.wz + np.bincount(f, w * terms.z_m, n),
+        sums.a + np.bincount(f, w * w * terms.var_depth_m2, n),
+        sums.b + np.bincount(f, w * np.sqrt(terms.var_pose_m2), n),
+        sums.count + touched,
+        last,
+        sums.wz2 + np.bincount(f, w * terms.z_m**2, n),
+        sums.d + np.bincount(f, w * terms.var_depth_m2, n),
+    )
+
+
+def test_cell_sums_plus_equals_the_bincount_formulation():
+    """Two frames of random points (cells hit many times, some never) added by the compiled
+    pass give the numpy bincount sums bit for bit; the previous sums are left unchanged."""
+    rng = np.random.default_rng(21)
+    n = 500
+    sums = CellSums.empty(n)
+    ref = sums
+    for frame, t_s in enumerate((0.5, 0.6)):
+        k = 3000 + 500 * frame
+        terms = PointTerms(
+            rng.integers(0, n - 50, k),
+            rng.normal(0.0, 0.05, k),
+            rng.uniform(1e-6, 1e-4, k),
+            rng.uniform(0.0, 1e-4, k),
+        )
+        prev, before = sums, sums.w.copy()
+        sums, ref = sums.plus(terms, t_s), _plus_reference(ref, terms, t_s)
+        np.testing.assert_array_equal(prev.w, before)  # views keep their arrays
+        for name in ("w", "wz", "a", "b", "count", "last_t_s", "wz2", "d"):
+            np.testing.assert_array_equal(getattr(sums, name), getattr(ref, name), err_msg=name)
+    assert np.all(sums.count[n - 50 :] == 0) and sums.count.sum() == 3000 + 3500

@@ -23,6 +23,7 @@ import time
 import gtsam
 import numpy as np
 
+from graph_slam.backend import factors
 from graph_slam.backend.config import BackendConfig
 from graph_slam.backend.gating import GateDecision, make_registration_gate
 from graph_slam.backend.imu import ImuCheck
@@ -131,7 +132,8 @@ class StrideSLAM:
         _, last, seg = carried
         nav = seg.pim.predict(gtsam.NavState(last.stride_T_imu, last.velocity_m_s), last.bias)
         last_T_new_imu = np.linalg.inv(last.stride_T_imu.matrix()) @ nav.pose().matrix()
-        return self.camera_T_imu @ last_T_new_imu @ np.linalg.inv(self.camera_T_imu)
+        imu_T_camera, _ = factors.fixed_transforms(self.camera_T_imu)
+        return self.camera_T_imu @ last_T_new_imu @ imu_T_camera
 
     def up_estimate(self, t_s: float) -> GraphUp | None:
         """Up in the IMU frame at ``t_s`` from the open stride's online attitude (its latest

@@ -13,6 +13,8 @@ numerical derivatives of the camera-frame definitions.
 
 from __future__ import annotations
 
+import functools
+
 import gtsam
 import numpy as np
 
@@ -20,6 +22,22 @@ from graph_slam.backend import noise
 from graph_slam.backend.keys import B, V, X
 from graph_slam.backend.noise import RobustKernel
 from kinematics.conversions import adjoint_rot_first
+
+
+def fixed_transforms(camera_T_imu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(imu_T_camera, adjoint_rot_first(camera_T_imu))`` of the fixed extrinsic, computed once
+    per distinct matrix (read-only arrays: the same numbers as computing them per frame)."""
+    m = np.ascontiguousarray(camera_T_imu, dtype=float)
+    return _fixed_transforms(m.tobytes())
+
+
+@functools.lru_cache(maxsize=8)
+def _fixed_transforms(key: bytes) -> tuple[np.ndarray, np.ndarray]:
+    m = np.frombuffer(key, dtype=float).reshape(4, 4).copy()
+    inverse, ad = np.linalg.inv(m), adjoint_rot_first(m)
+    inverse.flags.writeable = False
+    ad.flags.writeable = False
+    return inverse, ad
 
 
 def camera_pose_to_imu(
@@ -108,9 +126,9 @@ def icp_between_factor(
 
     ``sqrt_info_camera`` may have zero rows (degenerate directions carry no information).
     """
-    imu_T_camera = np.linalg.inv(camera_T_imu)
+    imu_T_camera, ad = fixed_transforms(camera_T_imu)
     meas = gtsam.Pose3(imu_T_camera @ np.asarray(target_T_source, float) @ camera_T_imu)
-    r_imu = np.asarray(sqrt_info_camera, float) @ adjoint_rot_first(camera_T_imu)
+    r_imu = np.asarray(sqrt_info_camera, float) @ ad
     model = noise.robust(noise.sqrt_information(r_imu), kernel, robust_k)
     return gtsam.BetweenFactorPose3(X(k_target), X(k_source), meas, model)
 

@@ -138,6 +138,8 @@ class ImuBuffer:
         self._gyro = np.empty((0, 3))
         self._accel = np.empty((0, 3))
         self.counts = {"used": 0, **{r: 0 for r in IMU_REJECT_REASONS}}
+        self._version = 0  # bumped whenever the samples change: the memo's validity
+        self._memo: tuple[tuple, ImuSegment] | None = None
 
     @property
     def last_t_s(self) -> float:
@@ -156,6 +158,7 @@ class ImuBuffer:
         self._t = np.concatenate([self._t, np.asarray(t_s, float).reshape(-1)[u]])
         self._gyro = np.concatenate([self._gyro, np.asarray(gyro_rad_s, float)[u]])
         self._accel = np.concatenate([self._accel, np.asarray(accel_m_s2, float)[u]])
+        self._version += 1
         self.counts["used"] += check.n_used
         for k, v in check.counts.items():
             self.counts[k] += v
@@ -164,6 +167,7 @@ class ImuBuffer:
     def drop_before(self, t_s: float) -> None:
         """Forget samples not needed for intervals starting at or after ``t_s``."""
         keep_from = max(int(np.searchsorted(self._t, t_s, side="right")) - 1, 0)
+        self._version += 1
         self._t, self._gyro, self._accel = (
             self._t[keep_from:],
             self._gyro[keep_from:],
@@ -175,22 +179,35 @@ class ImuBuffer:
         m = (self._t >= t0_s) & (self._t <= t1_s)
         return self._accel[m].mean(axis=0) if m.any() else None
 
-    def _sample_at(self, t_s: float, j: int) -> tuple[np.ndarray, np.ndarray]:
-        """Accelerometer and gyro at ``t_s`` in sample ``j``'s piece: linear between ``j`` and
-        ``j + 1``; held after the last sample."""
+    def _samples_at(self, t_s: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Accelerometer and gyro at times ``t_s``, each in its sample ``j``'s piece: linear
+        between ``j`` and ``j + 1``; held after the last sample (element by element the
+        arithmetic of one sample at a time: the same values)."""
         t = self._t
-        if j + 1 >= t.size:
-            return self._accel[j], self._gyro[j]
-        w = (t_s - t[j]) / (t[j + 1] - t[j])
-        return (
-            (1 - w) * self._accel[j] + w * self._accel[j + 1],
-            (1 - w) * self._gyro[j] + w * self._gyro[j + 1],
-        )
+        nxt = np.minimum(j + 1, t.size - 1)
+        held = j + 1 >= t.size
+        w = ((t_s - t[j]) / np.where(held, 1.0, t[nxt] - t[j]))[:, None]  # held: any finite
+        held = held[:, None]
+        accel = np.where(held, self._accel[j], (1 - w) * self._accel[j] + w * self._accel[nxt])
+        gyro = np.where(held, self._gyro[j], (1 - w) * self._gyro[j] + w * self._gyro[nxt])
+        return accel, gyro
 
     def integrate(self, t0_s: float, t1_s: float, bias: gtsam.imuBias.ConstantBias) -> ImuSegment:
-        """Preintegrate ``[t0_s, t1_s]`` from the bias estimate ``bias``."""
+        """Preintegrate ``[t0_s, t1_s]`` from the bias estimate ``bias``.
+
+        The last segment is remembered: asked again for the same interval and bias with the
+        same samples (a frame's ICP guess, then its IMU factor), the same segment is returned
+        (its preintegration is read, never extended, by its users)."""
         if not t1_s > t0_s:
             raise EstimationError(f"IMU interval [{t0_s}, {t1_s}]: end must be after start")
+        key = (float(t0_s), float(t1_s), np.asarray(bias.vector()).tobytes(), self._version)
+        if self._memo is not None and self._memo[0] == key:
+            return self._memo[1]
+        seg = self._integrate(t0_s, t1_s, bias)
+        self._memo = (key, seg)
+        return seg
+
+    def _integrate(self, t0_s: float, t1_s: float, bias: gtsam.imuBias.ConstantBias) -> ImuSegment:
         t = self._t
         i0 = int(np.searchsorted(t, t0_s, side="right")) - 1  # held at t0
         i1 = int(np.searchsorted(t, t1_s, side="left"))  # first sample at/after t1
@@ -205,16 +222,15 @@ class ImuBuffer:
         if max_hold > self.cfg.max_gap_s:
             return ImuSegment(t0_s, t1_s, None, int(idx.size), max_hold, "imu_gap")
         pim = gtsam.PreintegratedCombinedMeasurements(self.params, bias)
-        for j, s, e in zip(idx, starts, ends, strict=True):
-            dt = float(e - s)
+        # Midpoint rule: the measurement linear in time, evaluated at the sub-interval's
+        # centre (zero-order hold lags by half a sample: 0.14° and ~1 cm/s² of gravity
+        # leak per rad/s of rotation at 200 Hz). It reads samples up to the first one at
+        # or after t1 and none beyond: online, a frame waits for that sample (one IMU
+        # period at most). Extrapolating the last piece from earlier samples instead
+        # doubled the smoothed stride error (2.0 → 4.2 mm, measured on the simulator).
+        accel, gyro = self._samples_at((starts + ends) / 2.0, idx)
+        for n, dt in enumerate((ends - starts).tolist()):
             if dt <= 0:
                 continue
-            # Midpoint rule: the measurement linear in time, evaluated at the sub-interval's
-            # centre (zero-order hold lags by half a sample: 0.14° and ~1 cm/s² of gravity
-            # leak per rad/s of rotation at 200 Hz). It reads samples up to the first one at
-            # or after t1 and none beyond: online, a frame waits for that sample (one IMU
-            # period at most). Extrapolating the last piece from earlier samples instead
-            # doubled the smoothed stride error (2.0 → 4.2 mm, measured on the simulator).
-            acc, gyr = self._sample_at((s + e) / 2.0, j)
-            pim.integrateMeasurement(acc, gyr, dt)
+            pim.integrateMeasurement(accel[n], gyro[n], dt)
         return ImuSegment(t0_s, t1_s, pim, int(idx.size), max_hold)

@@ -19,7 +19,7 @@ The sums are compiled (:func:`graph_slam.frontend.kernels.normal_equations`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -111,21 +111,19 @@ class Analysis:
     step_rad: float
 
 
-def analyse(rows: Rows, config, significance: bool = True) -> Analysis:
+def analyse(
+    rows: Rows, config, significance: bool = True, system: UnitSystem | None = None
+) -> Analysis:
     """Eigen-analysis of the unit-free Hessian, the significant stiffness of each direction
     (see :class:`DegeneracyReport`; ``config``: any config with ``degeneracy_threshold``,
     ``degeneracy_min_alignment``, ``degeneracy_min_share`` and ``degeneracy_min_gradient``)
     and the Gauss-Newton step restricted to the directions whose eigenvalue reaches the
     threshold (the optimiser's behaviour before the significance test). ``significance:
     False`` skips the significance test (the step does not use it: the optimisers' inner
-    iterations; the solution's report is made with it)."""
-    center = rows.q.mean(axis=0)
-    length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
-    to_unit = unit_coordinates(center, length)
-    norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
-    hess, grad = kernels.normal_equations(rows.jac, rows.r, rows.w)
-    values, vectors = np.linalg.eigh(to_unit.T @ hess @ to_unit / norm)
-    grad_n = to_unit.T @ grad / norm
+    iterations; the solution's report is made with it). ``system``: :func:`unit_system` of
+    these ``rows`` when the caller has it (its last iteration's), else computed."""
+    system = unit_system(rows) if system is None else system
+    center, length, to_unit, norm, values, vectors, grad_n = system
     significant = share = None
     if significance:
         significant, share = significant_stiffness(
@@ -142,6 +140,38 @@ def analyse(rows: Rows, config, significance: bool = True) -> Analysis:
         step_m=float(np.linalg.norm(step_n[3:])),
         step_rad=float(np.linalg.norm(step_n[:3]) / length),
     )
+
+
+class UnitSystem(NamedTuple):
+    """The Gauss-Newton system of some rows in unit-free coordinates (:func:`unit_system`)."""
+
+    center: np.ndarray
+    length: float
+    to_unit: np.ndarray
+    norm: float
+    values: np.ndarray
+    vectors: np.ndarray
+    grad_n: np.ndarray
+
+    def step(self, threshold: float) -> np.ndarray:
+        """:func:`analyse`'s ``step_origin`` alone (the optimisers' inner iterations): the
+        Gauss-Newton step (ω, t) about the target origin restricted to the directions whose
+        eigenvalue reaches ``threshold``; the same arithmetic, without the report."""
+        return self.to_unit @ restricted_step(self.values, self.vectors, self.grad_n, threshold)
+
+
+def unit_system(rows: Rows) -> UnitSystem:
+    """The Gauss-Newton system of ``rows`` in unit-free coordinates: the centre and length of
+    the matched points, ``U`` (:func:`unit_coordinates`), the geometric weight ``norm``, the
+    eigen-decomposition of ``Uᵀ H U / norm`` and ``Uᵀ g / norm``."""
+    center = rows.q.mean(axis=0)
+    length = max(float(np.sqrt(np.mean(np.sum((rows.q - center) ** 2, axis=1)))), 1e-6)
+    to_unit = unit_coordinates(center, length)
+    norm = max(float(np.sum(rows.w[: rows.n_geo] * rows.geo_scale**2)), 1e-300)
+    hess, grad = kernels.normal_equations(rows.jac, rows.r, rows.w)
+    values, vectors = np.linalg.eigh(to_unit.T @ hess @ to_unit / norm)
+    grad_n = to_unit.T @ grad / norm
+    return UnitSystem(center, length, to_unit, norm, values, vectors, grad_n)
 
 
 def restricted_step(
@@ -170,7 +200,7 @@ def rows_information(
     ``floor_rad`` add a fixed covariance floor (σ per translation / rotation axis) in the
     constrained subspace (:func:`floor_information`); 0 (the default) adds none."""
     sigma2 = float(np.sum(rows.w * rows.r**2) / max(float(rows.w.sum()), 1e-300))
-    sigma = max(np.sqrt(sigma2), min_sigma_m * float(np.median(rows.geo_scale)))
+    sigma = max(np.sqrt(sigma2), min_sigma_m * _median(rows.geo_scale))
     info_left = (rows.jac * rows.w[:, None]).T @ rows.jac / sigma**2
     ad = adjoint_rot_first(target_T_source)
     info = scale * (ad.T @ info_left @ ad)
@@ -178,6 +208,15 @@ def rows_information(
         info = project_information(info, degeneracy, target_T_source)
     info = floor_information(info, floor_m, floor_rad, degeneracy, target_T_source)
     return info, float(sigma)
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median(values)``; a constant array's (one ``geo_scale`` for every row, as the
+    projective rows have) without the partial sort: the median of equal numbers is that
+    number (the mean of two equal doubles is exact)."""
+    if values.size and values[0] == values.min() == values.max():
+        return float(values[0])
+    return float(np.median(values))
 
 
 def exp_left(xi: np.ndarray) -> np.ndarray:

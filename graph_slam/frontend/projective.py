@@ -38,7 +38,13 @@ import numpy as np
 from graph_slam.errors import RecordError, RegistrationFailure
 from graph_slam.frontend import kernels
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
-from graph_slam.frontend.objective import Rows, analyse, exp_left, kernel_weights, rows_information
+from graph_slam.frontend.objective import (
+    Rows,
+    analyse,
+    exp_left,
+    rows_information,
+    unit_system,
+)
 from graph_slam.frontend.result import (
     RegistrationResult,
     conclude,
@@ -261,7 +267,7 @@ def associated_rows(
         config.max_correspondence_m, float(np.cos(np.deg2rad(config.max_normal_angle_deg))),
         color, geo, pho,
     )  # fmt: skip
-    w = kernel_weights(r, "tukey", config.kernel_scale * config.voxel_m)
+    w = kernels.tukey_weights(r, float(config.kernel_scale * config.voxel_m))
     return corr, Rows(r, jac, w, q, np.full(len(q), geo), len(q), pho)
 
 
@@ -298,7 +304,8 @@ def register_depth(
     for iteration in range(config.max_iterations + 1):
         corr, rows = associated_rows(source, target, target_T_source, config)
         _gate(config, corr, len(source))
-        step = analyse(rows, config, significance=False).step_origin
+        system = unit_system(rows)
+        step = system.step(config.degeneracy_threshold)
         # converged: this pose is the solution, its rows the final ones (the step, below
         # min_step, is reported and not taken); else at most max_iterations steps
         if np.linalg.norm(step) < config.min_step:
@@ -308,7 +315,8 @@ def register_depth(
         target_T_source = exp_left(step) @ target_T_source
         if not np.isfinite(target_T_source).all():
             raise _fail(RegistrationFailure.NUMERICAL, "non-finite transform")
-    analysis = analyse(rows, config)  # the solution's report, with the significance test
+    # the solution's report, with the significance test (its system: the last iteration's)
+    analysis = analyse(rows, config, system=system)
     t1 = time.perf_counter()
     information, sigma = rows_information(
         rows, target_T_source, config.information_min_sigma_m, analysis.degeneracy,

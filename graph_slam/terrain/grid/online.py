@@ -239,24 +239,30 @@ class CellSums:
 
     def plus(self, terms: PointTerms, t_s: float | np.ndarray) -> CellSums:
         """New sums with the points added (self unchanged: views keep their arrays)."""
+        from graph_slam.terrain.grid.sums_kernel import cell_terms
+
         n = len(self.w)
-        var = terms.var_depth_m2 + terms.var_pose_m2
-        w = 1.0 / var
-        touched = np.bincount(terms.flat, minlength=n)
+        touched, w, wz, a, b, wz2, d = cell_terms(
+            np.ascontiguousarray(terms.flat, np.int64),
+            np.ascontiguousarray(terms.z_m, np.float64),
+            np.ascontiguousarray(terms.var_depth_m2, np.float64),
+            np.ascontiguousarray(terms.var_pose_m2, np.float64),
+            n,
+        )
         last = self.last_t_s.copy()
         if np.ndim(t_s) == 0:
             last[touched > 0] = float(t_s)
         else:  # batch: the latest time of any point in the cell
             np.fmax.at(last, terms.flat, np.asarray(t_s, dtype=np.float64))
         return CellSums(
-            self.w + np.bincount(terms.flat, w, n),
-            self.wz + np.bincount(terms.flat, w * terms.z_m, n),
-            self.a + np.bincount(terms.flat, w * w * terms.var_depth_m2, n),
-            self.b + np.bincount(terms.flat, w * np.sqrt(terms.var_pose_m2), n),
+            self.w + w,
+            self.wz + wz,
+            self.a + a,
+            self.b + b,
             self.count + touched,
             last,
-            self.wz2 + np.bincount(terms.flat, w * terms.z_m**2, n),
-            self.d + np.bincount(terms.flat, w * terms.var_depth_m2, n),
+            self.wz2 + wz2,
+            self.d + d,
         )
 
 
