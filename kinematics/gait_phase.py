@@ -102,6 +102,7 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
         self._nis_n = 0
         self._walk_angles: deque[float] = deque(maxlen=4000)  # >= 4 s at up to 1 kHz
         self._walk_dt: deque[float] = deque(maxlen=4000)
+        self._walk_n = 0
         self._last_rate: float | None = None
         self._stride_s: float | None = None
         self._norm = (0.0, 0.25)
@@ -202,7 +203,7 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
             self._set_state(t_s, thigh, flags)
             return []
         self._walking = True
-        self._track_norm(thigh.angle_rad, dt)
+        self._track_norm(thigh.angle_rad, dt, t_s)
         if self._ekf is None:
             self._acquire(thigh)
             flags |= 16

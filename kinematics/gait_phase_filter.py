@@ -42,13 +42,14 @@ class PhaseFilter:
             return rms > cfg.walk_off_rms_rad_s and self._still_s < cfg.still_window_s
         return rms > cfg.walk_on_rms_rad_s
 
-    def _track_norm(self, angle_rad: float, dt: float) -> None:
+    def _track_norm(self, angle_rad: float, dt: float, t_s: float) -> None:
         """Running offset and scale of the angle: its mean and standard deviation over the last
         cycle of walking samples, or the reference's values (relative to the standing posture)
         until 3/4 of a cycle has been seen."""
         self._walk_angles.append(angle_rad)
         self._walk_dt.append(dt)
-        if len(self._walk_angles) % 10 and self._ekf is not None:
+        self._walk_n += 1  # the deques' length stops at their maxlen: counted apart
+        if self._walk_n % 10 and self._ekf is not None:
             return
         rate = float(self._ekf.x[1]) if self._ekf is not None else self._rate_prior()
         # the window is the last stride (strike to strike) when there is one: a window that
@@ -63,8 +64,17 @@ class PhaseFilter:
                 mean = float(np.mean(self._walk_angles))
             self._norm = (mean, ref_std)
             return
-        n = int(np.searchsorted(span, cycle_s)) + 1
-        recent = np.asarray(self._walk_angles)[-n:]
+        # the last complete stride (strike to strike) when there is one: a window of the last
+        # stride's length ending now covers less or more than a cycle when this stride is
+        # longer or shorter, and the missing or doubled part (the swing's flexion peak) shifts
+        # the offset by degrees
+        since = t_s - self._last_event_t["foot_strike"]
+        skip = 0
+        if self._stride_s is not None and since < span[-1] - cycle_s:
+            skip = int(np.searchsorted(span, since))
+        n = int(np.searchsorted(span, cycle_s + since if skip else cycle_s)) + 1
+        angles = np.asarray(self._walk_angles)
+        recent = angles[-n : len(angles) - skip]
         self._norm = (float(recent.mean()), max(float(recent.std()), 0.02))
 
     def _z(self, thigh: ThighState) -> np.ndarray:
@@ -219,6 +229,7 @@ class PhaseFilter:
             self._walking = False
             self._ms = 0.0
             self._walk_angles.clear()
+            self._walk_n = 0
             self._walk_dt.clear()
             self._stride_s = None
             self._strides.clear()

@@ -101,6 +101,8 @@ class StrikeTiming:
         self._t_now: float | None = None
         self._t_before: float | None = None
         self._envs: deque[float] = deque(maxlen=400)
+        self._floor: float | None = None
+        """The median of ``_envs``, kept until the next envelope sample is added."""
         self._n = 0
         self.peaks: deque[float] = deque(maxlen=8)
         """Burst peak of each strike window (strong or not)."""
@@ -125,6 +127,7 @@ class StrikeTiming:
         self._n += 1
         if self._n % 5 == 0:
             self._envs.append(self.env)
+            self._floor = None
         self._hist.append((t_s, self.env))
         while self._hist and self._hist[0][0] < t_s - self.cfg.history_s:
             self._hist.popleft()
@@ -173,12 +176,17 @@ class StrikeTiming:
     @property
     def floor(self) -> float:
         """The median envelope (recent samples): the level the bursts are measured against."""
-        return max(float(np.median(self._envs)), 1e-12) if self._envs else math.inf
+        if not self._envs:
+            return math.inf
+        if self._floor is None:
+            self._floor = max(float(np.median(self._envs)), 1e-12)
+        return self._floor
 
     @property
     def typical_peak(self) -> float:
         """Median of the strike windows' strong burst peaks (nan before the first)."""
-        strong = [p for p in self.peaks if p >= self.cfg.impact.min_strength * self.floor]
+        least = self.cfg.impact.min_strength * self.floor
+        strong = [p for p in self.peaks if p >= least]
         return float(np.median(strong)) if strong else math.nan
 
     @property

@@ -176,3 +176,18 @@ def test_reference_phase_is_linear_between_strikes_and_nan_across_standing():
     ph = reference_phase(t, np.array([1.0, 2.0, 8.0]))
     np.testing.assert_allclose(ph[1:3], [0.0, 0.5])
     assert np.isnan(ph[0]) and np.isnan(ph[4]) and np.isnan(ph[5])
+
+
+def test_angle_offset_is_the_mean_over_the_last_complete_stride():
+    """The phase EKF's angle offset and scale come from the last stride strike to strike: a
+    window of the last stride's length ending now would cover 1/1.3 of a longer stride's cycle
+    here (mean 0.155 rad instead of 0.100)."""
+    est = OnlineGaitEstimator()
+    est._stride_s, est._last_event_t["foot_strike"] = 1.0, 2.0
+    dt = 0.01
+    for t in np.arange(0.0, 3.0 + dt / 2, dt):
+        period, t0 = (1.0, 0.0) if t < 2.0 else (1.3, 2.0)
+        est._track_norm(0.1 + 0.3 * math.sin(2 * math.pi * (t - t0) / period), dt, float(t))
+    mean, scale = est._norm
+    assert mean == pytest.approx(0.100, abs=0.004)
+    assert scale == pytest.approx(0.3 / math.sqrt(2), abs=0.005)

@@ -81,3 +81,15 @@ def test_a_settled_typical_returns_the_onset_at_once():
     assert 0.0 <= at - onset < 1.0 / RATE_HZ + 1e-9
     held, _ = _run(t, a, [float(env[(t >= PRE_S) & (t < CONTACT_S)].max())], cfg)
     assert abs(onset - held) < 0.01
+
+
+def test_floor_is_the_median_of_the_recent_envelope_at_every_sample():
+    """The floor is kept between envelope samples (every 5th IMU sample): it must equal the
+    median of the recent envelope whenever it is read, including after the buffer is full."""
+    rng = np.random.default_rng(7)
+    timing = StrikeTiming()
+    for i in range(2200):  # past the 400-sample buffer (5 IMU samples each)
+        accel = np.array([0.0, 0.0, 9.81]) + rng.normal(0.0, 0.5 + (i % 97 == 0) * 20.0, 3)
+        timing.sample(i / 200.0, accel)
+        if i % 3 == 0 and timing._envs:
+            assert timing.floor == max(float(np.median(timing._envs)), 1e-12)

@@ -11,7 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from graph_slam.sim.footholds import TERRAIN_LABELS
 from graph_slam.sim.scene import load_scene
-from graph_slam.sim.walker import GROUND_TOLERANCE_M, TerrainMotion
+from graph_slam.sim.walker import TerrainMotion
+from graph_slam.sim.walker_swing import GROUND_TOLERANCE_M
 from kinematics.leg_model import LegModel
 from kinematics.leg_params import LegParams
 
