@@ -264,6 +264,14 @@ class PipelineConfig(ConfigModel):
         description="σ assumed for an up vector from a window shorter than "
         "gravity_min_window_s when fusing it with the floor (widens the floor's angle gate)",
     )
+    gravity_first_strike_kinematics: bool = Field(
+        True,
+        description="at a session's first foot strike (IMU window shorter than "
+        "gravity_min_window_s) take the up vector from the encoders (the foot at the leg "
+        "model's nominal heel-strike pitch): 3.7-7.5° off on the terrain walker where the "
+        "accelerometer's short mean was 19-65° off (graph_slam.strides.anchor). Needs a leg "
+        "model; False: the accelerometer's",
+    )
     gravity_from_graph: bool = Field(
         False,
         description="fuse the accelerometer's up at a foot strike with the open stride's "

@@ -123,7 +123,7 @@ class GraphPipeline(PipelineBase):
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.anchor = make_anchor(
             config, self.camera_T_imu, self.gravity, self.slam.up_estimate,
-            self.slam.velocity_change, self.slam.lateral_bias,
+            self.slam.velocity_change, self.slam.lateral_bias, self.slam.leg.heel_strike_up,
         )  # fmt: skip
         self.keys = Keyframes(config.graph.keyframe)
         self.unregistered = UnregisteredStride()
