@@ -53,6 +53,10 @@ def test_graph_variants_pose_every_frame(results, variant):
     assert np.isfinite(r.smoothed_stride_T_camera).all()
     for s in r.strides:
         assert s.frame_indices == sorted(s.frame_indices)
+        # every posed frame is fused into the online grid or held back by its settling gate
+        assert sum(s.grid_frames) == len(s.frame_indices)
+    assert r.counts["grid_frames_fused"] + r.counts["grid_frames_held"] == 60
+    assert r.counts["grid_frames_fused"] > 30
     if variant != "imu+kin":
         assert r.counts["icp_accepted"] > 0
 
