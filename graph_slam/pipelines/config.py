@@ -272,6 +272,14 @@ class PipelineConfig(ConfigModel):
         "accelerometer's short mean was 19-65° off (graph_slam.strides.anchor). Needs a leg "
         "model; False: the accelerometer's",
     )
+    gravity_first_strike_kinematics_sigma_rad: float | None = Field(
+        None,
+        gt=0,
+        description="σ of that up vector: given, the first strike is anchored like a later one "
+        "(the anchor's tilt σ, the level test of the floor and the treads' search against "
+        "it); None: no σ, the kinematics' heel-strike covariance and the first strike's "
+        "heel rule for the floor",
+    )
     gravity_from_graph: bool = Field(
         False,
         description="fuse the accelerometer's up at a foot strike with the open stride's "

@@ -151,6 +151,7 @@ class StrideAnchor:
         lateral_bias_max_sigma: float | None = None,
         treads: TreadsConfig | None = None,
         kinematic_up: Callable[[float], np.ndarray | None] | None = None,
+        kinematic_sigma_rad: float | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -164,6 +165,7 @@ class StrideAnchor:
         self.lateral_bias_max_sigma = lateral_bias_max_sigma
         self.treads = treads
         self.kinematic_up = kinematic_up
+        self.kinematic_sigma_rad = kinematic_sigma_rad
         self.last_contact_slope_rad = 0.0
         """The contact slope of the last stride anchored (0 before the first)."""
 
@@ -219,7 +221,7 @@ class StrideAnchor:
         if sigma is None and self.kinematic_up is not None:  # a session's first strike
             kin = self.kinematic_up(t_s)
             if kin is not None:
-                up, source = kin, "kinematics"
+                up, source, sigma = kin, "kinematics", self.kinematic_sigma_rad
         if up is None:
             return AnchorUp(t_s, None, None, "none")
         up, sigma, how = self.with_graph(t_s, up, sigma)
@@ -382,4 +384,5 @@ def make_anchor(
         config.gravity_lateral_bias_max_sigma_m_s2,
         config.graph.treads,
         kinematic_up if config.gravity_first_strike_kinematics else None,
+        config.gravity_first_strike_kinematics_sigma_rad,
     )
