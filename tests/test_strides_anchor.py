@@ -349,3 +349,20 @@ def test_a_first_strike_takes_the_encoders_up_over_the_accelerometers():
                          kinematic_up=kinematic_up).at_strike(0.0, 0.05, None)  # fmt: skip
     assert later.up_source == "imu" and len(asked) == 2
     assert tilt_deg(later.up_in_imu) == pytest.approx(40.0, abs=1e-6)
+
+
+def test_a_first_strike_with_a_sigma_for_the_encoders_up_is_anchored_like_a_later_one():
+    """With σ 0.1 rad for the encoders' up (4° off here) the floor is tested against it, not
+    taken as level: a level floor is fused (not an assumption); without depth the encoders'
+    up keeps that σ."""
+    bad = np.array([math.sin(math.radians(40.0)), 0.0, math.cos(math.radians(40.0))])
+    kin = WORLD_R_CAMERA.T @ np.array([math.sin(math.radians(4.0)), 0.0,
+                                       math.cos(math.radians(4.0))])  # fmt: skip
+    first = StrideAnchor(FirstStrikeGravity(bad), FloorConfig(), np.eye(4), 0.01, 0.8, 0.2,
+                         kinematic_up=lambda t: kin, kinematic_sigma_rad=0.1)  # fmt: skip
+    level = first.at_strike(0.0, 0.05, ramp_points(0.0))
+    assert level.case == "floor" and not level.assumed and level.sigma_rad < 0.01
+    assert tilt_deg(level.up_in_imu) < 0.2 and level.up_source == "kinematics"
+    blind = first.at_strike(0.0, 0.05, None)
+    assert blind.case == "imu" and blind.sigma_rad == 0.1
+    assert tilt_deg(blind.up_in_imu) == pytest.approx(4.0, abs=1e-6)
