@@ -35,8 +35,11 @@ seen under the heel, corrects it; on a flight of stairs seen from below none is)
 model (``gravity_first_strike_kinematics``, on by default) the up vector there is the
 encoders' instead (:meth:`graph_slam.strides.kinematics.LegKinematics.heel_strike_up`: the
 foot at the model's nominal heel-strike pitch, the sagittal plane vertical), 3.7-7.5° off on
-the same strikes; it also centres the plane search. It keeps the kinematics' heel-strike
-covariance (no up σ, as before). Flag ``up:kinematics``. The accelerometer's mean with the
+the same strikes; it also centres the plane search. With its σ
+(``gravity_first_strike_kinematics_sigma_rad``, 0.1 rad) the strike is then anchored like a
+later one: the floor tested for level against it, the treads searched (on stairs-ascent the
+treads fixed the up to 0.1°); without (None), the kinematics' heel-strike covariance and the
+heel rule above. Flag ``up:kinematics``. The accelerometer's mean with the
 first stride's velocity change removed was 0.1-2° off on most strikes but 110° on one (the
 first stride's graph, begun without an anchor, can be far off): not used.
 
