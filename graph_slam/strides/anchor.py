@@ -10,8 +10,9 @@ within ``level_gate_sigmas`` combined σ (IMU and plane, at least ``level_gate_m
 IMU's up. Otherwise (a ramp, a tread seen at an angle) the anchor keeps the IMU's up alone and
 records the plane's slope. :class:`StrideAnchor` returns which case applied:
 
-* ``floor``: the plane is level within its σ (at a session's first strike, whose IMU up has
-  under a second of history and is 10-40° off, any plane found is taken as level when the
+* ``floor``: the plane is level within its σ (at a session's first strike without the
+  encoders' σ, below, whose up has under a second of history and is 10-40° off, any plane
+  found is taken as level when the
   stance heel, from the encoders, lies on it: a plane that does not pass under the foot is
   not the ground the foot stands on — on stairs ahead, the plane through the nosings, 31°
   off, was fused as the floor and tilted the whole session; with the heel to decide, the
