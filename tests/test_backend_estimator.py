@@ -454,3 +454,20 @@ def test_velocity_change_takes_the_mean_acceleration_out_of_the_accelerometer():
         slam.add_frame(f.t_s, f.icp, f.foot_loaded, f.kinematics)
     assert len(corrected) > 20
     assert np.abs(corrected).max() < 0.01 and np.abs(raw).max() > 0.025, (raw, corrected)
+
+
+def test_pose_covariance_is_the_frames_marginal_on_demand():
+    """With per-frame covariances off, ``pose_covariance(k)`` gives what ``covariances: true``
+    puts in the frame's estimate (same graph, same marginal; 1e-12); None without a state."""
+    t = np.arange(0, 0.3, 0.005)
+    out = {}
+    for on in (False, True):
+        slam = StrideSLAM(BackendConfig(covariances=on), camera_T_imu=np.eye(4))
+        assert slam.pose_covariance(0) is None  # no open stride
+        slam.add_imu(t, np.zeros((t.size, 3)), np.tile([0, 0, 9.81], (t.size, 1)))
+        ests = [slam.add_frame(tf) for tf in (0.0, 0.1, 0.2)]
+        out[on] = (slam.pose_covariance(2), ests[2].covariance)
+        assert slam.pose_covariance(3) is None
+    assert out[False][1] is None
+    np.testing.assert_allclose(out[False][0], out[True][1], rtol=1e-9, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(out[False][0]) > 0)

@@ -53,8 +53,15 @@ def test_graph_variants_pose_every_frame(results, variant):
     assert np.isfinite(r.smoothed_stride_T_camera).all()
     for s in r.strides:
         assert s.frame_indices == sorted(s.frame_indices)
+        # every posed frame is fused into the online grid or held back by its settling gate
+        assert sum(s.grid_frames) == len(s.frame_indices)
+    assert r.counts["grid_frames_fused"] + r.counts["grid_frames_held"] == 60
     if variant != "imu+kin":
         assert r.counts["icp_accepted"] > 0
+        # the first stride (no strike) is held; the first anchored one settles on its plane
+        assert r.counts["grid_frames_fused"] > 30
+    else:  # no camera, no plane: the first strike's up is the encoders' (σ 0.1 rad), held
+        assert r.counts["grid_frames_held"] > 30
 
 
 def test_baseline_statuses_and_stop_rule(results):

@@ -323,3 +323,46 @@ def test_a_level_platform_beside_a_ramp_fixes_the_up_and_the_ramp_keeps_the_cont
     assert a.sigma_rad < 0.0025
     plain = _stairs_anchor(up).at_strike(0.0, 0.05, on_ramp)
     assert plain.case == "slope" and tilt_deg(plain.up_in_imu) == pytest.approx(0.5, abs=1e-4)
+
+
+def test_a_first_strike_takes_the_encoders_up_over_the_accelerometers():
+    """A first strike (short IMU history, no σ) with the accelerometer 40° off and no ground
+    in view: the encoders' up (here 4° off) is taken; with a long history it is not asked."""
+    bad = np.array([math.sin(math.radians(40.0)), 0.0, math.cos(math.radians(40.0))])
+    kin_world = np.array([math.sin(math.radians(4.0)), 0.0, math.cos(math.radians(4.0))])
+    asked = []
+
+    def kinematic_up(t_s):
+        asked.append(t_s)
+        return WORLD_R_CAMERA.T @ kin_world
+
+    first = StrideAnchor(FirstStrikeGravity(bad), FloorConfig(), np.eye(4), 0.01, 0.8, 0.2,
+                         kinematic_up=kinematic_up)  # fmt: skip
+    a = first.at_strike(0.0, 0.05, None)
+    assert a.up_source == "kinematics" and "up:kinematics" in a.flags and a.sigma_rad is None
+    assert tilt_deg(a.up_in_imu) == pytest.approx(4.0, abs=1e-6)
+    # the floor under the heel still decides where it is seen
+    heel = _in_camera([0.0, 0.0, 0.0])
+    b = first.at_strike(0.0, 0.05, ramp_points(0.0), heel)
+    assert b.case == "floor" and tilt_deg(b.up_in_imu) < 0.5
+    later = StrideAnchor(FakeGravity(bad), FloorConfig(), np.eye(4), 0.01, 0.8, 0.2,
+                         kinematic_up=kinematic_up).at_strike(0.0, 0.05, None)  # fmt: skip
+    assert later.up_source == "imu" and len(asked) == 2
+    assert tilt_deg(later.up_in_imu) == pytest.approx(40.0, abs=1e-6)
+
+
+def test_a_first_strike_with_a_sigma_for_the_encoders_up_is_anchored_like_a_later_one():
+    """With σ 0.1 rad for the encoders' up (4° off here) the floor is tested against it, not
+    taken as level: a level floor is fused (not an assumption); without depth the encoders'
+    up keeps that σ."""
+    bad = np.array([math.sin(math.radians(40.0)), 0.0, math.cos(math.radians(40.0))])
+    kin = WORLD_R_CAMERA.T @ np.array([math.sin(math.radians(4.0)), 0.0,
+                                       math.cos(math.radians(4.0))])  # fmt: skip
+    first = StrideAnchor(FirstStrikeGravity(bad), FloorConfig(), np.eye(4), 0.01, 0.8, 0.2,
+                         kinematic_up=lambda t: kin, kinematic_sigma_rad=0.1)  # fmt: skip
+    level = first.at_strike(0.0, 0.05, ramp_points(0.0))
+    assert level.case == "floor" and not level.assumed and level.sigma_rad < 0.01
+    assert tilt_deg(level.up_in_imu) < 0.2 and level.up_source == "kinematics"
+    blind = first.at_strike(0.0, 0.05, None)
+    assert blind.case == "imu" and blind.sigma_rad == 0.1
+    assert tilt_deg(blind.up_in_imu) == pytest.approx(4.0, abs=1e-6)

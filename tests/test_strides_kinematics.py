@@ -67,3 +67,22 @@ def test_out_of_limit_joint_gives_no_measurement(model):
     leg.joints._q[1, 0] = 10.0  # bypass the buffer's checks: FK must refuse, not crash
     assert leg.anchor(0.09, None) is None
     assert leg.contact_geometry(0.09) is None
+
+
+def test_the_heel_strike_up_is_the_nominal_pitch_anchors_up(model):
+    """The encoders' up at a strike: the anchor with the nominal heel-strike pitch has its
+    stride z along it (to 1e-9), and an anchor built from that up reproduces the pose."""
+    from kinematics.stride_frame import stride_T_camera
+
+    cam_T_imu = camera_T_imu_of(model)
+    leg = make_leg_kinematics(model, cam_T_imu)
+    t = np.arange(0.0, 0.5, 0.01)
+    leg.add_joints(t, np.full(t.size, 1.0), np.full(t.size, 0.3))  # a stair-ascent strike
+    up = leg.heel_strike_up(0.2)
+    nominal = stride_T_camera(model, np.array([1.0, 0.3])).stride_T_camera
+    want = cam_T_imu[:3, :3].T @ nominal[2, :3]  # stride z in the camera, then the IMU frame
+    np.testing.assert_allclose(up, want, atol=1e-9)
+    again = leg.anchor(0.2, 9.81 * up)
+    np.testing.assert_allclose(again.stride_T_camera[:3, :3], nominal[:3, :3], atol=1e-9)
+    assert leg.heel_strike_up(0.6) is None  # outside the samples
+    assert make_leg_kinematics(None, np.eye(4)).heel_strike_up(0.2) is None

@@ -64,3 +64,19 @@ def test_anchor_case_and_slope_from_the_flags():
     s = StrideEvaluation(0, "normal", 1, FrameCounts(1, 1, 0, 0, 0), None, "ramp_up",
                          anchor_of(flags))  # fmt: skip
     assert s.to_dict()["anchor"] == "slope" and s.to_dict()["slope_deg"] == 7.71
+
+
+def test_the_up_source_and_the_grid_frames_reach_the_metrics():
+    from types import SimpleNamespace
+
+    from graph_slam.report.scoring import anchor_of
+
+    flags = ("floor:small_extent", "anchor:imu", "up:kinematics")
+    stride = SimpleNamespace(grid_frames=(100, 12))
+    got = anchor_of(flags, stride)
+    assert got == {"anchor": "imu", "up_source": "kinematics", "grid_frames_fused": 100,
+                   "grid_frames_held": 12}  # fmt: skip
+    assert anchor_of(flags, SimpleNamespace(grid_frames=(0, 0))) == {
+        "anchor": "imu", "up_source": "kinematics"}  # fmt: skip
+    s = StrideEvaluation(0, "normal", 1, FrameCounts(1, 1, 0, 0, 0), None, "stairs_up", got)
+    assert s.to_dict()["grid_frames_held"] == 12

@@ -309,3 +309,47 @@ def test_cell_sums_plus_equals_the_bincount_formulation():
         for name in ("w", "wz", "a", "b", "count", "last_t_s", "wz2", "d"):
             np.testing.assert_array_equal(getattr(sums, name), getattr(ref, name), err_msg=name)
     assert np.all(sums.count[n - 50 :] == 0) and sums.count.sum() == 3000 + 3500
+
+
+def _floor_depth(pose):
+    intr = CameraIntrinsics(width_px=40, height_px=30, fx_px=30.0, fy_px=30.0, cx_px=19.5,
+                            cy_px=14.5)  # fmt: skip
+    pts = _plane_points(pose)
+    depth = np.zeros((30, 40), np.float32)
+    u = np.rint(pts[:, 0] / pts[:, 2] * 30 + 19.5).astype(int)
+    v = np.rint(pts[:, 1] / pts[:, 2] * 30 + 14.5).astype(int)
+    depth[v, u] = pts[:, 2]
+    return intr, depth
+
+
+@pytest.mark.parametrize("keep_clouds", [True, False])
+def test_the_settling_gate_holds_frames_until_the_pose_is_trustworthy(keep_clouds):
+    """A stride's frames with a 5° tilt σ (height σ ~0.1 m at 1-2 m) are held back and
+    counted; the first frame at 0.5 mrad (σ ~1 mm) settles the stride and every later frame is
+    fused, whatever its σ; a frame without covariance is never checked."""
+    pose = _camera_pose()
+    intr, depth = _floor_depth(pose)
+    loose = np.diag([np.radians(5.0)] * 3 + [0.02] * 3) ** 2
+    tight = np.diag([5e-4] * 3 + [1e-3] * 3) ** 2
+    cfg = OnlineTerrainConfig(pixel_step=1, keep_clouds=keep_clouds)
+    live = LiveTerrain(cfg, intr, 0.1, 3.0)
+    assert live.pose_sigma_m(_plane_points(pose), pose, loose) > 0.05
+    assert live.pose_sigma_m(_plane_points(pose), pose, tight) < 0.003
+    held = live.frame(0, _frame(0.0, depth), 1, pose, pose, None, loose)
+    assert not held.known.any() and live.counts(1) == (0, 1) and live.needs_gate(1)
+    live.frame(1, _frame(0.01, depth), 1, pose, pose, loose)  # its own covariance decides
+    assert live.counts(1) == (0, 2)
+    fused = live.frame(2, _frame(0.02, depth), 1, pose, pose, None, tight)
+    assert fused.known.sum() > 100 and live.counts(1) == (1, 2) and not live.needs_gate(1)
+    live.frame(3, _frame(0.03, depth), 1, pose, pose, loose)  # settled: fused
+    assert live.counts(1) == (2, 2)
+    if keep_clouds:  # the held frames' clouds are kept for the smoothed poses' re-fusion
+        again = live.refuse(1, [0, 1, 2, 3], np.stack([pose] * 4), [tight] * 4)
+        assert again.known.sum() == fused.known.sum()
+        assert np.allclose(np.nanmax(np.abs(again.height_m)), 0.0, atol=1e-6)
+    # the next stride is checked again; a frame with no covariance at all is not
+    live.frame(4, _frame(0.04, depth), 2, pose, pose, None)
+    assert live.counts(2) == (1, 0)
+    off = LiveTerrain(cfg.model_copy(update={"max_pose_sigma_m": None}), intr, 0.1, 3.0)
+    off.frame(0, _frame(0.0, depth), 1, pose, pose, loose)
+    assert off.counts(1) == (1, 0) and not off.needs_gate(1)

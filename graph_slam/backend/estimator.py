@@ -154,6 +154,19 @@ class StrideSLAM:
         cov = last_R_now.T @ cov_last @ last_R_now + np.asarray(seg.pim.preintMeasCov())[:3, :3]
         return GraphUp(float(t_s), now_R_stride[:, 2], cov, now_R_stride[:, 1])
 
+    def pose_covariance(self, k: int) -> np.ndarray | None:
+        """The open stride's state ``k``: the camera pose's marginal covariance (camera local,
+        rotation first), as ``backend.covariances`` gives every frame. None: no open stride,
+        no such state, or no marginal."""
+        g = self.strides.graph
+        if g is None or not 0 <= k < g.n_states:
+            return None
+        try:
+            return factors.imu_cov_to_camera(g.marginal_covariance(X(k)), self.camera_T_imu)
+        except RuntimeError as err:  # GTSAM's exceptions arrive as bare RuntimeError
+            log.info("state %d: no pose marginal (%s)", k, err)
+            return None
+
     def velocity_change(self, t_s: float) -> tuple[float, np.ndarray] | None:
         """``(t0_s, Δv)``: the open stride's first state's time and the IMU's velocity change
         from it to ``t_s`` (online estimate, carried by the IMU), in the IMU frame at ``t_s``

@@ -16,7 +16,8 @@ Schema (``schema_version`` 4; every length in metres, every time in seconds; NaN
              "trajectory": null | {"n_frames", "n_evaluated", "rmse_unaligned_m", "rmse_aligned_m",
                                    "rmse_by_phase_m": {"stance"|"swing": {"unaligned", "aligned", "n"}},
                                    "rpe_rmse_m"},
-             "terrain"?: str, "anchor"?: str, "slope_deg"?: float}
+             "terrain"?: str, "anchor"?: str, "slope_deg"?: float, "up_source"?: str,
+             "grid_frames_fused"?: int, "grid_frames_held"?: int}
           ],
           "summary": {"strides": int, "frames_recorded": int, "frames_registered": int,
                       "frames_bridged": int, "frames_partial": int,
@@ -126,7 +127,9 @@ class StrideEvaluation:
     level, stairs_up, ramp_down, ...); None when the session does not say."""
     anchor: dict | None = None
     """The stride anchor's case and slope (``{"anchor": ..., "slope_deg": ...}``, graph
-    variants)."""
+    variants), its up vector's source where not the IMU (``up_source``) and its online
+    grid's frames fused / held back by the settling gate (``grid_frames_fused``,
+    ``grid_frames_held``)."""
 
     def to_dict(self) -> dict[str, Any]:
         out = {

@@ -264,6 +264,23 @@ class PipelineConfig(ConfigModel):
         description="σ assumed for an up vector from a window shorter than "
         "gravity_min_window_s when fusing it with the floor (widens the floor's angle gate)",
     )
+    gravity_first_strike_kinematics: bool = Field(
+        True,
+        description="at a session's first foot strike (IMU window shorter than "
+        "gravity_min_window_s) take the up vector from the encoders (the foot at the leg "
+        "model's nominal heel-strike pitch): 3.7-7.5° off on the terrain walker where the "
+        "accelerometer's short mean was 19-65° off (graph_slam.strides.anchor). Needs a leg "
+        "model; False: the accelerometer's",
+    )
+    gravity_first_strike_kinematics_sigma_rad: float | None = Field(
+        0.1,
+        gt=0,
+        description="σ of that up vector (3.7-7.5° measured on ten first strikes): the first "
+        "strike is anchored like a later one (the anchor's tilt σ, the level test of the "
+        "floor and the treads' search against it; on stairs-ascent the treads then fix the "
+        "up to 0.1°). None: no σ, the kinematics' heel-strike covariance and the first "
+        "strike's heel rule for the floor",
+    )
     gravity_from_graph: bool = Field(
         False,
         description="fuse the accelerometer's up at a foot strike with the open stride's "

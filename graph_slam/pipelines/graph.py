@@ -123,7 +123,7 @@ class GraphPipeline(PipelineBase):
         self.slam = StrideSLAM(config.backend, camera_T_imu=camera_T_imu, leg_model=leg_model)
         self.anchor = make_anchor(
             config, self.camera_T_imu, self.gravity, self.slam.up_estimate,
-            self.slam.velocity_change, self.slam.lateral_bias,
+            self.slam.velocity_change, self.slam.lateral_bias, self.slam.leg.heel_strike_up,
         )  # fmt: skip
         self.keys = Keyframes(config.graph.keyframe)
         self.unregistered = UnregisteredStride()
@@ -302,7 +302,7 @@ class GraphPipeline(PipelineBase):
             with timer("terrain_online"):
                 view = self.live_terrain.frame(
                     index, frame, est.stride_index, est.stride_T_camera, est.world_T_camera,
-                    est.covariance,
+                    est.covariance, self._gate_covariance(est),
                 )  # fmt: skip
         icp_flag = (f"icp:{est.gate.reason}",) if est.gate is not None else ()
         icp_flag += self.unregistered.frame(
@@ -328,6 +328,14 @@ class GraphPipeline(PipelineBase):
         )
         self.slam.results.release_frames(self.cfg.keep_frames)
         return self._record(out)
+
+    def _gate_covariance(self, est) -> np.ndarray | None:
+        """The pose covariance for the online grid's settling gate: the estimate's own, else
+        (per-frame covariances off) the open stride's marginal, computed only while the gate
+        still checks the stride's frames (:meth:`LiveTerrain.needs_gate`)."""
+        if est.covariance is not None or not self.live_terrain.needs_gate(est.stride_index):
+            return None
+        return self.slam.pose_covariance(est.k)
 
     def _remember(self, index: int, prepared, est, t_s: float) -> None:
         """The keyframe (the next frame's registration target) and the constant-velocity
@@ -372,8 +380,9 @@ class GraphPipeline(PipelineBase):
             online_grid = self.live_terrain.close(s.index)
             smoothed_grid = None if deferred else self._final_grid(s, online_grid)
             self.results.strides.append(
-                StrideOutput(s, terrain, online_grid=online_grid, smoothed_grid=smoothed_grid)
-            )
+                StrideOutput(s, terrain, online_grid=online_grid, smoothed_grid=smoothed_grid,
+                             grid_frames=self.live_terrain.counts(s.index))
+            )  # fmt: skip
         self.results.release_grids(self.live_terrain.cfg.keep_stride_grids)
         return len(closed)
 
@@ -424,5 +433,7 @@ class GraphPipeline(PipelineBase):
             **{f"imu_{k}": v for k, v in res.imu_counts.items()},
             **{f"joints_{k}": v for k, v in self.slam.leg.joints.counts.items()},
             **self.strike_clock.counts(),
+            "grid_frames_fused": int(sum(s.grid_frames[0] for s in self.results.strides)),
+            "grid_frames_held": int(sum(s.grid_frames[1] for s in self.results.strides)),
         }
         return self.results

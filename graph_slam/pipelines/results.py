@@ -99,6 +99,9 @@ class StrideOutput:
     clouds were kept for it (``terrain.online.keep_clouds: false``) and for the baseline."""
     stop_reason: str | None = None
     """Baseline: why registration stopped in this stride (None: it did not)."""
+    grid_frames: tuple[int, int] = (0, 0)
+    """Frames fused into the online grid and frames held back by its settling gate
+    (``terrain.online.max_pose_sigma_m``, :mod:`graph_slam.terrain.grid.live`)."""
 
     @property
     def index(self) -> int:

@@ -153,10 +153,13 @@ def _trajectory(ref: StrideReference, poses: np.ndarray):
     )
 
 
-def anchor_of(flags) -> dict:
+def anchor_of(flags, stride=None) -> dict:
+    """The anchor's case, slope and up source from a stride's first frame's flags, and the
+    stride's online grid's frames fused / held back (``stride``: its ``StrideOutput``)."""
     from graph_slam.report.summary import anchor_of as _anchor_of
+    from graph_slam.report.summary import grid_frames_of
 
-    return _anchor_of(flags)
+    return {**_anchor_of(flags), **({} if stride is None else grid_frames_of(stride))}
 
 
 def terrain_labels(run: SessionRun) -> list[str | None]:
@@ -195,7 +198,8 @@ def score_session(run: SessionRun) -> dict[RunKey, list[StrideEvaluation]]:
                     frames=_counts([cats[i] for i in ref.frame_indices]),
                     trajectory=_trajectory(ref, poses),
                     terrain=labels[k],
-                    anchor=anchor_of(res.frames[int(ref.frame_indices[0])].flags) or None,
+                    anchor=anchor_of(res.frames[int(ref.frame_indices[0])].flags,
+                                     run.stride_of(v, ref)) or None,
                 )
                 for k, ref in enumerate(run.references)
             ]

@@ -60,6 +60,7 @@ def stride_counts(results) -> list[dict]:
                 **{c: mine.count(c) for c in ("registered", "partial", "bridged", "other")},
                 "stop_reason": s.stop_reason,
                 **anchor_of(results.frames[idx[0]].flags),
+                **grid_frames_of(s),
             }
         )
     return out
@@ -72,9 +73,18 @@ def anchor_of(flags) -> dict:
     for f in flags:
         if f.startswith("anchor:"):
             out["anchor"] = f.split(":", 1)[1]
+        elif f.startswith("up:"):
+            out["up_source"] = f.split(":", 1)[1]
         elif f.startswith("slope_deg:"):
             out["slope_deg"] = float(f.split(":", 1)[1])
     return out
+
+
+def grid_frames_of(stride) -> dict:
+    """The stride's online grid's frames fused and held back by the settling gate
+    (``StrideOutput.grid_frames``; docs/terrain.md), when any frame reached the grid."""
+    fused, held = getattr(stride, "grid_frames", (0, 0))
+    return {"grid_frames_fused": int(fused), "grid_frames_held": int(held)} if fused + held else {}
 
 
 def stop_points(results) -> list[dict]:

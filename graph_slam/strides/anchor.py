@@ -10,8 +10,9 @@ within ``level_gate_sigmas`` combined σ (IMU and plane, at least ``level_gate_m
 IMU's up. Otherwise (a ramp, a tread seen at an angle) the anchor keeps the IMU's up alone and
 records the plane's slope. :class:`StrideAnchor` returns which case applied:
 
-* ``floor``: the plane is level within its σ (at a session's first strike, whose IMU up has
-  under a second of history and is 10-40° off, any plane found is taken as level when the
+* ``floor``: the plane is level within its σ (at a session's first strike without the
+  encoders' σ, below, whose up has under a second of history and is 10-40° off, any plane
+  found is taken as level when the
   stance heel, from the encoders, lies on it: a plane that does not pass under the foot is
   not the ground the foot stands on — on stairs ahead, the plane through the nosings, 31°
   off, was fused as the floor and tilted the whole session; with the heel to decide, the
@@ -27,6 +28,21 @@ records the plane's slope. :class:`StrideAnchor` returns which case applied:
   its σ, fused into the up as the treads are;
 * ``imu``: no plane (no depth, too few points, none near up) or the floor is off: IMU alone;
 * ``none``: no IMU up vector either (the back end's own default anchor).
+
+**A session's first strike** comes with under a second of IMU history (the recording starts
+mid-swing): the accelerometer's mean over that window holds the swinging thigh's own
+acceleration and was 19-65° off the true up on the terrain walker (the floor, where one is
+seen under the heel, corrects it; on a flight of stairs seen from below none is). With a leg
+model (``gravity_first_strike_kinematics``, on by default) the up vector there is the
+encoders' instead (:meth:`graph_slam.strides.kinematics.LegKinematics.heel_strike_up`: the
+foot at the model's nominal heel-strike pitch, the sagittal plane vertical), 3.7-7.5° off on
+the same strikes; it also centres the plane search. With its σ
+(``gravity_first_strike_kinematics_sigma_rad``, 0.1 rad) the strike is then anchored like a
+later one: the floor tested for level against it, the treads searched (on stairs-ascent the
+treads fixed the up to 0.1°); without (None), the kinematics' heel-strike covariance and the
+heel rule above. Flag ``up:kinematics``. The accelerometer's mean with the
+first stride's velocity change removed was 0.1-2° off on most strikes but 110° on one (the
+first stride's graph, begun without an anchor, can be far off): not used.
 
 ``graph.floor.assume_level: true`` restores the level-ground anchor (any plane within
 ``max_angle_rad`` + 3σ of the IMU's up is fused): the comparison of the two on one session.
@@ -79,6 +95,9 @@ class AnchorUp:
     """The previous stride's contact slope: the ground under a heel the plane misses."""
     treads: LevelPlanes | None = None
     """The small level planes searched where no floor passed (None: not searched)."""
+    up_source: str = "imu"
+    """Where the up vector before any plane came from: ``imu`` (the accelerometer) or
+    ``kinematics`` (the encoders, at a session's first strike)."""
 
     @property
     def assumed(self) -> bool:
@@ -112,6 +131,8 @@ class AnchorUp:
             out.append(f"treads:{t.n_planes}" if t.ok else f"treads:{t.reason.split(':')[0]}")
         if self.graph:
             out.append(f"up_graph:{self.graph}")
+        if self.up_source != "imu":
+            out.append(f"up:{self.up_source}")
         if self.case in ("slope", "slope_level", "floor") and not self.heel_on_plane:
             out.append(f"heel_off_plane:{self.heel_off_m:.3f}")
         return tuple(out)
@@ -133,6 +154,8 @@ class StrideAnchor:
         lateral_bias: Callable[[float], tuple[np.ndarray, float] | None] | None = None,
         lateral_bias_max_sigma: float | None = None,
         treads: TreadsConfig | None = None,
+        kinematic_up: Callable[[float], np.ndarray | None] | None = None,
+        kinematic_sigma_rad: float | None = None,
     ) -> None:
         self.gravity = gravity
         self.floor = floor
@@ -145,6 +168,8 @@ class StrideAnchor:
         self.lateral_bias = lateral_bias
         self.lateral_bias_max_sigma = lateral_bias_max_sigma
         self.treads = treads
+        self.kinematic_up = kinematic_up
+        self.kinematic_sigma_rad = kinematic_sigma_rad
         self.last_contact_slope_rad = 0.0
         """The contact slope of the last stride anchored (0 before the first)."""
 
@@ -196,6 +221,11 @@ class StrideAnchor:
         (``points_m``: that frame's cloud, camera frame; None: no depth; ``heel_in_camera_m``:
         the stance heel at ``t_s`` in the camera frame, from the encoders, None: unknown)."""
         up, sigma = self.imu_up(t_strike_s, t_s)
+        source = "imu"
+        if sigma is None and self.kinematic_up is not None:  # a session's first strike
+            kin = self.kinematic_up(t_s)
+            if kin is not None:
+                up, source, sigma = kin, "kinematics", self.kinematic_sigma_rad
         if up is None:
             return AnchorUp(t_s, None, None, "none")
         up, sigma, how = self.with_graph(t_s, up, sigma)
@@ -203,6 +233,7 @@ class StrideAnchor:
             out = AnchorUp(t_s, up, sigma, "imu", graph=how)
         else:
             out = replace(self.with_plane(t_s, up, sigma, points_m, heel_in_camera_m), graph=how)
+        out = replace(out, up_source=source)
         self.last_contact_slope_rad = out.contact_slope_rad
         return out
 
@@ -333,6 +364,7 @@ def make_anchor(
     graph_up=None,
     velocity_change=None,
     lateral_bias=None,
+    kinematic_up=None,
 ) -> StrideAnchor:
     """The stride anchor of a graph pipeline from its :class:`PipelineConfig`; ``graph_up``
     (e.g. :meth:`graph_slam.backend.StrideSLAM.up_estimate`) is used when
@@ -340,7 +372,9 @@ def make_anchor(
     (:meth:`graph_slam.backend.StrideSLAM.velocity_change`) when
     ``gravity_mean_acceleration`` is, ``lateral_bias``
     (:meth:`graph_slam.backend.StrideSLAM.lateral_bias`) when
-    ``gravity_lateral_bias_max_sigma_m_s2`` is set."""
+    ``gravity_lateral_bias_max_sigma_m_s2`` is set, ``kinematic_up``
+    (:meth:`graph_slam.strides.kinematics.LegKinematics.heel_strike_up`) at a session's first
+    strike when ``gravity_first_strike_kinematics`` is."""
     return StrideAnchor(
         gravity,
         config.graph.floor,
@@ -353,4 +387,6 @@ def make_anchor(
         lateral_bias if config.gravity_lateral_bias_max_sigma_m_s2 is not None else None,
         config.gravity_lateral_bias_max_sigma_m_s2,
         config.graph.treads,
+        kinematic_up if config.gravity_first_strike_kinematics else None,
+        config.gravity_first_strike_kinematics_sigma_rad,
     )

@@ -303,6 +303,26 @@ class LegKinematics:
             log.warning("t=%.3f s: no kinematic measurement (%s)", t_s, err)
             return None
 
+    def heel_strike_up(self, t_s: float) -> np.ndarray | None:
+        """Up in the session's IMU frame at ``t_s`` from the encoders alone: the camera's
+        attitude with the foot at the model's nominal heel-strike pitch and the leg's sagittal
+        plane vertical (:func:`kinematics.stride_frame.stride_T_camera` without an up
+        vector). None without a model, an encoder sample there, or when the model refuses
+        the angles."""
+        from kinematics.errors import KinematicsError
+        from kinematics.stride_frame import stride_T_camera
+
+        q = self.q_at(t_s)
+        if q is None:
+            return None
+        try:
+            stride_R_camera = stride_T_camera(self.model, q).stride_T_camera[:3, :3]
+        except KinematicsError as err:
+            log.warning("t=%.3f s: no heel-strike up vector (%s)", t_s, err)
+            return None
+        up = self.camera_T_imu[:3, :3].T @ (stride_R_camera.T @ np.array([0.0, 0.0, 1.0]))
+        return up / np.linalg.norm(up)
+
     def contact_geometry(self, t_s: float) -> ContactGeometry | None:
         """Heel frame and toe point from the encoders at ``t_s`` (``contact_points`` stance)."""
         from kinematics.errors import KinematicsError

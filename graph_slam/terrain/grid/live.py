@@ -19,6 +19,16 @@ moved to the old stride frame: ``Ad(old_T_camera) (Σ_a + Σ_0) Ad(old_T_camera)
 configured fallback σ stands for each. Nothing is carried out of the session's first stride:
 it began without a foot strike (no anchor, weak priors), and its online map, fused from poses
 the estimator corrected later, was measured 0.3–0.5 m off in the carried cells.
+
+Settling gate (``online.max_pose_sigma_m``): from a stride's first frame, a frame whose pose
+is not yet trustworthy is held back from the grid: the median, over its map cloud, of the
+height σ its pose covariance alone gives (``σ_p`` of :mod:`graph_slam.terrain.grid.online`;
+the covariance :meth:`LiveTerrain.frame` is given to decide, the estimator's marginal) above
+the limit; a frame without an estimator's covariance (the baseline) is not checked. Once a
+frame passes, the stride is settled and every later frame is fused (the
+frames of a stride share its anchor: its poses do not unsettle). A held frame's cloud is still
+kept for the re-fusion from the smoothed poses (``keep_clouds``). Per stride:
+:meth:`LiveTerrain.counts` (frames fused, held back).
 """
 
 from __future__ import annotations
@@ -31,6 +41,7 @@ from graph_slam.terrain.grid.online import (
     OnlineElevationMap,
     OnlineTerrainConfig,
     fallback_covariance,
+    z_variance,
 )
 from graph_slam.terrain.grid.view import TerrainView
 from kinematics.conversions import adjoint_rot_first
@@ -63,6 +74,28 @@ class LiveTerrain:
         self._first_stride: int | None = None  # the session's first (no foot strike)
         self.carried_from: dict[int, int] = {}
         """stride index -> the stride its map's prior was carried from."""
+        self._counts: dict[int, list[int]] = {}  # stride index -> [fused, held back]
+        self._settled = False  # the open stride has fused a frame past the gate
+
+    def counts(self, stride_index: int) -> tuple[int, int]:
+        """``(frames fused, frames held back)`` of a stride's grid (the settling gate)."""
+        fused, held = self._counts.get(stride_index, (0, 0))
+        return fused, held
+
+    def needs_gate(self, stride_index: int) -> bool:
+        """Whether the next frame of ``stride_index`` is still to be checked by the settling
+        gate (a caller without per-frame covariances computes one for it only then)."""
+        if self.cfg.max_pose_sigma_m is None or not self.cfg.enabled:
+            return False
+        return self.map is None or self.map.stride_index != stride_index or not self._settled
+
+    def pose_sigma_m(self, points_camera_m, stride_T_camera, covariance) -> float:
+        """The median height σ the pose covariance alone gives the points (every 4th)."""
+        pts = np.asarray(points_camera_m, float)[::4]
+        if not len(pts):
+            return 0.0
+        var = z_variance(pts, np.asarray(stride_T_camera, float)[:3, :3], covariance)
+        return float(np.sqrt(max(np.median(var), 0.0)))
 
     def _covariance(self, covariance):
         if covariance is not None and np.isfinite(covariance).all():
@@ -98,6 +131,8 @@ class LiveTerrain:
             self.carried_from[stride_index] = old.stride_index
         self.map = OnlineElevationMap(self.cfg, stride_index, prior)
         self._frames = []
+        self._settled = False
+        self._counts[stride_index] = [0, 0]
 
     def frame(
         self,
@@ -107,9 +142,12 @@ class LiveTerrain:
         stride_T_camera: np.ndarray | None,
         world_T_camera: np.ndarray | None,
         covariance: np.ndarray | None,
+        gate_covariance: np.ndarray | None = None,
     ) -> TerrainView | None:
         """Fuse the frame into its stride's map; the map's view (None before the first stride
-        or while the stride has no map). A frame without a pose leaves the map as it is."""
+        or while the stride has no map). A frame without a pose leaves the map as it is.
+        ``gate_covariance``: the pose covariance the settling gate decides on (module text;
+        None: ``covariance``, or the fallback σ without one)."""
         if not self.cfg.enabled or stride_index < 0:
             return None
         strides = None
@@ -124,10 +162,19 @@ class LiveTerrain:
             self.cfg, frame.depth_m, self.intrinsics, (self.min_depth_m, self.max_depth_m),
             stride_T_camera, self._covariance(covariance),
         )  # fmt: skip
-        view = self.map.fuse(terms, float(frame.t_s), points, ranges)
         self._frames.append(int(frame_index))
         self._last = (strides[0], covariance)
-        return view
+        counts = self._counts.setdefault(stride_index, [0, 0])
+        cov = covariance if gate_covariance is None else gate_covariance
+        if cov is not None and self.needs_gate(stride_index):
+            cov = self._covariance(cov)
+            if self.pose_sigma_m(points, stride_T_camera, cov) > self.cfg.max_pose_sigma_m:
+                counts[1] += 1
+                self.map.keep_cloud(float(frame.t_s), points, ranges)
+                return self.map.view()
+            self._settled = True
+        counts[0] += 1
+        return self.map.fuse(terms, float(frame.t_s), points, ranges)
 
     def close(self, stride_index: int) -> TerrainView | None:
         """The stride's online map as it stood at its last frame (None: never started)."""

@@ -99,6 +99,17 @@ class OnlineTerrainConfig(ConfigModel):
         description="(rotation rad, translation m) σ of the camera pose when the estimator gives "
         "no covariance (the baseline; the graph with backend.covariances off)",
     )
+    max_pose_sigma_m: float | None = Field(
+        0.02,
+        gt=0,
+        description="hold a frame back from the grid while its pose is not yet trustworthy: "
+        "the median over its points of the height σ its pose covariance alone gives (the "
+        "σ_p of the module text, from the estimator's marginal) above this. Checked from a "
+        "stride's first frame until one passes; the frames after it are fused. Frames "
+        "without an estimator's covariance (the baseline) are not checked. 0.02: a stride "
+        "anchored on a plane starts at 1-3 mm, one on the IMU's up (0.01 rad) near 15 mm, "
+        "a session's first strike at ~100 mm (docs/terrain.md). None: every frame is fused",
+    )
     carry: bool = Field(
         True,
         description="at a foot strike carry the previous stride's cells ahead of the new heel "
@@ -309,10 +320,14 @@ class OnlineElevationMap:
         re-fusion when ``keep_clouds``."""
         self.sums = self.sums.plus(terms, t_s)
         self.t_s = float(t_s)
+        self.keep_cloud(t_s, points_camera_m, depth_range_m)
+        return self.view()
+
+    def keep_cloud(self, t_s: float, points_camera_m, depth_range_m=None) -> None:
+        """Keep a frame's cloud for the re-fusion (``keep_clouds``), fused now or not."""
         if self.cfg.keep_clouds:
             ranges = None if depth_range_m is None else np.asarray(depth_range_m, np.float32)
             self.clouds.append((float(t_s), np.asarray(points_camera_m, np.float32), ranges))
-        return self.view()
 
     def view(self) -> TerrainView:
         """The current grid, read-only (later updates do not change it)."""
