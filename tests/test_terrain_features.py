@@ -233,6 +233,39 @@ def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
     assert seen.x_m == pytest.approx(features(hf, vf).curbs[0].edge.x_m, abs=1e-9)
 
 
+@pytest.mark.parametrize(("through", "seed"), [(0.35, 31), (0.70, 32), (0.20, 33)])
+def test_a_curb_down_seen_sparsely_beyond_carries_the_span_between_its_readings(through, seed):
+    """The curb above: read with the sparse far cells as the lower surface (the default) its
+    edge is (1 - through) of a cell late; its σ carries half the span to the reading that
+    takes them as not seen (``sparse_span_sigma`` 0.5 of (1 - through) cell, within 1.5 mm),
+    so the error stays within 2.5σ. Seen fully, no span: the σ is that of
+    ``sparse_span_fraction`` 0 (to 1e-12)."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    edge = X0 + 40 * CELL + through * CELL
+    curb = lambda x, y: np.where(x >= edge, -0.12, 0.0)  # noqa: E731
+
+    def shadow(x, y):
+        return (x >= edge) & (x < edge + 0.04)
+
+    h, var = grid(curb, 0.001, seed=seed, unknown=shadow)
+    count = seen_counts(shadow)
+    late = np.isnan(h) & (np.arange(NX)[:, None] > 40)
+    h[late], var[late], count[late] = -0.12, 1e-6, 2
+    off = FeatureConfig(sparse_span_fraction=0.0)
+    got = extract_features(h, var, (X0, Y0), CELL, count=count).curbs[0].edge
+    bare = extract_features(h, var, (X0, Y0), CELL, count=count, config=off).curbs[0].edge
+    assert got.x_m == bare.x_m  # the position is the same reading
+    span_sigma = math.sqrt(got.sigma_m**2 - bare.sigma_m**2)
+    assert span_sigma == pytest.approx(0.5 * (1 - through) * CELL, abs=0.0015)
+    assert abs(got.x_m - edge) <= 2.5 * got.sigma_m, (got.x_m - edge, got.sigma_m)
+    hf, vf = grid(curb, 0.001, seed=seed)
+    full = seen_counts(lambda x, y: np.zeros(x.shape, bool))
+    seen = extract_features(hf, vf, (X0, Y0), CELL, count=full).curbs[0].edge
+    seen_off = extract_features(hf, vf, (X0, Y0), CELL, count=full, config=off).curbs[0].edge
+    assert seen.sigma_m == pytest.approx(seen_off.sigma_m, abs=1e-12)
+
+
 @pytest.mark.parametrize("slope_deg", [5.0, 8.0, 10.0])
 def test_ramp_slope_direction_start(slope_deg):
     g = math.tan(math.radians(slope_deg))

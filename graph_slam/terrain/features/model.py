@@ -45,7 +45,10 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
 it does not average); a rise the two independent parts and the difference of the pose parts
 (a common height offset cancels in a rise). An edge's σ is the spread of its rows' positions
 or, when larger, their height noise scaled to a position (``σ_h / rise · cell`` per cell),
-over √rows. The horizontal error of the stride frame itself (the heel position, the pose's
+over √rows. Beyond a drop whose far cells next to it are sparsely seen (few points
+against the near cells: seen only from late viewpoints) the edge also carries
+``sparse_span_sigma`` of the span between the readings that take those cells as seen and
+as not seen (``sparse_span_fraction``). The horizontal error of the stride frame itself (the heel position, the pose's
 yaw) is not in the grid and not in these σ (docs/terrain.md, *Limits*).
 """
 
@@ -106,6 +109,23 @@ class FeatureConfig(ConfigModel):
         "on the simulated terrain walker 0.25 moved the curbs down's edges from 7 mm late to "
         "0.5 mm early, but a 4 cm box's far edge from 2.3 mm late to 6.9 mm early (the flying "
         "pixels of the edge leave the last top cell short of points)",
+    )
+    sparse_span_fraction: float = Field(
+        0.25,
+        ge=0,
+        le=1,
+        description="beyond a drop, a far cell holding fewer points than this fraction of the "
+        "two near cells' mean count is seen only from a few late viewpoints (the camera over "
+        "the edge): it may hold the far surface or a part of the edge, so the edge lies "
+        "between the reading that takes it as seen and the one that takes it as not seen "
+        "(shadow_sparse_fraction); 0: no such σ term",
+    )
+    sparse_span_sigma: float = Field(
+        0.5,
+        ge=0,
+        description="σ of an edge beyond a drop, as a part of the span between those two "
+        "readings, common to its rows (either reading as likely: the error is 0 or the span, "
+        "its spread half the span)",
     )
     carried_edge_sigma_m: float = Field(
         0.006,
