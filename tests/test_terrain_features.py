@@ -200,6 +200,36 @@ def test_descending_nosings_placed_by_the_points_of_the_last_cell_seen():
         assert 0 < step.nosing.sigma_m < 0.005
 
 
+@pytest.mark.parametrize("seed", [23, 24])
+def test_a_tread_between_two_counted_nosings_takes_their_errors_as_correlated(seed):
+    """The flight above: both nosings of a tread have their shadow part from the counts, so
+    the tread's variance is σ1² + σ2² - 2ρσ1σ2 with ρ ``shadow_count_common`` (to 1e-12; the
+    lines both at y = 0, no lever); placed without the counts (the fixed guess, independent
+    per nosing) it is σ1² + σ2². The treads lie within 3σ of the truth (0.287 m)."""
+    from graph_slam.terrain.features.model import FeatureConfig
+
+    first, tread = 0.507, 0.287
+    down = stairs_surface(first=first, rise=-0.16, tread=tread, n=3)
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.06)
+
+    h, var = grid(down, 0.001, seed=seed, unknown=shadow)
+    count = seen_counts(shadow)
+    rho = FeatureConfig().shadow_count_common
+    assert 0 < rho < 1
+    for kwargs, r in (({"count": count}, rho), ({}, 0.0)):
+        steps = extract_features(h, var, (X0, Y0), CELL, **kwargs).stairs[0].steps
+        assert len(steps) == 3
+        for here, nxt in itertools.pairwise(steps):
+            a, b = here.nosing, nxt.nosing
+            assert a.y_m == b.y_m == 0.0
+            want = a.sigma_m**2 + b.sigma_m**2 - 2 * r * a.sigma_m * b.sigma_m
+            assert here.tread_sigma_m**2 == pytest.approx(want, abs=1e-12)
+            assert abs(here.tread_m - tread) <= 3 * here.tread_sigma_m, (here.tread_m, seed)
+
+
 @pytest.mark.parametrize("through", [0.35, 0.70])
 def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
     """A 12 cm curb down, its edge ``through`` of the way through a cell and 4 cm of shadow

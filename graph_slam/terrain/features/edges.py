@@ -101,7 +101,7 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
     its edge line, rise and σ, sorted by the line's x. Where the shadow begins inside the
     last cell seen is the same guess in every row, or the counts' ratio (its error common to
     the rows too: the density's trend); an edge carried with the previous stride's cells
-    moved with them."""
+    moved with them. ``counted``: occluded, the shadow part from the counts."""
     a, b, y, x, s, flags = transitions(g, labels, height, cfg)
     if a.size == 0:
         return []
@@ -120,6 +120,7 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
         tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))
         out.append({
             "a": int(la), "b": int(lb), "line": line, "rise": tb["h"] - ta["h"],
+            "counted": bool(occluded and counted),
             "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2
                                     + (ta["corr"] - tb["corr"]) ** 2 + tilt**2),
         })  # fmt: skip
