@@ -132,7 +132,7 @@ def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
     distance between the middles of the two terraces high (1.4 mm between treads 28 cm
     apart); its σ carries the stride tilt's (``stride_tilt_sigma_rad``) over that distance,
     where the averaged cells alone would say under 0.3 mm."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     tilt = 0.005
     base = stairs_surface()
@@ -154,7 +154,7 @@ def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
 def test_an_edge_seen_only_in_carried_cells_carries_the_carry_sigma():
     """Counts 0 on both sides of every nosing (cells carried from the previous stride): each
     nosing's σ holds ``carried_edge_sigma_m``; with this stride's points there it does not."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     h, var = grid(stairs_surface(), 0.001, seed=23)
     carried = extract_features(h, var, (X0, Y0), CELL, count=np.zeros(h.shape))
@@ -206,7 +206,7 @@ def test_a_tread_between_two_counted_nosings_takes_their_errors_as_correlated(se
     the tread's variance is σ1² + σ2² - 2ρσ1σ2 with ρ ``shadow_count_common`` (to 1e-12; the
     lines both at y = 0, no lever); placed without the counts (the fixed guess, independent
     per nosing) it is σ1² + σ2². The treads lie within 3σ of the truth (0.287 m)."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     first, tread = 0.507, 0.287
     down = stairs_surface(first=first, rise=-0.16, tread=tread, n=3)
@@ -239,7 +239,7 @@ def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
     lies where the last cell's share of points ends (within 1.5 mm); counted as the lower
     surface (0, the default) it lies at that cell's end ((1 - through) of a cell late). Seen
     fully (no shadow), the counts change nothing."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     edge = X0 + 40 * CELL + through * CELL
     curb = lambda x, y: np.where(x >= edge, -0.12, 0.0)  # noqa: E731
@@ -270,7 +270,7 @@ def test_a_curb_down_seen_sparsely_beyond_carries_the_span_between_its_readings(
     takes them as not seen (``sparse_span_sigma`` 0.5 of (1 - through) cell, within 1.5 mm),
     so the error stays within 2.5σ. Seen fully, no span: the σ is that of
     ``sparse_span_fraction`` 0 (to 1e-12)."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     edge = X0 + 40 * CELL + through * CELL
     curb = lambda x, y: np.where(x >= edge, -0.12, 0.0)  # noqa: E731
@@ -358,8 +358,9 @@ def test_level_floor_has_no_feature_and_json_round_trip():
 
 
 def test_sloped_cells_along_one_line_give_no_plane():
+    from graph_slam.terrain.features.config import FeatureConfig
     from graph_slam.terrain.features.extract import _ramps
-    from graph_slam.terrain.features.model import FeatureConfig, _Grid
+    from graph_slam.terrain.features.model import _Grid
 
     g = math.tan(math.radians(8.0))
     h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=9)

@@ -10,7 +10,8 @@ import math
 import numpy as np
 
 from graph_slam.terrain.features import edge_kernels
-from graph_slam.terrain.features.model import EdgeLine, FeatureConfig, _Grid
+from graph_slam.terrain.features.config import FeatureConfig
+from graph_slam.terrain.features.model import EdgeLine, _Grid
 
 
 def transitions(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureConfig):

@@ -9,15 +9,8 @@ import math
 import numpy as np
 
 from graph_slam.terrain.features import edge_kernels
-from graph_slam.terrain.features.model import (
-    BoxFeature,
-    Curb,
-    EdgeLine,
-    FeatureConfig,
-    Stairs,
-    Step,
-    _Grid,
-)
+from graph_slam.terrain.features.config import FeatureConfig
+from graph_slam.terrain.features.model import BoxFeature, Curb, EdgeLine, Stairs, Step, _Grid
 
 
 def boxes_of(edges: list[dict], terraces: dict, cfg: FeatureConfig):
