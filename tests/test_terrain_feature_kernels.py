@@ -18,8 +18,9 @@ from scipy import ndimage
 from graph_slam.terrain.features import edge_kernels as E
 from graph_slam.terrain.features import kernels as K
 from graph_slam.terrain.features import ramp_kernels as R
+from graph_slam.terrain.features.config import FeatureConfig
 from graph_slam.terrain.features.extract import _plane_kernel
-from graph_slam.terrain.features.model import FeatureConfig, _Grid
+from graph_slam.terrain.features.model import _Grid
 
 NX, NY, CELL, X0, Y0 = 100, 60, 0.02, -0.2, -0.6
 CFG = FeatureConfig()

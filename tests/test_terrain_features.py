@@ -132,7 +132,7 @@ def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
     distance between the middles of the two terraces high (1.4 mm between treads 28 cm
     apart); its σ carries the stride tilt's (``stride_tilt_sigma_rad``) over that distance,
     where the averaged cells alone would say under 0.3 mm."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     tilt = 0.005
     base = stairs_surface()
@@ -154,7 +154,7 @@ def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
 def test_an_edge_seen_only_in_carried_cells_carries_the_carry_sigma():
     """Counts 0 on both sides of every nosing (cells carried from the previous stride): each
     nosing's σ holds ``carried_edge_sigma_m``; with this stride's points there it does not."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     h, var = grid(stairs_surface(), 0.001, seed=23)
     carried = extract_features(h, var, (X0, Y0), CELL, count=np.zeros(h.shape))
@@ -200,6 +200,36 @@ def test_descending_nosings_placed_by_the_points_of_the_last_cell_seen():
         assert 0 < step.nosing.sigma_m < 0.005
 
 
+@pytest.mark.parametrize("seed", [23, 24])
+def test_a_tread_between_two_counted_nosings_takes_their_errors_as_correlated(seed):
+    """The flight above: both nosings of a tread have their shadow part from the counts, so
+    the tread's variance is σ1² + σ2² - 2ρσ1σ2 with ρ ``shadow_count_common`` (to 1e-12; the
+    lines both at y = 0, no lever); placed without the counts (the fixed guess, independent
+    per nosing) it is σ1² + σ2². The treads lie within 3σ of the truth (0.287 m)."""
+    from graph_slam.terrain.features.config import FeatureConfig
+
+    first, tread = 0.507, 0.287
+    down = stairs_surface(first=first, rise=-0.16, tread=tread, n=3)
+
+    def shadow(x, y):
+        u = (x - first) % tread
+        return (x > first) & (x < first + tread * 3) & (u < 0.06)
+
+    h, var = grid(down, 0.001, seed=seed, unknown=shadow)
+    count = seen_counts(shadow)
+    rho = FeatureConfig().shadow_count_common
+    assert 0 < rho < 1
+    for kwargs, r in (({"count": count}, rho), ({}, 0.0)):
+        steps = extract_features(h, var, (X0, Y0), CELL, **kwargs).stairs[0].steps
+        assert len(steps) == 3
+        for here, nxt in itertools.pairwise(steps):
+            a, b = here.nosing, nxt.nosing
+            assert a.y_m == b.y_m == 0.0
+            want = a.sigma_m**2 + b.sigma_m**2 - 2 * r * a.sigma_m * b.sigma_m
+            assert here.tread_sigma_m**2 == pytest.approx(want, abs=1e-12)
+            assert abs(here.tread_m - tread) <= 3 * here.tread_sigma_m, (here.tread_m, seed)
+
+
 @pytest.mark.parametrize("through", [0.35, 0.70])
 def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
     """A 12 cm curb down, its edge ``through`` of the way through a cell and 4 cm of shadow
@@ -209,7 +239,7 @@ def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
     lies where the last cell's share of points ends (within 1.5 mm); counted as the lower
     surface (0, the default) it lies at that cell's end ((1 - through) of a cell late). Seen
     fully (no shadow), the counts change nothing."""
-    from graph_slam.terrain.features.model import FeatureConfig
+    from graph_slam.terrain.features.config import FeatureConfig
 
     edge = X0 + 40 * CELL + through * CELL
     curb = lambda x, y: np.where(x >= edge, -0.12, 0.0)  # noqa: E731
@@ -231,6 +261,39 @@ def test_a_curb_down_whose_shadow_a_late_view_saw_sparsely(through):
     full = seen_counts(lambda x, y: np.zeros(x.shape, bool))
     seen = extract_features(hf, vf, (X0, Y0), CELL, count=full, config=on).curbs[0].edge
     assert seen.x_m == pytest.approx(features(hf, vf).curbs[0].edge.x_m, abs=1e-9)
+
+
+@pytest.mark.parametrize(("through", "seed"), [(0.35, 31), (0.70, 32), (0.20, 33)])
+def test_a_curb_down_seen_sparsely_beyond_carries_the_span_between_its_readings(through, seed):
+    """The curb above: read with the sparse far cells as the lower surface (the default) its
+    edge is (1 - through) of a cell late; its σ carries half the span to the reading that
+    takes them as not seen (``sparse_span_sigma`` 0.5 of (1 - through) cell, within 1.5 mm),
+    so the error stays within 2.5σ. Seen fully, no span: the σ is that of
+    ``sparse_span_fraction`` 0 (to 1e-12)."""
+    from graph_slam.terrain.features.config import FeatureConfig
+
+    edge = X0 + 40 * CELL + through * CELL
+    curb = lambda x, y: np.where(x >= edge, -0.12, 0.0)  # noqa: E731
+
+    def shadow(x, y):
+        return (x >= edge) & (x < edge + 0.04)
+
+    h, var = grid(curb, 0.001, seed=seed, unknown=shadow)
+    count = seen_counts(shadow)
+    late = np.isnan(h) & (np.arange(NX)[:, None] > 40)
+    h[late], var[late], count[late] = -0.12, 1e-6, 2
+    off = FeatureConfig(sparse_span_fraction=0.0)
+    got = extract_features(h, var, (X0, Y0), CELL, count=count).curbs[0].edge
+    bare = extract_features(h, var, (X0, Y0), CELL, count=count, config=off).curbs[0].edge
+    assert got.x_m == bare.x_m  # the position is the same reading
+    span_sigma = math.sqrt(got.sigma_m**2 - bare.sigma_m**2)
+    assert span_sigma == pytest.approx(0.5 * (1 - through) * CELL, abs=0.0015)
+    assert abs(got.x_m - edge) <= 2.5 * got.sigma_m, (got.x_m - edge, got.sigma_m)
+    hf, vf = grid(curb, 0.001, seed=seed)
+    full = seen_counts(lambda x, y: np.zeros(x.shape, bool))
+    seen = extract_features(hf, vf, (X0, Y0), CELL, count=full).curbs[0].edge
+    seen_off = extract_features(hf, vf, (X0, Y0), CELL, count=full, config=off).curbs[0].edge
+    assert seen.sigma_m == pytest.approx(seen_off.sigma_m, abs=1e-12)
 
 
 @pytest.mark.parametrize("slope_deg", [5.0, 8.0, 10.0])
@@ -295,8 +358,9 @@ def test_level_floor_has_no_feature_and_json_round_trip():
 
 
 def test_sloped_cells_along_one_line_give_no_plane():
+    from graph_slam.terrain.features.config import FeatureConfig
     from graph_slam.terrain.features.extract import _ramps
-    from graph_slam.terrain.features.model import FeatureConfig, _Grid
+    from graph_slam.terrain.features.model import _Grid
 
     g = math.tan(math.radians(8.0))
     h, var = grid(lambda x, y: g * np.clip(x - 0.6, 0, None), 0.001, seed=9)

@@ -10,7 +10,8 @@ import math
 import numpy as np
 
 from graph_slam.terrain.features import edge_kernels
-from graph_slam.terrain.features.model import EdgeLine, FeatureConfig, _Grid
+from graph_slam.terrain.features.config import FeatureConfig
+from graph_slam.terrain.features.model import EdgeLine, _Grid
 
 
 def transitions(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureConfig):
@@ -36,6 +37,29 @@ def transitions(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureCo
         float(cfg.shadow_count_min), cfg.shadow_sparse_fraction, g.x0, g.cell,
     )  # fmt: skip
     return a, b, g.y_of(j), x, s, flags
+
+
+def sparse_spans(g: _Grid, labels, height: np.ndarray, cfg: FeatureConfig, rows) -> dict:
+    """Per terrace pair (``a``, ``b``) beyond a drop: the span (m) between its edge's reading
+    that takes the far cells seen only sparsely (``FeatureConfig.sparse_span_fraction`` of
+    the near cells' count) as seen and the one that takes them as not seen, the rows' mean
+    shift. ``rows``: :func:`transitions` with ``cfg`` (labels only pair the cells, so the
+    second reading has the same rows)."""
+    a, b, _, x = rows[0], rows[1], rows[2], rows[3]
+    frac = cfg.sparse_span_fraction
+    drop = height[b] < height[a]
+    if g.count is None or frac <= cfg.shadow_sparse_fraction or not drop.any():
+        return {}
+    alt = cfg.model_copy(update={"shadow_sparse_fraction": frac})
+    a2, b2, _, x2, _, _ = transitions(g, labels, height, alt)
+    if a2.shape != a.shape or (a2 != a).any() or (b2 != b).any():
+        return {}
+    shift = x2 - x
+    out = {}
+    for la, lb in set(zip(a[drop].tolist(), b[drop].tolist(), strict=True)):
+        sel = (a == la) & (b == lb)
+        out[(la, lb)] = abs(float(shift[sel].mean()))
+    return out
 
 
 def fit_line(
@@ -78,10 +102,11 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
     its edge line, rise and σ, sorted by the line's x. Where the shadow begins inside the
     last cell seen is the same guess in every row, or the counts' ratio (its error common to
     the rows too: the density's trend); an edge carried with the previous stride's cells
-    moved with them."""
+    moved with them. ``counted``: occluded, the shadow part from the counts."""
     a, b, y, x, s, flags = transitions(g, labels, height, cfg)
     if a.size == 0:
         return []
+    spans = sparse_spans(g, labels, height, cfg, (a, b, y, x))
     pairs, fits = edge_kernels.edge_groups(a, b, y, x, s, flags, len(height), cfg.min_edge_rows)
     out = []
     for (la, lb, occluded, counted, carried), fit in zip(pairs, fits, strict=True):
@@ -89,11 +114,14 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
         common = g.cell * part_sigma if occluded else 0.0
         if carried:
             common = math.hypot(common, cfg.carried_edge_sigma_m)
+        span = spans.get((int(la), int(lb)), 0.0)
+        common = math.hypot(common, cfg.sparse_span_sigma * span)
         line = _line_of(fit, bool(occluded), 0.0, common)
         ta, tb = terraces[int(la)], terraces[int(lb)]
         tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))
         out.append({
             "a": int(la), "b": int(lb), "line": line, "rise": tb["h"] - ta["h"],
+            "counted": bool(occluded and counted),
             "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2
                                     + (ta["corr"] - tb["corr"]) ** 2 + tilt**2),
         })  # fmt: skip

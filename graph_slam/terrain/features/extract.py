@@ -9,15 +9,10 @@ import numpy as np
 
 from graph_slam.errors import MappingError
 from graph_slam.terrain.features import kernels, ramp_kernels
+from graph_slam.terrain.features.config import FeatureConfig
 from graph_slam.terrain.features.edges import edges_of
 from graph_slam.terrain.features.kinds import boxes_of, chains_of
-from graph_slam.terrain.features.model import (
-    EdgeLine,
-    FeatureConfig,
-    Ramp,
-    TerrainFeatures,
-    _Grid,
-)
+from graph_slam.terrain.features.model import EdgeLine, Ramp, TerrainFeatures, _Grid
 
 _DEFAULT = FeatureConfig()
 

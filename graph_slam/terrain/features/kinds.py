@@ -9,15 +9,8 @@ import math
 import numpy as np
 
 from graph_slam.terrain.features import edge_kernels
-from graph_slam.terrain.features.model import (
-    BoxFeature,
-    Curb,
-    EdgeLine,
-    FeatureConfig,
-    Stairs,
-    Step,
-    _Grid,
-)
+from graph_slam.terrain.features.config import FeatureConfig
+from graph_slam.terrain.features.model import BoxFeature, Curb, EdgeLine, Stairs, Step, _Grid
 
 
 def boxes_of(edges: list[dict], terraces: dict, cfg: FeatureConfig):
@@ -156,7 +149,9 @@ def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureC
         for k, c in enumerate(chain):
             tread, tread_sigma = float("nan"), float("nan")
             if k + 1 < len(chain):
-                tread, tread_sigma = _tread(c["line"], chain[k + 1]["line"])
+                both = c.get("counted", False) and chain[k + 1].get("counted", False)
+                rho = cfg.shadow_count_common if both else 0.0
+                tread, tread_sigma = _tread(c["line"], chain[k + 1]["line"], rho)
             steps.append(
                 Step(
                     rise_m=c["rise"],
@@ -172,17 +167,20 @@ def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureC
     return stairs, curbs, parts
 
 
-def _tread(here: EdgeLine, nxt: EdgeLine) -> tuple[float, float]:
+def _tread(here: EdgeLine, nxt: EdgeLine, rho: float = 0.0) -> tuple[float, float]:
     """The tread from one nosing to the next along the first's normal and its σ, taken where
     both were seen, nearest the first's point (its y clipped into the overlap of their y
     ranges; its own y when they do not overlap): each line's σ there is its σ at its point
     and its yaw σ over the distance from it. Taken at the first's point, a next nosing seen
     in 4 rows at the grid's side was extrapolated half a metre by its poorly known yaw: 157 mm
-    off with σ 12 mm on the simulated stairs down."""
+    off with σ 12 mm on the simulated stairs down. ``rho``: the correlation of the two
+    nosings' errors (their common part cancels in the difference)."""
     lo, hi = max(here.y_range_m[0], nxt.y_range_m[0]), min(here.y_range_m[1], nxt.y_range_m[1])
     y = min(max(here.y_m, lo), hi) if lo <= hi else here.y_m
     tread = (nxt.x_at(y) - here.x_at(y)) * math.cos(here.yaw_rad)
-    return tread, math.hypot(_sigma_at(here, y), _sigma_at(nxt, y))
+    sa, sb = _sigma_at(here, y), _sigma_at(nxt, y)
+    var = sa * sa + sb * sb - 2.0 * rho * sa * sb
+    return tread, math.sqrt(max(var, 0.0))
 
 
 def _sigma_at(line: EdgeLine, y_m: float) -> float:
