@@ -14,7 +14,13 @@ from graph_slam.terrain.features.config import FeatureConfig
 from graph_slam.terrain.features.model import EdgeLine, _Grid
 
 
-def transitions(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureConfig):
+def transitions(
+    g: _Grid,
+    labels: np.ndarray,
+    height: np.ndarray,
+    cfg: FeatureConfig,
+    sparse_fraction: float | None = None,
+):
     """Every pair of terraces met along a row (x) within the gap, rows in order: arrays of
     the labels ``a``, ``b``, the row's y, the edge's x and σ, and the occluded, counted
     (shadow part from the counts) and carried flags. ``height``: per label its terrace's
@@ -28,13 +34,16 @@ def transitions(g: _Grid, labels: np.ndarray, height: np.ndarray, cfg: FeatureCo
     seen only from a few late viewpoints (``FeatureConfig.shadow_sparse_fraction``). Where a
     shadow begins inside the last cell seen:
     ``shadow_cell_seen``, or its points over the mean of the two cells before it
-    (``FeatureConfig.shadow_from_counts``). Carried: both cells hold no point of this stride."""
+    (``FeatureConfig.shadow_from_counts``). Carried: both cells hold no point of this stride.
+    ``sparse_fraction``: in place of ``cfg.shadow_sparse_fraction`` (:func:`sparse_spans`)."""
+    if sparse_fraction is None:
+        sparse_fraction = cfg.shadow_sparse_fraction
     has_count = g.count is not None
     count = g.count if has_count else np.zeros((1, 1))
     a, b, j, x, s, flags = edge_kernels.transitions(
         labels, height, g.h, g.var, g.noisy, count, has_count, cfg.max_gap_cells,
         cfg.min_rise_m, cfg.shadow_cell_seen, cfg.shadow_from_counts,
-        float(cfg.shadow_count_min), cfg.shadow_sparse_fraction, g.x0, g.cell,
+        float(cfg.shadow_count_min), sparse_fraction, g.x0, g.cell,
     )  # fmt: skip
     return a, b, g.y_of(j), x, s, flags
 
@@ -50,8 +59,7 @@ def sparse_spans(g: _Grid, labels, height: np.ndarray, cfg: FeatureConfig, rows)
     drop = height[b] < height[a]
     if g.count is None or frac <= cfg.shadow_sparse_fraction or not drop.any():
         return {}
-    alt = cfg.model_copy(update={"shadow_sparse_fraction": frac})
-    a2, b2, _, x2, _, _ = transitions(g, labels, height, alt)
+    a2, b2, _, x2, _, _ = transitions(g, labels, height, cfg, sparse_fraction=frac)
     if a2.shape != a.shape or (a2 != a).any() or (b2 != b).any():
         return {}
     shift = x2 - x
