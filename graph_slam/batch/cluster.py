@@ -109,6 +109,34 @@ def _silence_dask_loggers() -> None:
         logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
+def _is_sync_cancel_race(record) -> bool:
+    """Dask's ``sync()`` answers a Ctrl-C by scheduling a ``cancel`` on its event loop; when
+    the Ctrl-C lands before the awaited future exists, that callback raises ``NameError``
+    (free variable ``future``) and tornado logs it as an error: a race inside Dask at
+    interruption, not a failure of the batch."""
+    exc = record.exc_info[1] if record.exc_info else None
+    if not isinstance(exc, NameError) or "future" not in str(exc):
+        return False
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    code = tb.tb_frame.f_code if tb is not None else None
+    return code is not None and code.co_name == "cancel" and "distributed" in code.co_filename
+
+
+def drop_sync_cancel_race() -> None:
+    """Keep that one known log record (:func:`_is_sync_cancel_race`) out of stderr; every
+    other error of tornado's callbacks is still logged. Idempotent."""
+    import logging
+
+    log = logging.getLogger("tornado.application")
+    if not any(getattr(f, "_graph_slam_sync_cancel", False) for f in log.filters):
+        flt = logging.Filter()
+        flt.filter = lambda record: not _is_sync_cancel_race(record)  # type: ignore[method-assign]
+        flt._graph_slam_sync_cancel = True  # type: ignore[attr-defined]
+        log.addFilter(flt)
+
+
 @dataclass(frozen=True)
 class ClusterInfo:
     """What the batch runs on, for the user: a description and the dashboard (or why none)."""
@@ -142,6 +170,8 @@ def open_client(
     require_dask()
     import dask
     from distributed import Client, LocalCluster
+
+    drop_sync_cancel_race()
 
     from graph_slam.report.parallel import sigint_ignored
 
