@@ -37,7 +37,7 @@ def not_rigid(a_T_b: Any, atol: float = 1e-6) -> np.ndarray:
     """The one rigid-transform check: per 4x4 of ``a_T_b`` (4x4 or Nx4x4), True where it is
     not a homogeneous rigid transform: an entry NaN or inf, the 3x3 block not orthonormal or
     its determinant not +1, the last row not 0 0 0 1 (each within ``atol``). Callers raise
-    their own error from it (:func:`check_matrix4`; ``graph_slam.session.records.check_pose``)."""
+    their own error from it (:func:`check_matrix4`; ``graph_slam.session.checks.check_pose``)."""
     poses = np.asarray(a_T_b, dtype=float).reshape(-1, 4, 4)
     finite = np.isfinite(poses).all(axis=(1, 2))
     poses = np.where(finite[:, None, None], poses, np.eye(4))

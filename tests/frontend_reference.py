@@ -13,7 +13,8 @@ from graph_slam.frontend.cloud import voxel_groups, voxel_index
 from graph_slam.frontend.config import CloudConfig, ProjectiveConfig
 from graph_slam.frontend.objective import Rows, kernel_weights
 from graph_slam.frontend.projective import DepthFrame
-from graph_slam.session.records import CameraIntrinsics, RgbdFrame, check_pose
+from graph_slam.session.checks import check_pose
+from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 
 def organized_points(

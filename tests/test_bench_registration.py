@@ -18,7 +18,7 @@ from graph_slam.bench.registration import (
 )
 from graph_slam.errors import SessionError
 from graph_slam.frontend import fast_point_to_plane
-from graph_slam.session.format import open_session
+from graph_slam.session.reader import open_session
 from graph_slam.session.synthetic import (
     SyntheticConfig,
     box_on_floor,

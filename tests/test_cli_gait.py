@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from graph_slam.cli import main
-from graph_slam.session.format import IMU_COLUMNS
+from graph_slam.session.files import IMU_COLUMNS
 from graph_slam.session.io import write_numeric_csv
 from kinematics.gait_events import read_events_csv, write_imu_csv
 from kinematics.gait_synth import random_mounting, thigh_imu_from_reference

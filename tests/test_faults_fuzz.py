@@ -75,15 +75,15 @@ def _read_manifest(path: Path) -> None:
 
 def _read_imu_csv(path: Path) -> None:
     from graph_slam.session import io
-    from graph_slam.session.format import IMU_COLUMNS
+    from graph_slam.session.files import IMU_COLUMNS
 
     io.check_times(path, io.read_numeric_csv(path, IMU_COLUMNS)[:, 0])
 
 
 def _read_events(path: Path) -> None:
-    from graph_slam.session.format import _read_events
+    from graph_slam.session.files import read_events
 
-    _read_events(path)
+    read_events(path)
 
 
 def _read_tum(path: Path) -> None:

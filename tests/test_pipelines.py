@@ -104,7 +104,7 @@ def test_baseline_threshold_is_configurable(sim_session):
 
 
 def test_nan_imu_session_finishes_flagged(sim_session, tmp_path):
-    from graph_slam.session.format import IMU_COLUMNS
+    from graph_slam.session.files import IMU_COLUMNS
     from graph_slam.session.io import read_numeric_csv, write_numeric_csv
 
     copy = tmp_path / "nan"

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from graph_slam.session.format import open_session, validate_session
+from graph_slam.session.reader import open_session
+from graph_slam.session.validation import validate_session
 from graph_slam.sim import SimConfig, simulate
 from graph_slam.sim.config import CameraProfile, DropModel, ImuProfile, MotionConfig, load_profile
 from graph_slam.sim.motion import GaitMotion

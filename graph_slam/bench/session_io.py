@@ -16,8 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from graph_slam.session.format import FRAME_COLUMNS, SessionWriter, open_session
+from graph_slam.session.files import FRAME_COLUMNS
+from graph_slam.session.reader import open_session
 from graph_slam.session.records import CameraIntrinsics, ImuSeries, JointSeries, RgbdFrame
+from graph_slam.session.writer import SessionWriter
 
 
 def peak_rss_mb() -> float:

@@ -36,7 +36,7 @@ from graph_slam.frontend.result import (
     registration_failure,
     start_pose,
 )
-from graph_slam.session.records import check_pose
+from graph_slam.session.checks import check_pose
 from kinematics.conversions import adjoint_rot_first, skew
 
 #: small_gicp regularises every covariance to ``diag(1e-3, 1, 1)`` in its eigenbasis: a

@@ -13,7 +13,7 @@ import numpy as np
 
 from graph_slam.errors import ConfigError
 from graph_slam.frontend.cloud import Cloud, VoxelSums, voxel_index
-from graph_slam.session.records import check_pose
+from graph_slam.session.checks import check_pose
 
 
 class LocalMap:

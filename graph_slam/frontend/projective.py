@@ -52,7 +52,8 @@ from graph_slam.frontend.result import (
     registration_failure,
     start_pose,
 )
-from graph_slam.session.records import CameraIntrinsics, RgbdFrame, check_pose
+from graph_slam.session.checks import check_pose
+from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 
 _NO_COLOR = np.zeros((1, 1, 3), np.uint8)  # the kernels' placeholder for "no colour image"
 _NO_INTENSITY = np.zeros((0, 0))

@@ -29,7 +29,7 @@ from graph_slam.frontend.config import RegistrationConfig
 from graph_slam.frontend.neighbourhood import color_gradients
 from graph_slam.frontend.objective import Rows, analyse, cloud_rows, exp_left, rows_information
 from graph_slam.frontend.result import RegistrationResult, conclude, gate_correspondences
-from graph_slam.session.records import check_pose
+from graph_slam.session.checks import check_pose
 
 
 def open3d_rows(

@@ -18,7 +18,7 @@ import numpy as np
 
 from graph_slam.errors import RegistrationError, RegistrationFailure
 from graph_slam.frontend.degeneracy import DegeneracyReport
-from graph_slam.session.records import check_pose
+from graph_slam.session.checks import check_pose
 
 
 class RegistrationStatus(StrEnum):

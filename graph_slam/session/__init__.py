@@ -1,13 +1,7 @@
 """Sessions: records, the on-disk format (reader, writer, validation) and sources."""
 
-from graph_slam.session.format import (
-    Session,
-    SessionWriter,
-    ValidationReport,
-    open_session,
-    validate_session,
-)
 from graph_slam.session.info import SessionInfo, session_info
+from graph_slam.session.reader import Session, open_session
 from graph_slam.session.records import (
     Calibration,
     CameraIntrinsics,
@@ -19,6 +13,8 @@ from graph_slam.session.records import (
     SceneObject,
     SceneTruth,
 )
+from graph_slam.session.validation import ValidationReport, validate_session
+from graph_slam.session.writer import SessionWriter
 
 __all__ = [
     "Calibration",

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graph_slam.session.format import Session
+from graph_slam.session.reader import Session
 
 #: A gap is an interval longer than this multiple of the stream's median sample interval.
 GAP_FACTOR = 2.0

@@ -9,7 +9,7 @@ a foot strike, where the per-stride graph starts anew, and every stride of the l
 whole stride of the recording.
 
 It offers what :func:`graph_slam.pipelines.replay.replay_session` and the scoring read of a
-:class:`~graph_slam.session.format.Session` (``path``, ``name``, ``manifest``,
+:class:`~graph_slam.session.reader.Session` (``path``, ``name``, ``manifest``,
 ``intrinsics``, ``calibration``, ``frame_times_s``, ``n_frames``, ``frame``, ``imu``,
 ``joints``, ``events``, ``ground_truth``, ``scene``). The ground truth repeats too: the world
 frame jumps at each seam (scoring is per stride, so no stride crosses a jump). Frames are read

@@ -2,8 +2,8 @@
 
 Names carry units and frames (``t_s``, ``gyro_rad_s``, ``world_T_camera``). Arrays are stored
 read-only and checked on construction: a record that exists is well-formed (shapes, dtypes,
-finite values, strictly increasing time). Construction errors are :class:`RecordError` with
-the record, the field and the rule.
+finite values, strictly increasing time; the rules are in :mod:`graph_slam.session.checks`).
+Construction errors are :class:`RecordError` with the record, the field and the rule.
 
 Poses are ``a_T_b`` 4×4 homogeneous matrices that map points from frame ``b`` to frame ``a``.
 """
@@ -16,65 +16,17 @@ from typing import Literal
 import numpy as np
 
 from graph_slam.errors import RecordError, SessionError
+from graph_slam.session.checks import (
+    check_increasing,
+    check_pose,
+    float_array,
+    frozen_array,
+    pose_array,
+)
 from kinematics import imu as kinematics_imu
-from kinematics.conversions import not_rigid
 
 GaitEventKind = Literal["foot_strike", "toe_off"]
 GAIT_EVENT_KINDS: tuple[str, ...] = ("foot_strike", "toe_off")
-
-
-# --------------------------------------------------------------------------- helpers
-def _frozen(array: np.ndarray) -> np.ndarray:
-    array = np.ascontiguousarray(array)
-    array.setflags(write=False)
-    return array
-
-
-def _float_array(
-    record: str, name: str, value: object, shape: tuple[int | None, ...]
-) -> np.ndarray:
-    """Convert to float64 and check shape (``None`` = any length) and finiteness."""
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise RecordError(f"{record}.{name}: not numeric ({err})") from None
-    if array.ndim != len(shape) or any(
-        want is not None and got != want for got, want in zip(array.shape, shape, strict=True)
-    ):
-        want_txt = "×".join("N" if s is None else str(s) for s in shape)
-        raise RecordError(f"{record}.{name}: shape {array.shape} does not match {want_txt}")
-    bad = ~np.isfinite(array)
-    if bad.any():
-        bad_rows = np.flatnonzero(bad.reshape(bad.shape[0], -1).any(axis=1)) if array.ndim else [0]
-        raise RecordError(
-            f"{record}.{name}: {len(bad_rows)} row(s) hold NaN or inf, first at row {bad_rows[0]}"
-        )
-    return _frozen(array)
-
-
-def check_increasing(record: str, t_s: np.ndarray) -> None:
-    """Timestamps must strictly increase; report the count and the first offending row."""
-    if t_s.size < 2:
-        return
-    bad = np.flatnonzero(np.diff(t_s) <= 0.0) + 1
-    if bad.size:
-        first = int(bad[0])
-        kind = "duplicate" if t_s[first] == t_s[first - 1] else "decreasing"
-        raise RecordError(
-            f"{record}.t_s: {bad.size} timestamp(s) not strictly increasing, first at row {first} "
-            f"({kind}: {float(t_s[first - 1])!r} then {float(t_s[first])!r})"
-        )
-
-
-def check_pose(record: str, name: str, pose: np.ndarray, tol: float = 1e-6) -> None:
-    """A 4×4 (or N×4×4) homogeneous rigid transform: finite, orthonormal rotation with det +1,
-    last row 0 0 0 1 (:func:`kinematics.conversions.not_rigid`)."""
-    bad = np.flatnonzero(not_rigid(pose, tol))
-    if bad.size:
-        raise RecordError(
-            f"{record}.{name}: {bad.size} transform(s) are not rigid (not finite, rotation not "
-            f"orthonormal with det +1, or last row not 0 0 0 1), first at index {int(bad[0])}"
-        )
 
 
 # --------------------------------------------------------------------------- camera
@@ -145,7 +97,7 @@ class RgbdFrame:
             raise RecordError(
                 f"RgbdFrame[{self.index}].depth_m: values must be finite and >= 0 (0 = invalid)"
             )
-        object.__setattr__(self, "depth_m", _frozen(depth))
+        object.__setattr__(self, "depth_m", frozen_array(depth))
         if self.color_rgb is not None:
             color = np.asarray(self.color_rgb)
             if color.dtype != np.uint8 or color.shape != (*depth.shape, 3):
@@ -153,7 +105,7 @@ class RgbdFrame:
                     f"RgbdFrame[{self.index}].color_rgb: must be uint8 {depth.shape[0]}×"
                     f"{depth.shape[1]}×3 like the depth, got {color.dtype} {color.shape}"
                 )
-            object.__setattr__(self, "color_rgb", _frozen(color))
+            object.__setattr__(self, "color_rgb", frozen_array(color))
 
     def renumbered(self, index: int) -> RgbdFrame:
         """The same frame with another ``index``, not checked again (its arrays were checked
@@ -177,17 +129,17 @@ class ImuSeries(kinematics_imu.ImuSeries):
     validated on construction: shapes, finite values, strictly increasing time."""
 
     def __post_init__(self) -> None:
-        t = _float_array("ImuSeries", "t_s", self.t_s, (None,))
+        t = float_array("ImuSeries", "t_s", self.t_s, (None,))
         object.__setattr__(self, "t_s", t)
         object.__setattr__(
             self,
             "gyro_rad_s",
-            _float_array("ImuSeries", "gyro_rad_s", self.gyro_rad_s, (t.size, 3)),
+            float_array("ImuSeries", "gyro_rad_s", self.gyro_rad_s, (t.size, 3)),
         )
         object.__setattr__(
             self,
             "accel_m_s2",
-            _float_array("ImuSeries", "accel_m_s2", self.accel_m_s2, (t.size, 3)),
+            float_array("ImuSeries", "accel_m_s2", self.accel_m_s2, (t.size, 3)),
         )
         check_increasing("ImuSeries", t)
 
@@ -204,13 +156,13 @@ class JointSeries:
     ankle_rad: np.ndarray
 
     def __post_init__(self) -> None:
-        t = _float_array("JointSeries", "t_s", self.t_s, (None,))
+        t = float_array("JointSeries", "t_s", self.t_s, (None,))
         object.__setattr__(self, "t_s", t)
         object.__setattr__(
-            self, "knee_rad", _float_array("JointSeries", "knee_rad", self.knee_rad, (t.size,))
+            self, "knee_rad", float_array("JointSeries", "knee_rad", self.knee_rad, (t.size,))
         )
         object.__setattr__(
-            self, "ankle_rad", _float_array("JointSeries", "ankle_rad", self.ankle_rad, (t.size,))
+            self, "ankle_rad", float_array("JointSeries", "ankle_rad", self.ankle_rad, (t.size,))
         )
         check_increasing("JointSeries", t)
 
@@ -235,7 +187,7 @@ class GaitEvents:
     source: tuple[str, ...]
 
     def __post_init__(self) -> None:
-        t = _float_array("GaitEvents", "t_s", self.t_s, (None,))
+        t = float_array("GaitEvents", "t_s", self.t_s, (None,))
         object.__setattr__(self, "t_s", t)
         kinds = tuple(str(k) for k in self.kind)
         sources = tuple(str(s) for s in self.source)
@@ -297,8 +249,8 @@ class PoseTrajectory:
     child: str = "camera"
 
     def __post_init__(self) -> None:
-        t = _float_array("PoseTrajectory", "t_s", self.t_s, (None,))
-        poses = _float_array(
+        t = float_array("PoseTrajectory", "t_s", self.t_s, (None,))
+        poses = float_array(
             "PoseTrajectory", f"{self.parent}_T_{self.child}", self.parent_T_child, (t.size, 4, 4)
         )
         check_pose("PoseTrajectory", f"{self.parent}_T_{self.child}", poses)
@@ -338,7 +290,7 @@ class Cloud:
             raise RecordError(f"Cloud.points_m: shape {points.shape} is not N×3")
         if not np.isfinite(points).all():
             raise RecordError("Cloud.points_m: NaN or inf; every coordinate must be finite")
-        object.__setattr__(self, "points_m", _frozen(points))
+        object.__setattr__(self, "points_m", frozen_array(points))
         for name in ("colors", "normals"):
             value = getattr(self, name)
             if value is not None:
@@ -347,7 +299,7 @@ class Cloud:
                     raise RecordError(
                         f"Cloud.{name}: shape {value.shape} does not match points {points.shape}"
                     )
-                object.__setattr__(self, name, _frozen(value))
+                object.__setattr__(self, name, frozen_array(value))
         if (
             self.colors is not None
             and self.colors.size
@@ -384,12 +336,6 @@ class Cloud:
 
 
 # --------------------------------------------------------------------------- calibration, scene
-def _pose_field(record: str, name: str, value: object) -> np.ndarray:
-    pose = _float_array(record, name, value, (4, 4))
-    check_pose(record, name, pose)
-    return pose
-
-
 @dataclass(frozen=True, slots=True, eq=False)
 class Calibration:
     """Extrinsics and time offsets.
@@ -407,10 +353,10 @@ class Calibration:
         object.__setattr__(
             self,
             "thigh_T_camera",
-            _pose_field("Calibration", "thigh_T_camera", self.thigh_T_camera),
+            pose_array("Calibration", "thigh_T_camera", self.thigh_T_camera),
         )
         object.__setattr__(
-            self, "camera_T_imu", _pose_field("Calibration", "camera_T_imu", self.camera_T_imu)
+            self, "camera_T_imu", pose_array("Calibration", "camera_T_imu", self.camera_T_imu)
         )
         for name in ("imu_time_offset_s", "joints_time_offset_s"):
             value = getattr(self, name)
@@ -436,9 +382,9 @@ class SceneObject:
         object.__setattr__(
             self,
             "world_T_object",
-            _pose_field(f"SceneObject[{self.name}]", "world_T_object", self.world_T_object),
+            pose_array(f"SceneObject[{self.name}]", "world_T_object", self.world_T_object),
         )
-        size = _float_array(f"SceneObject[{self.name}]", "size_m", self.size_m, (3,))
+        size = float_array(f"SceneObject[{self.name}]", "size_m", self.size_m, (3,))
         if (size <= 0).any():
             raise RecordError(f"SceneObject[{self.name}].size_m: every dimension must be > 0")
         object.__setattr__(self, "size_m", size)

@@ -24,7 +24,6 @@ import numpy as np
 from pydantic import Field
 
 from graph_slam.config import ConfigModel
-from graph_slam.session.format import SessionWriter
 from graph_slam.session.manifest import Provenance
 from graph_slam.session.records import (
     Calibration,
@@ -37,6 +36,7 @@ from graph_slam.session.records import (
     SceneObject,
     SceneTruth,
 )
+from graph_slam.session.writer import SessionWriter
 
 GRAVITY_M_S2 = 9.81
 #: Optical camera looking along world +x with zero pitch (columns: camera axes in world).

@@ -27,9 +27,9 @@ import numpy as np
 import yaml
 
 from graph_slam.session.atomic import atomic_folder, check_output
-from graph_slam.session.format import SessionWriter
 from graph_slam.session.manifest import Provenance
 from graph_slam.session.records import Calibration, PoseTrajectory, RgbdFrame
+from graph_slam.session.writer import SessionWriter
 from graph_slam.sim.config import (
     CameraProfile,
     ImuProfile,

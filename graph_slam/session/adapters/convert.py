@@ -30,9 +30,9 @@ from graph_slam.session.adapters.log_checks import check_span
 from graph_slam.session.adapters.prosthesis_log import read_prosthesis_log
 from graph_slam.session.adapters.registry import select_adapter
 from graph_slam.session.atomic import atomic_folder, check_output
-from graph_slam.session.format import SessionWriter
 from graph_slam.session.manifest import MANIFEST_NAME, Provenance
 from graph_slam.session.records import Calibration, GaitEvents, JointSeries
+from graph_slam.session.writer import SessionWriter
 
 CONFIG_NAME = "conversion.yaml"
 REPORT_NAME = "conversion_report.yaml"

@@ -12,8 +12,8 @@ from pathlib import Path
 from graph_slam.config import load_config
 from graph_slam.session.adapters.base import ConversionReport, Recording, StreamReport
 from graph_slam.session.adapters.config import ConvertConfig
-from graph_slam.session.format import Session
 from graph_slam.session.manifest import MANIFEST_NAME
+from graph_slam.session.reader import Session
 
 
 def _counted(report: ConversionReport, name: str, source: str, n: int) -> None:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graph_slam.errors import DepthUnitsError
-from graph_slam.session.format import PLAUSIBLE_MEDIAN_DEPTH_M
+from graph_slam.session.files import PLAUSIBLE_MEDIAN_DEPTH_M
 from graph_slam.session.records import ImuSeries
 
 
