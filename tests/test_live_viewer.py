@@ -126,3 +126,15 @@ def test_a_negative_rate_is_refused():
 
     with pytest.raises(ConfigError, match="grid_hz"):
         config_from_dict(ViewerConfig, {"grid_hz": -1.0})
+
+
+def test_the_cli_refuses_a_negative_rate_before_any_output(tmp_path, capsys):
+    pytest.importorskip("pyrealsense2")
+    from graph_slam.cli import main
+
+    with pytest.raises(SystemExit) as done:
+        main(["live", "--playback", str(tmp_path / "x.db3"), "--out", str(tmp_path / "o"),
+              "--rerun", "file", "--rerun-grid-hz", "-1"])  # fmt: skip
+    assert done.value.code != 0
+    assert "grid_hz" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
