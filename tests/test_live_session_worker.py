@@ -123,3 +123,37 @@ def test_the_writer_process_runs_at_the_nice_it_was_given(tmp_path: Path) -> Non
         child.add_frame(_frames(1, seed=7)[0])
         child.close()
     assert open_session(tmp_path / "niced").n_frames == 1
+
+
+def test_a_run_without_the_writer_process_writes_the_same_session_on_stop(tmp_path: Path) -> None:
+    """``LiveRunner`` without ``session_path`` keeps the frames and writes them on stop, in
+    its own process: the same files as the writer's process."""
+    from types import SimpleNamespace
+
+    from graph_slam.live.loop import LiveRunner, _Recorded
+
+    frames, (imu, joints, events) = _frames(5, seed=8), _streams(seed=9)
+    runner = LiveRunner.__new__(LiveRunner)  # only what writing the session reads
+    runner._writer = None
+    runner.setup = SimpleNamespace(intrinsics=K, depth_unit_m=UNIT, camera_T_imu=CAMERA_T_IMU,
+                                   device={"serial": "123"})  # fmt: skip
+    runner.source = SimpleNamespace(playback=None)
+    runner.rec = _Recorded(frames=frames,
+                           imu=[(imu.t_s[:15], imu.gyro_rad_s[:15], imu.accel_m_s2[:15]),
+                                (imu.t_s[15:], imu.gyro_rad_s[15:], imu.accel_m_s2[15:])],
+                           joints=list(zip(joints.t_s, joints.knee_rad, joints.ankle_rad,
+                                           strict=True)),
+                           events=list(zip(events.t_s, events.kind, strict=True)))  # fmt: skip
+    here = runner.write_session(tmp_path / "here")
+    child = SessionProcess(tmp_path / "child", **_args(), camera_T_imu=CAMERA_T_IMU,
+                           generator="graph_slam.live", source="123", nice=0)  # fmt: skip
+    for frame in frames:
+        child.add_frame(frame)
+    child.close(*runner._streams())
+    for name in ("frames.csv", "imu.csv", "joints.csv", "events.csv"):
+        assert (here / name).read_text() == (tmp_path / "child" / name).read_text(), name
+    a, b = open_session(here), open_session(tmp_path / "child")
+    assert a.n_frames == b.n_frames == 5 and a.manifest.provenance.source == "123"
+    for fa, fb in zip(a.iter_frames(), b.iter_frames(), strict=True):
+        np.testing.assert_array_equal(fa.depth_m, fb.depth_m)
+    np.testing.assert_array_equal(a.imu.t_s, imu.t_s)
