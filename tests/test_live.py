@@ -163,9 +163,9 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     log = LogReplay(conv.prosthesis_log.path, conv.prosthesis_log, 3.217)
     lines: list[str] = []
     cfg = PipelineConfig.model_validate(with_preset({"variant": "icp+imu+kin"}, "realtime"))
-    from graph_slam.live.viewer import LiveViewer
+    from graph_slam.live.viewer import LiveViewer, ViewerConfig
 
-    viewer = LiveViewer(tmp_path / "live.rrd", grid_step=3)  # poses + grid (to a file here)
+    viewer = LiveViewer(tmp_path / "live.rrd", ViewerConfig(pose_hz=0, grid_hz=30))  # to a file
     runner = LiveRunner(source, log, cfg, mount_pitch_deg=35.0, status=lines.append,
                         session_path=tmp_path / "out" / "session", viewer=viewer)  # fmt: skip
     result = runner.run(max_s=30.0)

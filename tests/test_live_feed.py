@@ -1,20 +1,18 @@
 """Live: what the estimator's thread is handed and what is kept off it — the IMU samples of a
 frame given in one call (the same samples, in order, as chunk by chunk), the camera's IMU items
-routed past the thread that decodes frames (in time order), a frame renumbered without being
-checked again, and the session writer's thread at a lower CPU priority."""
+routed past the thread that decodes frames (in time order), and a frame renumbered without
+being checked again."""
 
 from __future__ import annotations
 
 import queue
-import sys
-import threading
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from graph_slam.live.camera import ImuItem
-from graph_slam.live.loop import LiveRunner, lower_priority
+from graph_slam.live.loop import LiveRunner
 from graph_slam.session.records import RgbdFrame
 
 
@@ -108,22 +106,3 @@ def test_a_renumbered_frame_keeps_its_checked_arrays() -> None:
     assert not again.depth_m.flags.writeable
     with pytest.raises(AttributeError):
         again.index = 4  # still frozen
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a thread's own nice: Linux")
-def test_the_writer_thread_lowers_only_its_own_priority() -> None:
-    import os
-
-    got: list[tuple[int | None, int]] = []
-
-    def thread() -> None:
-        before = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
-        got.append((lower_priority(3), before))
-
-    worker = threading.Thread(target=thread)
-    worker.start()
-    worker.join()
-    (nice, before), = got  # fmt: skip
-    assert nice == min(before + 3, 19)
-    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == before  # this thread
-    assert lower_priority(0) is None

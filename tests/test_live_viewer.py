@@ -64,9 +64,9 @@ def test_serve_draws_every_message_and_counts_a_failed_frame():
 
 
 def test_the_worker_process_writes_a_recording_with_poses_and_grids(tmp_path):
-    from graph_slam.live.viewer import LiveViewer
+    from graph_slam.live.viewer import LiveViewer, ViewerConfig
 
-    viewer = LiveViewer(tmp_path / "live.rrd", grid_step=3)
+    viewer = LiveViewer(tmp_path / "live.rrd", ViewerConfig(pose_hz=0, grid_hz=30))
     assert viewer.wait_ready()
     for i in range(7):
         viewer.frame(_frame(i, seed=i))
@@ -85,7 +85,8 @@ def test_a_worker_that_stops_stops_the_drawing_not_the_run(tmp_path, monkeypatch
         return real([sys.executable, "-c", "import sys; sys.exit(3)"], **kw)
 
     monkeypatch.setattr(viewer_module.subprocess, "Popen", dies)
-    viewer = viewer_module.LiveViewer(tmp_path / "live.rrd", grid_step=1)
+    viewer = viewer_module.LiveViewer(tmp_path / "live.rrd", viewer_module.ViewerConfig(
+        pose_hz=0, grid_hz=0))  # fmt: skip
     assert not viewer.wait_ready(timeout_s=10)
     for i in range(40):  # more than a pipe holds: writes fail, never block
         viewer.frame(_frame(i, seed=i))
@@ -96,9 +97,44 @@ def test_a_worker_that_stops_stops_the_drawing_not_the_run(tmp_path, monkeypatch
     assert viewer.counts["lost"] + viewer.counts["dropped"] == 40
 
 
-def test_grid_step_below_one_is_refused(tmp_path):
-    from graph_slam.errors import ConfigError
-    from graph_slam.live.viewer import LiveViewer
+def test_poses_and_grids_are_sent_at_their_rates_on_the_frames_clock(tmp_path):
+    """90 Hz frames, poses at 30 Hz and grids at 5 Hz: every 3rd frame a pose, every 18th a
+    grid (with its pose); a gap in the frames restarts the rates from the next frame."""
+    from graph_slam.live.viewer import LiveViewer, ViewerConfig
 
-    with pytest.raises(ConfigError, match="grid_step"):
-        LiveViewer(tmp_path / "x.rrd", grid_step=0)
+    viewer = object.__new__(LiveViewer)  # the rate alone: no worker process
+    viewer.config = ViewerConfig(pose_hz=30, grid_hz=5)
+    viewer._next_pose_s = viewer._next_grid_s = -float("inf")
+    t = 100.0 + np.arange(90) / 90.0
+    due = [viewer.due(float(x)) for x in t]
+    poses = [i for i, (p, _) in enumerate(due) if p]
+    grids = [i for i, (_, g) in enumerate(due) if g]
+    assert grids == list(range(0, 90, 18))
+    assert poses == list(range(0, 90, 3))
+    assert viewer.due(t[-1] + 2.0) == (True, True)  # after a 2 s gap: at once
+    assert viewer.due(t[-1] + 2.0 + 1 / 90) == (False, False)
+    every = object.__new__(LiveViewer)
+    every.config = ViewerConfig(pose_hz=0, grid_hz=0)
+    every._next_pose_s = every._next_grid_s = -float("inf")
+    assert all(every.due(float(x)) == (True, True) for x in t[:5])
+
+
+def test_a_negative_rate_is_refused():
+    from graph_slam.config import config_from_dict
+    from graph_slam.errors import ConfigError
+    from graph_slam.live.viewer import ViewerConfig
+
+    with pytest.raises(ConfigError, match="grid_hz"):
+        config_from_dict(ViewerConfig, {"grid_hz": -1.0})
+
+
+def test_the_cli_refuses_a_negative_rate_before_any_output(tmp_path, capsys):
+    pytest.importorskip("pyrealsense2")
+    from graph_slam.cli import main
+
+    with pytest.raises(SystemExit) as done:
+        main(["live", "--playback", str(tmp_path / "x.db3"), "--out", str(tmp_path / "o"),
+              "--rerun", "file", "--rerun-grid-hz", "-1"])  # fmt: skip
+    assert done.value.code != 0
+    assert "grid_hz" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

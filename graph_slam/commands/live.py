@@ -47,6 +47,16 @@ def register(app: typer.Typer) -> None:
             typer.Option(help="spawn: open a rerun viewer; file: only OUT/live.rrd; or a "
                          "viewer address to connect to."),
         ] = None,
+        rerun_pose_hz: Annotated[
+            float,
+            typer.Option(help="Poses sent to rerun per second, on the frames' clock (0: every "
+                         "frame)."),
+        ] = 30.0,
+        rerun_grid_hz: Annotated[
+            float,
+            typer.Option(help="Elevation grids sent to rerun per second (0: every frame; each "
+                         "is a box search in the viewer's process)."),
+        ] = 5.0,
         imu_wait: Annotated[
             float,
             typer.Option(help="Skip a frame whose IMU sample after it has not come this long "
@@ -74,6 +84,11 @@ def register(app: typer.Typer) -> None:
             raise ConfigError(f"--imu-wait {imu_wait}: must be positive (ms)")
         if log is not None and udp is not None:
             raise ConfigError("--log and --udp: give one prosthesis source")
+        from graph_slam.live.viewer import ViewerConfig
+
+        view_cfg = config_from_dict(ViewerConfig, {"pose_hz": rerun_pose_hz,
+                                                   "grid_hz": rerun_grid_hz},
+                                    source="--rerun-pose-hz / --rerun-grid-hz")  # fmt: skip
         from graph_slam.session.atomic import check_output, mark_folder
 
         inputs = [p for p in (playback, log, config) if p is not None]
@@ -108,7 +123,7 @@ def register(app: typer.Typer) -> None:
             from graph_slam.live.viewer import LiveViewer
 
             out.mkdir(parents=True, exist_ok=True)
-            viewer = LiveViewer(out / "live.rrd", spawn=rerun == "spawn",
+            viewer = LiveViewer(out / "live.rrd", view_cfg, spawn=rerun == "spawn",
                                 connect=None if rerun in ("spawn", "file") else rerun)  # fmt: skip
             viewer.wait_ready()
         session_path = out / "session"

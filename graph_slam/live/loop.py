@@ -16,7 +16,9 @@ Threads (docs/recording.md, "Live"):
   has not come ``imu_wait_s`` after its arrival is skipped as ``imu late``. Before a frame it
   gets the IMU samples up to and including the first one at or after the frame's time, the
   prosthesis samples known by then and the foot strikes stamped at or before the frame;
-- the **writer** thread writes the processed frames to the session as the run goes on.
+- the **session writer**, a process of its own at the lowest CPU priority
+  (:mod:`graph_slam.live.session_worker`), writes the processed frames to the session as the
+  run goes on; a thread here hands their arrays to its pipe.
 
 Latency is measured from the frame's arrival in this process (librealsense's callback) to its
 pose. A one-line status every ``status_interval_s`` (rate, skipped frames by reason, latency,
@@ -32,10 +34,8 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
 import queue
 import sys
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -79,22 +79,6 @@ def _gil_switch(interval_s: float | None):
         sys.setswitchinterval(before)
 
 
-def lower_priority(increment: int) -> int | None:
-    """Lower the calling thread's CPU priority by ``increment`` nice steps (Linux: a thread's
-    own nice value; elsewhere, or where it is refused, nothing); the nice value it got. The
-    session writer's compression then yields the cores to the estimator and the threads
-    that feed it, and catches up when they wait."""
-    if increment <= 0 or not sys.platform.startswith("linux"):
-        return None
-    tid = threading.get_native_id()
-    try:
-        nice = min(os.getpriority(os.PRIO_PROCESS, tid) + increment, 19)
-        os.setpriority(os.PRIO_PROCESS, tid, nice)
-    except OSError:
-        return None
-    return nice
-
-
 class LiveRunner:
     """One live run (see the module docstring); :meth:`run` returns a :class:`LiveResult`."""
 
@@ -113,7 +97,7 @@ class LiveRunner:
         pipeline_factory: Callable | None = None,
         session_path: Path | None = None,
         gil_switch_s: float | None = 0.0005,
-        writer_nice: int = 10,
+        writer_nice: int = 19,
     ) -> None:
         self.source, self.prosthesis, self.config = source, prosthesis, config
         self.mount_pitch_deg = mount_pitch_deg
@@ -122,9 +106,7 @@ class LiveRunner:
         self.pipeline_factory = pipeline_factory
         self.gil_switch_s, self.writer_nice = gil_switch_s, writer_nice
         self.session_path = None if session_path is None else Path(session_path)
-        self._writer = None
-        self._writer_thread: threading.Thread | None = None
-        self._to_write: queue.Queue = queue.Queue()
+        self._writer = None  # SessionProcess, with session_path
         self.rec = _Recorded()
         self._imu_pending: list[ImuItem] = []
         self._latency: list[float] = []
@@ -136,6 +118,15 @@ class LiveRunner:
         self._t0 = self.warm_up_s = 0.0
 
     def run(self, max_s: float | None = None) -> LiveResult:
+        try:
+            return self._run(max_s)
+        except BaseException:  # the session's writer stops too, without a manifest
+            if self._writer is not None:
+                self._writer.abort()
+                self._writer = None
+            raise
+
+    def _run(self, max_s: float | None) -> LiveResult:
         from graph_slam.pipelines.replay import frozen_heap
         from graph_slam.pipelines.runner import make_pipeline
 
@@ -145,6 +136,8 @@ class LiveRunner:
         camera_T_imu = setup.camera_T_imu if setup.camera_T_imu is not None else np.eye(4)
 
         factory = self.pipeline_factory or make_pipeline
+        if self.session_path is not None:  # (its imports run beside the warm-up)
+            self._writer = self._session_process(self.session_path)
 
         def make():
             return factory(self.config, setup.intrinsics, camera_T_imu,
@@ -156,8 +149,8 @@ class LiveRunner:
         self.pipe = make()
         self.warm_up_s = time.perf_counter() - w0
         self.frames = FrameQueue(self.imu_wait_s, needs_imu=setup.has_imu)
-        if self.session_path is not None:
-            self._start_writer(self.session_path)
+        if self._writer is not None:
+            self._writer.wait_ready()
         prep = Preparer(self.source, ahead=getattr(self.pipe, "prepare_ahead", None))
         self.source.route_imu(prep.items)  # the IMU straight to the estimator, not behind frames
         self.source.discard()
@@ -301,7 +294,7 @@ class LiveRunner:
         self._latency.append(now - item.arrival_s)
         self.compute_s.append(now - w0)
         if self._writer is not None:
-            self._to_write.put(frame)  # written by the writer thread as the run goes on
+            self._writer.add_frame(frame)  # written by the writer's process as the run goes on
         elif self.keep_frames:
             self.rec.frames.append(frame)
         if self.viewer is not None:
@@ -330,57 +323,60 @@ class LiveRunner:
         )
 
     # ------------------------------------------------------------------ outputs
-    def _session_writer(self, path: Path, name: str = "live"):
-        from graph_slam.session import SessionWriter
-        from graph_slam.session.manifest import Provenance
-        from graph_slam.session.records import Calibration
-
+    def _session_args(self) -> dict:
         setup = self.setup
-        calibration = Calibration(
-            camera_T_imu=setup.camera_T_imu if setup.camera_T_imu is not None else np.eye(4)
-        )
-        provenance = Provenance(generator="graph_slam.live", source=str(
-            self.source.playback or setup.device.get("serial", "camera")))  # fmt: skip
-        return SessionWriter(path, name=name, intrinsics=setup.intrinsics,
-                             depth_unit_m=setup.depth_unit_m, camera_profile="realsense-live",
-                             calibration=calibration, provenance=provenance)  # fmt: skip
+        return dict(name="live", intrinsics=setup.intrinsics, depth_unit_m=setup.depth_unit_m,
+                    camera_profile="realsense-live", generator="graph_slam.live",
+                    source=str(self.source.playback or setup.device.get("serial", "camera")))  # fmt: skip
 
-    def _start_writer(self, path: Path) -> None:
-        """The session's frames are written by a thread while the run goes on (memory stays
-        bounded); the manifest is written last, on stop."""
-        self._writer = self._session_writer(path)
+    def _session_process(self, path: Path):
+        """The session's frames are written by a process of its own while the run goes on
+        (memory stays bounded, the estimator keeps its core); the manifest last, on stop."""
+        from graph_slam.live.session_worker import SessionProcess
 
-        def drain() -> None:
-            lower_priority(self.writer_nice)
-            while (frame := self._to_write.get()) is not None:
-                self._writer.add_frame(frame)
+        return SessionProcess(path, **self._session_args(), camera_T_imu=self._camera_T_imu(),
+                              nice=self.writer_nice)  # fmt: skip
 
-        self._writer_thread = threading.Thread(target=drain, name="live-writer", daemon=True)
-        self._writer_thread.start()
+    def _camera_T_imu(self) -> np.ndarray:
+        t = self.setup.camera_T_imu
+        return t if t is not None else np.eye(4)
+
+    def _streams(self) -> tuple[ImuSeries | None, JointSeries | None, GaitEvents | None]:
+        """The IMU, joints and events given to the pipeline."""
+        imu = joints = events = None
+        if self.rec.imu:
+            imu = ImuSeries(*(np.concatenate([c[k] for c in self.rec.imu]) for k in range(3)))
+        if self.rec.joints:
+            j = np.asarray(self.rec.joints)
+            joints = JointSeries(j[:, 0], j[:, 1], j[:, 2])
+        if self.rec.events:
+            ev = sorted(self.rec.events)
+            events = GaitEvents(np.array([e[0] for e in ev]), tuple(e[1] for e in ev),
+                                ("live",) * len(ev))  # fmt: skip
+        return imu, joints, events
 
     def write_session(self, path: Path | None = None) -> Path:
         """The frames processed, with the streams given to the pipeline, as a session (at
         ``session_path`` when it was written during the run)."""
+        imu, joints, events = self._streams()
         if self._writer is not None:
-            self._to_write.put(None)
-            self._writer_thread.join()
-            writer = self._writer
-        else:
-            writer = self._session_writer(path)
+            return self._writer.close(imu, joints, events)
+        from graph_slam.session import SessionWriter
+        from graph_slam.session.manifest import Provenance
+        from graph_slam.session.records import Calibration
+
+        args = self._session_args()
+        provenance = Provenance(generator=args.pop("generator"), source=args.pop("source"))
+        with SessionWriter(path, **args, calibration=Calibration(camera_T_imu=self._camera_T_imu()),
+                           provenance=provenance) as writer:  # fmt: skip
             for frame in self.rec.frames:
                 writer.add_frame(frame)
-        with writer:
-            if self.rec.imu:
-                t = np.concatenate([c[0] for c in self.rec.imu])
-                writer.write_imu(ImuSeries(t, np.concatenate([c[1] for c in self.rec.imu]),
-                                           np.concatenate([c[2] for c in self.rec.imu])))  # fmt: skip
-            if self.rec.joints:
-                j = np.asarray(self.rec.joints)
-                writer.write_joints(JointSeries(j[:, 0], j[:, 1], j[:, 2]))
-            if self.rec.events:
-                ev = sorted(self.rec.events)
-                writer.write_events(GaitEvents(np.array([e[0] for e in ev]),
-                                               tuple(e[1] for e in ev), ("live",) * len(ev)))  # fmt: skip
+            if imu is not None:
+                writer.write_imu(imu)
+            if joints is not None:
+                writer.write_joints(joints)
+            if events is not None:
+                writer.write_events(events)
         return writer.path
 
 

@@ -5,12 +5,12 @@ time) and building rerun's arrays; in the estimator's process that work takes Py
 interpreter lock in bursts and delays the frame being estimated. Here it runs in a child
 process (``python -m graph_slam.live.view_worker RRD [--spawn | --connect ADDR]``) that reads
 the frames from its standard input and draws them; the estimator's process only copies each
-frame's pose and, every ``grid_step``-th frame, the grid's cell sums into the pipe.
+frame's pose and, with the frames due a grid, the grid's cell sums into the pipe
+(:class:`graph_slam.live.viewer.ViewerConfig`: 30 poses and 5 grids a second by default).
 
-Messages (:func:`pack` / :func:`unpack`; no pickle): two 4-byte big-endian lengths (the
-header's, the arrays'), a JSON header (UTF-8) naming the arrays that follow (name, dtype,
-shape), then their bytes. When its input ends the worker closes the recording and writes one line of JSON with
-its counts (``drawn``, ``failed``) to its standard output.
+Messages: :mod:`graph_slam.live.messages` (no pickle). When its input ends the worker closes
+the recording and writes one line of JSON with its counts (``drawn``, ``failed``) to its
+standard output.
 """
 
 from __future__ import annotations
@@ -18,13 +18,14 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import struct
 import sys
 from dataclasses import fields
 from types import SimpleNamespace
 from typing import BinaryIO
 
 import numpy as np
+
+from graph_slam.live.messages import pack, read_message, unpack  # noqa: F401 (re-exported)
 
 log = logging.getLogger(__name__)
 
@@ -34,38 +35,6 @@ def _sum_names() -> tuple[str, ...]:
     from graph_slam.terrain.grid.online import CellSums
 
     return tuple(f.name for f in fields(CellSums))
-
-
-def pack(header: dict, arrays: dict[str, np.ndarray] | None = None) -> bytes:
-    """One message: ``header`` (JSON-able) and the named arrays."""
-    arrays = arrays or {}
-    spec = [[name, a.dtype.str, list(a.shape)] for name, a in arrays.items()]
-    head = json.dumps({**header, "arrays": spec}).encode()
-    body = b"".join(np.ascontiguousarray(a).tobytes() for a in arrays.values())
-    return struct.pack(">II", len(head), len(body)) + head + body
-
-
-def read_message(stream: BinaryIO) -> tuple[dict, dict[str, np.ndarray]] | None:
-    """The next message from ``stream``; None at its end (a message cut short ends it too)."""
-    lengths = stream.read(8)
-    if len(lengths) < 8:
-        return None
-    n_head, n_body = struct.unpack(">II", lengths)
-    head, body = stream.read(n_head), stream.read(n_body)
-    if len(head) < n_head or len(body) < n_body:
-        return None
-    return unpack(head, body)
-
-
-def unpack(head: bytes, body: bytes) -> tuple[dict, dict[str, np.ndarray]]:
-    header = json.loads(head)
-    arrays, at = {}, 0
-    for name, dtype, shape in header.pop("arrays"):
-        dt = np.dtype(dtype)
-        n = int(np.prod(shape, dtype=np.int64)) * dt.itemsize
-        arrays[name] = np.frombuffer(body, dt, count=n // dt.itemsize, offset=at).reshape(shape)
-        at += n
-    return header, arrays
 
 
 def frame_message(out, with_grid: bool) -> bytes:
@@ -108,6 +77,7 @@ class Drawer:
 
     def __init__(self, path, *, spawn: bool = False, connect: str | None = None) -> None:
         import rerun as rr
+        from matplotlib import colormaps  # noqa: F401 (the grid's colours: before "ready")
 
         from graph_slam.report.terrain_trace import TerrainTrace
         from graph_slam.viz.rerun_logger import RerunLogger
@@ -165,6 +135,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--connect", default=None)
     parser.add_argument("--nice", type=int, default=0, help="lower this process's priority")
     args = parser.parse_args(argv)
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the run, which closes this
     if args.nice:
         import os
 

@@ -5,8 +5,12 @@ file, and streamed to a viewer that is spawned (``spawn``) or running at an addr
 The drawing runs in a process of its own (:mod:`graph_slam.live.view_worker`): the grid's
 boxes are searched and rerun's arrays built there, not under the estimator's interpreter lock.
 The estimator hands each frame's output over (a frame's terrain view is a snapshot: later
-frames do not change it) and goes on; a thread here copies the frame's pose and, every
-``grid_step``-th frame, the grid's cell sums into the worker's pipe. When the viewer falls
+frames do not change it) and goes on; a thread here copies the frame's pose and, with it, the
+grid's cell sums into the worker's pipe. How often (:class:`ViewerConfig`, on the frames'
+own clock, so the same recording gives the same drawing): a pose ``pose_hz`` times a second
+(default 30, a screen's rate; 0: every frame), the grid ``grid_hz`` times (default 5; a grid
+is a box search of several milliseconds in the worker, which shares the cores with the
+estimator). The frames between are not sent (counted: ``not sent``). When the viewer falls
 ``max_waiting`` frames behind, the oldest waiting frame is not drawn (counted: ``dropped``).
 A worker that stops (it crashed, or could not start rerun) stops the drawing, never the run
 (counted: ``lost``)."""
@@ -23,48 +27,77 @@ import sys
 import threading
 from pathlib import Path
 
-from graph_slam.errors import ConfigError
+from pydantic import Field
+
+from graph_slam.config import ConfigModel
+from graph_slam.live.messages import read_line
 
 log = logging.getLogger(__name__)
 START_TIMEOUT_S = 60.0
 CLOSE_TIMEOUT_S = 120.0
+SLACK_S = 0.002  # a frame this much before a message is due counts as at it (stamp jitter)
+
+
+class ViewerConfig(ConfigModel):
+    """What the live viewer is sent, and its process's priority (module docstring)."""
+
+    pose_hz: float = Field(30.0, ge=0, description="poses drawn per second (0: every frame)")
+    grid_hz: float = Field(5.0, ge=0, description="grids drawn per second (0: every frame)")
+    max_waiting: int = Field(8, ge=1, description="frames waiting for the pipe before the "
+                             "oldest is not drawn")  # fmt: skip
+    nice: int = Field(10, ge=0, le=19, description="how far the viewer's process lowers its "
+                      "CPU priority")  # fmt: skip
 
 
 class LiveViewer:
-    """Call with every frame's ``FrameOutput``; every ``grid_step``-th frame logs the grid."""
+    """Call with every frame's ``FrameOutput``; it sends the poses and grids due
+    (:class:`ViewerConfig`)."""
 
-    def __init__(self, path: str | Path, *, spawn: bool = False, connect: str | None = None,
-                 grid_step: int = 9, max_waiting: int = 8, nice: int = 5) -> None:  # fmt: skip
-        if grid_step < 1:
-            raise ConfigError(f"live viewer: grid_step must be ≥ 1, got {grid_step}")
-        self.path, self.grid_step = Path(path), int(grid_step)
-        self.counts = {"drawn": 0, "dropped": 0, "failed": 0, "lost": 0}
+    def __init__(self, path: str | Path, config: ViewerConfig | None = None, *,
+                 spawn: bool = False, connect: str | None = None) -> None:  # fmt: skip
+        self.path, self.config = Path(path), config or ViewerConfig()
+        self.counts = {"drawn": 0, "not sent": 0, "dropped": 0, "failed": 0, "lost": 0}
         self._sent = 0
+        self._next_pose_s = self._next_grid_s = -float("inf")
         cmd = [sys.executable, "-m", "graph_slam.live.view_worker", str(self.path),
-               "--nice", str(int(nice))]  # fmt: skip
+               "--nice", str(int(self.config.nice))]  # fmt: skip
         if spawn:
             cmd.append("--spawn")
         elif connect:
             cmd += ["--connect", connect]
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
         self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
-        self._waiting: queue.Queue = queue.Queue(maxsize=max_waiting)
+        self._waiting: queue.Queue = queue.Queue(maxsize=self.config.max_waiting)
         self._thread = threading.Thread(target=self._drain, name="live-viewer", daemon=True)
         self._thread.start()
 
     def wait_ready(self, timeout_s: float = START_TIMEOUT_S) -> bool:
         """Wait until the worker has rerun open (its imports take a second or two)."""
-        line = _readline(self._proc.stdout, timeout_s)
+        line = read_line(self._proc.stdout, timeout_s)
         if line.strip() != b"ready":
             log.warning("rerun: the viewer's process did not start (%r)", line[:200])
             return False
         return True
 
+    def due(self, t_s: float) -> tuple[bool, bool]:
+        """Whether a frame at ``t_s`` brings a pose, and a grid, to the viewer (and books it)."""
+        grid = t_s >= self._next_grid_s - SLACK_S
+        pose = grid or t_s >= self._next_pose_s - SLACK_S
+        if grid:
+            self._next_grid_s = _next(self._next_grid_s, t_s, self.config.grid_hz)
+        if pose:
+            self._next_pose_s = _next(self._next_pose_s, t_s, self.config.pose_hz)
+        return pose, grid
+
     def frame(self, out) -> None:
-        """Hand one frame's output over (never waits)."""
+        """Hand one frame's output over when it is due (never waits)."""
+        pose, grid = self.due(float(out.t_s))
+        if not pose:
+            self.counts["not sent"] += 1
+            return
         while True:
             try:
-                self._waiting.put_nowait(out)
+                self._waiting.put_nowait((out, grid))
                 return
             except queue.Full:
                 try:
@@ -77,12 +110,12 @@ class LiveViewer:
         from graph_slam.live.view_worker import frame_message
 
         pipe = self._proc.stdin
-        while (out := self._waiting.get()) is not None:
+        while (item := self._waiting.get()) is not None:
             if pipe is None:
                 self.counts["lost"] += 1
                 continue
             try:
-                pipe.write(frame_message(out, int(out.frame_index) % self.grid_step == 0))
+                pipe.write(frame_message(*item))
                 pipe.flush()
                 self._sent += 1
             except (BrokenPipeError, OSError, ValueError) as err:
@@ -117,10 +150,12 @@ class LiveViewer:
             log.warning("rerun: the viewer's process ended with status %s", proc.returncode)
 
 
-def _readline(stream, timeout_s: float) -> bytes:
-    """One line of ``stream`` within ``timeout_s`` (b"" when none came)."""
-    got: list[bytes] = []
-    reader = threading.Thread(target=lambda: got.append(stream.readline()), daemon=True)
-    reader.start()
-    reader.join(timeout_s)
-    return got[0] if got else b""
+def _next(due_s: float, t_s: float, hz: float) -> float:
+    """The next time a message at ``hz`` is due after one sent at ``t_s`` (on the grid of
+    periods from the first, so the rate holds when frames come between; 0 Hz: every frame)."""
+    if hz <= 0:
+        return -float("inf")
+    period = 1.0 / hz
+    if not due_s > -float("inf") or t_s - due_s >= period:
+        return t_s + period  # the first, or after a gap: from this frame
+    return due_s + period
