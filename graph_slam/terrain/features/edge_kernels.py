@@ -252,3 +252,35 @@ def rows_rising_on(labels, label, h, j0, j1, look, sign, h_top, min_rise):  # pr
         if seen and best >= min_rise:
             rows += 1
     return rows
+
+
+@numba.njit(cache=True, nogil=True)
+def far_end_bridged(labels, label, height, known, j0, j1, look, tol, x0, cell):  # pragma: no cover
+    """The far x edge of the surface of component ``label`` in rows j0…j1, followed across
+    gaps of at most ``look`` cells not seen into components at its height (within ``tol``):
+    beyond a drop the lower surface's first cells lie in the edge's shadow for the views from
+    the top, and the surface goes on past them (-inf: the component is in none of the rows)."""
+    nx = labels.shape[0]
+    h0 = height[label]
+    best = -np.inf
+    for j in range(j0, j1 + 1):
+        cur = -1
+        for i in range(nx):
+            if labels[i, j] == label:
+                cur = i
+        if cur < 0:
+            continue
+        while True:
+            k = cur + 1
+            while k < nx and k - cur <= look and not known[k, j]:
+                k += 1
+            if k >= nx or k - cur > look:
+                break
+            lab = labels[k, j]
+            if lab <= 0 or abs(height[lab] - h0) > tol:
+                break
+            cur = k
+            while cur + 1 < nx and labels[cur + 1, j] == lab:
+                cur += 1
+        best = max(best, x0 + (cur + 1) * cell)
+    return best
