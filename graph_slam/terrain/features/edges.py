@@ -100,38 +100,14 @@ def _line_of(fit, occluded: bool, y_ref: float, common_sigma_m: float) -> EdgeLi
     )  # fmt: skip
 
 
-def face_share(g: _Grid, y: np.ndarray, x: np.ndarray, cfg: FeatureConfig) -> float:
-    """The share of the points of an edge's cells that lie on its face, the median over its
-    rows (0 without counts): per row the three cells about the edge hold their surfaces' points
-    plus the face's, the surfaces' points per cell taken from the cells two on either side
-    (each at least ``shadow_count_min``: else no share). A face seen whole puts its points
-    about halfway up the step in the cell holding the edge, whose height fraction then tells
-    little of where the edge lies in it."""
-    if g.count is None or y.size == 0:
-        return 0.0
-    nx, ny = g.count.shape
-    i = np.floor((x - g.x0) / g.cell).astype(np.int64)
-    j = np.floor((y - g.y0) / g.cell).astype(np.int64)
-    ok = (i >= 2) & (i < nx - 2) & (j >= 0) & (j < ny)
-    if not ok.any():
-        return 0.0
-    i, j = i[ok], j[ok]
-    ref = (g.count[i - 2, j] + g.count[i + 2, j]) / 2.0
-    near = g.count[i - 1, j] + g.count[i, j] + g.count[i + 1, j]
-    face = near - 3.0 * ref
-    held = np.minimum(g.count[i - 2, j], g.count[i + 2, j]) >= cfg.shadow_count_min
-    share = np.where(held & (face > 0), face / np.maximum(face + ref, 1e-12), 0.0)
-    return float(np.clip(np.median(share), 0.0, 1.0))
-
-
 def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureConfig):
     """Per terrace pair met in at least ``min_edge_rows`` rows (pairs in the order first met):
     its edge line, rise and σ, sorted by the line's x. Where the shadow begins inside the
     last cell seen is the same guess in every row, or the counts' ratio (its error common to
     the rows too: the density's trend); an edge carried with the previous stride's cells
-    moved with them; an edge seen face-on, where in its cell it lies (the face's points pull
-    that cell to half the rise: :func:`face_share`), common to the rows too. ``counted``:
-    occluded, the shadow part from the counts."""
+    moved with them; an edge seen face-on, where in its cell it lies (the face's points
+    pull that cell to half the rise: ``edge_kernels.face_share``), common to the rows too.
+    ``counted``: occluded, the shadow part from the counts."""
     a, b, y, x, s, flags = transitions(g, labels, height, cfg)
     if a.size == 0:
         return []
@@ -141,9 +117,11 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
     for (la, lb, occluded, counted, carried), fit in zip(pairs, fits, strict=True):
         part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma
         common = g.cell * part_sigma if occluded else 0.0
-        if not occluded and cfg.face_cell_sigma > 0:
-            sel = (a == la) & (b == lb)
-            common = g.cell * cfg.face_cell_sigma * face_share(g, y[sel], x[sel], cfg)
+        if not occluded and cfg.face_cell_sigma > 0 and g.count is not None:
+            share = edge_kernels.face_share(
+                g.count, a, b, la, lb, y, x, g.x0, g.y0, g.cell, float(cfg.shadow_count_min)
+            )
+            common = g.cell * cfg.face_cell_sigma * share
         if carried:
             common = math.hypot(common, cfg.carried_edge_sigma_m)
         span = spans.get((int(la), int(lb)), 0.0)
