@@ -130,8 +130,9 @@ def test_descending_stairs_with_the_shadow_behind_each_nosing():
 def test_a_tilted_stride_frame_moves_each_rise_by_the_tilt_times_the_tread():
     """The flight seen in a frame tilted 5 mrad up along x: each rise comes out 5 mrad × the
     distance between the middles of the two terraces high (1.4 mm between treads 28 cm
-    apart); its σ carries the stride tilt's (``stride_tilt_sigma_rad``) over that distance,
-    where the averaged cells alone would say under 0.3 mm."""
+    apart); its σ carries the stride tilt's (``stride_tilt_sigma_rad``) over the distance
+    between where their heights lie (their level cells' mean x: about their middles), where
+    the averaged cells alone would say under 0.3 mm."""
     from graph_slam.terrain.features.config import FeatureConfig
 
     tilt = 0.005

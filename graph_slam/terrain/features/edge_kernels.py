@@ -252,3 +252,65 @@ def rows_rising_on(labels, label, h, j0, j1, look, sign, h_top, min_rise):  # pr
         if seen and best >= min_rise:
             rows += 1
     return rows
+
+
+@numba.njit(cache=True, nogil=True)
+def far_end_bridged(labels, label, height, known, j0, j1, look, tol, x0, cell):  # pragma: no cover
+    """The far x edge of the surface of component ``label`` in rows j0…j1, followed across
+    gaps of at most ``look`` cells not seen into components at its height (within ``tol``):
+    beyond a drop the lower surface's first cells lie in the edge's shadow for the views from
+    the top, and the surface goes on past them (-inf: the component is in none of the rows)."""
+    nx = labels.shape[0]
+    h0 = height[label]
+    best = -np.inf
+    for j in range(j0, j1 + 1):
+        cur = -1
+        for i in range(nx):
+            if labels[i, j] == label:
+                cur = i
+        if cur < 0:
+            continue
+        while True:
+            k = cur + 1
+            while k < nx and k - cur <= look and not known[k, j]:
+                k += 1
+            if k >= nx or k - cur > look:
+                break
+            lab = labels[k, j]
+            if lab <= 0 or abs(height[lab] - h0) > tol:
+                break
+            cur = k
+            while cur + 1 < nx and labels[cur + 1, j] == lab:
+                cur += 1
+        best = max(best, x0 + (cur + 1) * cell)
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def face_share(count, a, b, la, lb, y, x, x0, y0, cell, count_min):  # pragma: no cover
+    """The share of the points of the cells about the edge between components ``la`` and
+    ``lb`` that lie on its face, the median over its rows (``a``, ``b``, ``y``, ``x``: the
+    rows of :func:`transitions`): per row the three cells about the edge hold their surfaces'
+    points plus the face's, the surfaces' points per cell taken from the cells two on either
+    side (each at least ``count_min``, else a share of 0); 0 where no row is inside the grid."""
+    nx, ny = count.shape
+    shares = np.empty(a.size)
+    m = 0
+    for k in range(a.size):
+        if a[k] != la or b[k] != lb:
+            continue
+        i = int(np.floor((x[k] - x0) / cell))
+        j = int(np.floor((y[k] - y0) / cell))
+        if i < 2 or i >= nx - 2 or j < 0 or j >= ny:
+            continue
+        c0, c1 = count[i - 2, j], count[i + 2, j]
+        ref = (c0 + c1) / 2.0
+        face = count[i - 1, j] + count[i, j] + count[i + 1, j] - 3.0 * ref
+        share = 0.0
+        if min(c0, c1) >= count_min and face > 0:
+            share = face / (face + ref)
+        shares[m] = share
+        m += 1
+    if m == 0:
+        return 0.0
+    return min(max(median(shares[:m]), 0.0), 1.0)

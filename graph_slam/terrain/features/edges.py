@@ -100,17 +100,14 @@ def _line_of(fit, occluded: bool, y_ref: float, common_sigma_m: float) -> EdgeLi
     )  # fmt: skip
 
 
-def _centre_x(g: _Grid, terrace: dict) -> float:
-    """The middle of a terrace's extent along x."""
-    return g.x0 + (terrace["i"][0] + terrace["i"][1] + 1) * g.cell / 2
-
-
 def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureConfig):
     """Per terrace pair met in at least ``min_edge_rows`` rows (pairs in the order first met):
     its edge line, rise and σ, sorted by the line's x. Where the shadow begins inside the
     last cell seen is the same guess in every row, or the counts' ratio (its error common to
     the rows too: the density's trend); an edge carried with the previous stride's cells
-    moved with them. ``counted``: occluded, the shadow part from the counts."""
+    moved with them; an edge seen face-on, where in its cell it lies (the face's points
+    pull that cell to half the rise: ``edge_kernels.face_share``), common to the rows too.
+    ``counted``: occluded, the shadow part from the counts."""
     a, b, y, x, s, flags = transitions(g, labels, height, cfg)
     if a.size == 0:
         return []
@@ -120,13 +117,18 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
     for (la, lb, occluded, counted, carried), fit in zip(pairs, fits, strict=True):
         part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma
         common = g.cell * part_sigma if occluded else 0.0
+        if not occluded and cfg.face_cell_sigma > 0 and g.count is not None:
+            share = edge_kernels.face_share(
+                g.count, a, b, la, lb, y, x, g.x0, g.y0, g.cell, float(cfg.shadow_count_min)
+            )
+            common = g.cell * cfg.face_cell_sigma * share
         if carried:
             common = math.hypot(common, cfg.carried_edge_sigma_m)
         span = spans.get((int(la), int(lb)), 0.0)
         common = math.hypot(common, cfg.sparse_span_sigma * span)
         line = _line_of(fit, bool(occluded), 0.0, common)
         ta, tb = terraces[int(la)], terraces[int(lb)]
-        tilt = cfg.stride_tilt_sigma_rad * abs(_centre_x(g, tb) - _centre_x(g, ta))
+        tilt = cfg.stride_tilt_sigma_rad * abs(tb["x"] - ta["x"])
         out.append({
             "a": int(la), "b": int(lb), "line": line, "rise": tb["h"] - ta["h"],
             "counted": bool(occluded and counted),

@@ -77,7 +77,7 @@ def _features(g: _Grid, cfg: FeatureConfig, t_s: float, stride_index: int, sourc
     edges = edges_of(g, labels, heights, terraces, cfg)
     boxes, used = boxes_of(edges, terraces, cfg)
     rest = [e for k, e in enumerate(edges) if k not in used]
-    stairs, curbs, parts = chains_of(rest, g, labels, terraces, cfg)
+    stairs, curbs, parts = chains_of(rest, g, labels, terraces, cfg, heights)
     boxes += parts
     ramps = _ramps(g, sloped, labels, terraces, cfg)
     return TerrainFeatures(
@@ -188,12 +188,14 @@ def _local_planes(g: _Grid, cfg: FeatureConfig) -> tuple[np.ndarray, np.ndarray]
 
 def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
     """Components of level cells with ``min_terrace_cells``, and per component its height,
-    σ parts and extent; and per label the terrace's height. Each terrace is grown by up to
+    σ parts, extent and ``x``, where along x its height lies (its cells' inverse-variance mean
+    x: a tilt of the frame about y moves the height by the tilt times that x); and per label
+    the terrace's height. Each terrace is grown by up to
     ``grow_cells`` cells (4-neighbours) into the known cells within ``grow_tol_m`` of its
     height: the cells by an edge are not level (their window holds the step) but those still
     on the surface are the terrace's, so that it ends at the edge (its height stays that of
     its level cells)."""
-    labels, sizes, height, ind, corr, keep, ext = kernels.terraces(
+    labels, sizes, height, ind, corr, keep, ext, centre = kernels.terraces(
         level, g.known, g.h, g.var, g.corr, cfg.min_terrace_cells, cfg.grow_cells, cfg.grow_tol_m
     )
     out = {}
@@ -202,6 +204,7 @@ def _terraces(g: _Grid, level: np.ndarray, cfg: FeatureConfig):
         out[k] = {
             "h": float(height[k]), "ind": float(ind[k]), "corr": float(corr[k]),
             "i": (i0, i1), "j": (j0, j1), "n": int(sizes[k]),
+            "x": float(g.x0 + (centre[k] + 0.5) * g.cell),
         }  # fmt: skip
     return labels, out, height
 

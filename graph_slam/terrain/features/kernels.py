@@ -247,13 +247,33 @@ def view_cells(h, var, a, b, w, max_noise):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def terrace_centres(labels, n, var):  # pragma: no cover - compiled
+    """Per component 0…n: the inverse-variance weighted mean of its cells' index along x (the
+    weights of its height: a tilt about y moves that height by the tilt times this point's x)."""
+    sw = np.zeros(n + 1)
+    swi = np.zeros(n + 1)
+    nx, ny = labels.shape
+    for i in range(nx):
+        for j in range(ny):
+            k = labels[i, j]
+            if k == 0:
+                continue
+            w = 1.0 / max(var[i, j], 1e-12)
+            sw[k] += w
+            swi[k] += w * i
+    return swi / np.maximum(sw, 1e-300)
+
+
+@numba.njit(cache=True, nogil=True)
 def terraces(level, known, h, var, corr, min_cells, steps, tol):  # pragma: no cover - compiled
     """The terraces of the level cells in one call: their components (:func:`label4`), per
     component its cells, inverse-variance height, σ parts (independent, pose) and whether it
     has ``min_cells`` (the others' cells unlabelled), the kept ones grown (:func:`grow`), and
-    their extents after it (:func:`extents`)."""
+    their extents after it (:func:`extents`), and where their heights lie along x
+    (:func:`terrace_centres`, in cells)."""
     labels, n = label4(level)
     sizes, sw, swh, sind, scorr = terrace_sums(labels, n, h, var, corr)
+    centre = terrace_centres(labels, n, var)
     height = np.empty(n + 1)
     ind = np.empty(n + 1)
     pose = np.empty(n + 1)
@@ -270,4 +290,4 @@ def terraces(level, known, h, var, corr, min_cells, steps, tol):  # pragma: no c
             if not keep[labels[a, b]]:
                 labels[a, b] = 0
     grown = grow(labels, known, h, height, steps, tol)
-    return grown, sizes, height, ind, pose, keep, extents(grown, n)
+    return grown, sizes, height, ind, pose, keep, extents(grown, n), centre

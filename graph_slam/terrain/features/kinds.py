@@ -28,11 +28,17 @@ def boxes_of(edges: list[dict], terraces: dict, cfg: FeatureConfig):
             top = terraces[up["b"]]
             floor_ind = math.hypot(terraces[up["a"]]["ind"], terraces[down["b"]]["ind"]) / 2
             floor_corr = (terraces[up["a"]]["corr"] + terraces[down["b"]]["corr"]) / 2
+            # a tilt of the frame moves the top and the floor by it times where their heights
+            # lie along x (the floor's, the mean of its two sides')
+            floor_x = (terraces[up["a"]]["x"] + terraces[down["b"]]["x"]) / 2
+            tilt = cfg.stride_tilt_sigma_rad * abs(top["x"] - floor_x)
             lead, trail = up["line"], down["line"]
             boxes.append(
                 BoxFeature(
                     height_m=top["h"] - (base[0] + base[1]) / 2,
-                    height_sigma_m=math.hypot(top["ind"], floor_ind, top["corr"] - floor_corr),
+                    height_sigma_m=math.sqrt(
+                        top["ind"] ** 2 + floor_ind**2 + (top["corr"] - floor_corr) ** 2 + tilt**2
+                    ),
                     leading=lead,
                     depth_m=trail.x_at(lead.y_m) - lead.x_m,
                     depth_sigma_m=math.hypot(lead.sigma_m, trail.sigma_m),
@@ -54,13 +60,26 @@ def _same_box(edges: list[dict], top: int, floor_m: float, terraces: dict, cfg: 
             yield n
 
 
-def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, ascending_x: bool) -> float:
-    """How far the terrace runs on beyond the edge (m, along x in the edge's rows)."""
+def _far_extent(g: _Grid, labels, terrace: int, line: EdgeLine, heights, cfg: FeatureConfig):
+    """How far the terrace runs on beyond the edge (m, along x in the edge's rows); where that
+    is short of a curb's upper surface, followed across cells not seen (up to
+    ``max_gap_cells + 1``) into terraces at its height (within ``grow_tol_m``): beyond a drop
+    the lower surface's first cells lie in the edge's shadow for the views from the top (the
+    cells carried from the previous stride end before it and the new views begin after it)."""
     lo, hi = line.y_range_m
     x_far, y_mid = edge_kernels.far_end(labels, terrace, lo - 1e-9, hi + 1e-9, g.x0, g.y0, g.cell)
     if not math.isfinite(x_far):
         return 0.0
-    return float(x_far - line.x_at(float(y_mid)))
+    run_on = float(x_far - line.x_at(float(y_mid)))
+    if run_on < cfg.curb_min_depth_m:
+        j0 = max(math.floor((lo - g.y0) / g.cell), 0)
+        j1 = min(math.floor((hi - g.y0) / g.cell), g.h.shape[1] - 1)
+        x_far = edge_kernels.far_end_bridged(
+            labels, terrace, heights, g.known, j0, j1, cfg.max_gap_cells + 1, cfg.grow_tol_m,
+            g.x0, g.cell,
+        )  # fmt: skip
+        run_on = max(run_on, float(x_far - line.x_at(float(y_mid))))
+    return run_on
 
 
 def _further_rise(g: _Grid, labels, edge: dict, terraces: dict, cfg: FeatureConfig) -> bool:
@@ -112,9 +131,10 @@ def _part_box(e: dict, terraces: dict, depth_seen_m: float) -> BoxFeature:
     )
 
 
-def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureConfig):
+def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureConfig, heights):
     """Edges linked through shared terraces with the same sign of rise: stairs or a curb; a
-    single rise whose short top runs into cells not seen: a box seen in part."""
+    single rise whose short top runs into cells not seen: a box seen in part. ``heights``: per
+    label its terrace's height."""
     starts = {e["a"]: e for e in edges}
     ends = {e["b"] for e in edges}
     stairs, curbs, parts, seen = [], [], [], set()
@@ -135,7 +155,7 @@ def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureC
             chain.append(nxt)
         seen.update(id(c) for c in chain)
         if len(chain) == 1:
-            run_on = _far_extent(g, labels, e["b"], e["line"], True)
+            run_on = _far_extent(g, labels, e["b"], e["line"], heights, cfg)
             if run_on >= cfg.curb_min_depth_m:
                 curbs.append(Curb(e["rise"], e["rise_sigma"], e["line"], terraces[e["a"]]["h"]))
                 continue

@@ -28,7 +28,8 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
 4. **Kinds**: a terrace entered by a rise and left by a drop to the same level (within
    ``box_same_level_m``) is a **box**; chains of edges through shared terraces with the same
    sign of rise are **stairs** (two or more edges), a single edge whose far terrace runs at
-   least ``curb_min_depth_m`` on is a **curb**; a single edge whose short far terrace is a
+   least ``curb_min_depth_m`` on is a **curb** (followed across up to ``max_gap_cells`` + 1
+   cells not seen into terraces at its height: beyond a drop the edge's own shadow); a single edge whose short far terrace is a
    tread (a further rise the same way within ``max_gap_cells`` past its end, in at least
    ``min_edge_rows`` rows) is a stair of one step seen; a single rise whose short top runs
    into cells not seen (its far side in the shadow or out of view) is a box seen in part
@@ -42,10 +43,12 @@ them off any elevation grid (the online grid of a frame, :meth:`TerrainView.feat
    among those before them along x; none in view: no start line).
 
 σ: a terrace height carries its cells' depth noise averaged and their pose part (correlated:
-it does not average); a rise the two independent parts and the difference of the pose parts
-(a common height offset cancels in a rise). An edge's σ is the spread of its rows' positions
+it does not average); a rise or a box height the two independent parts, the difference of
+the pose parts (a common height offset cancels in a rise) and ``stride_tilt_sigma_rad`` over
+the distance between where the two heights lie along x. An edge's σ is the spread of its rows' positions
 or, when larger, their height noise scaled to a position (``σ_h / rise · cell`` per cell),
-over √rows. Beyond a drop whose far cells next to it are sparsely seen (few points
+over √rows; seen face-on, ``face_cell_sigma`` × the face's share of its cell's points of a
+cell (where the edge lies in its cell; common to the rows). Beyond a drop whose far cells next to it are sparsely seen (few points
 against the near cells: seen only from late viewpoints) the edge also carries
 ``sparse_span_sigma`` of the span between the readings that take those cells as seen and
 as not seen (``sparse_span_fraction``). A tread between two nosings whose shadow parts
