@@ -10,12 +10,8 @@ import numpy as np
 import pytest
 from conftest import TEST_DATA
 
-from graph_slam.bench.registration import (
-    pose_error,
-    read_tum_sample,
-    run_config,
-    synthetic_dataset,
-)
+from graph_slam.bench.registration import run_config
+from graph_slam.bench.registration_data import pose_error, read_tum_sample, synthetic_dataset
 from graph_slam.errors import SessionError
 from graph_slam.frontend import fast_point_to_plane
 from graph_slam.session.reader import open_session

@@ -16,11 +16,8 @@ import numpy as np
 import pytest
 from conftest import TEST_DATA, shared_data
 
-from graph_slam.bench.registration import (
-    odometry_errors,
-    open3d_rgbd_odometry,
-    read_tum_sample,
-)
+from graph_slam.bench.registration_data import read_tum_sample
+from graph_slam.bench.registration_open3d import odometry_errors, open3d_rgbd_odometry
 from graph_slam.frontend import depth_to_cloud, refined_colored_registration, register
 
 

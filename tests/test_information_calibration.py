@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from graph_slam.bench.calibration import chi2_of_pairs, relative_error
-from graph_slam.bench.registration import session_dataset
+from graph_slam.bench.registration_data import session_dataset
 from graph_slam.frontend.config import realtime_registration
 from graph_slam.pipelines.config import PipelineConfig
 from graph_slam.sim import SimConfig, simulate
@@ -72,7 +72,7 @@ def test_depth_only_information_is_calibrated(pico_course) -> None:
 
 # --------------------------------------------------------------------------- real frames
 def _tum_chi2(folder: Path, floor: bool):
-    from graph_slam.bench.registration import read_tum_sample
+    from graph_slam.bench.registration_data import read_tum_sample
     from graph_slam.frontend.config import with_real_camera_floor
 
     config = PipelineConfig().graph.registration

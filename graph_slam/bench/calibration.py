@@ -61,10 +61,10 @@ def relative_error(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 
 def chi2_of_pairs(data, config, cloud_config=None, name: str | None = None) -> Chi2Report:
-    """χ² of every consecutive pair of ``data`` (a :class:`graph_slam.bench.registration.
-    Dataset`) registered with the method ``config`` names
-    (:func:`graph_slam.frontend.make_registration`) from the identity, each frame prepared on
-    its own grid."""
+    """χ² of every consecutive pair of ``data`` (a
+    :class:`graph_slam.bench.registration_data.Dataset`) registered with the method
+    ``config`` names (:func:`graph_slam.frontend.make_registration`) from the identity, each
+    frame prepared on its own grid."""
     from graph_slam.frontend import make_registration
 
     method = make_registration(config, data.intrinsics, cloud_config)

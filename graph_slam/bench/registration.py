@@ -18,12 +18,13 @@ stage), ``information``.
 
 Sessions written by ``graph-slam simulate`` can be benchmarked too (:func:`session_dataset`),
 at their resolution or decimated (``step`` 2: 848×480 → 424×240, intrinsics scaled).
+
+The datasets are in :mod:`graph_slam.bench.registration_data`, Open3D's RGB-D odometry (the
+reference on the TUM frames) in :mod:`graph_slam.bench.registration_open3d`.
 """
 
 from __future__ import annotations
 
-import itertools
-import json
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -32,7 +33,19 @@ from pathlib import Path
 
 import numpy as np
 
-from graph_slam.errors import RegistrationError, SessionError
+from graph_slam.bench.registration_data import (
+    TUM_DEPTH_UNIT_M,
+    TUM_INTRINSICS,
+    Dataset,
+    default_tum_folder,
+    pose_error,
+    read_tum_sample,
+    relative_truth,
+    session_dataset,
+    synthetic_dataset,
+)
+from graph_slam.bench.registration_open3d import odometry_errors, open3d_rgbd_odometry
+from graph_slam.errors import RegistrationError
 from graph_slam.frontend import (
     CloudConfig,
     RegistrationConfig,
@@ -48,7 +61,29 @@ from graph_slam.frontend.config import (
     gicp_registration,
     realtime_registration,
 )
-from graph_slam.session.records import CameraIntrinsics, RgbdFrame
+
+__all__ = [
+    "BENCH_CONFIGS",
+    "GUESSES",
+    "METHODS",
+    "STAGES",
+    "TUM_DEPTH_UNIT_M",
+    "TUM_INTRINSICS",
+    "ConfigSummary",
+    "Dataset",
+    "DatasetReport",
+    "default_tum_folder",
+    "initial_guess",
+    "odometry_errors",
+    "open3d_rgbd_odometry",
+    "pose_error",
+    "read_tum_sample",
+    "relative_truth",
+    "run_config",
+    "run_registration_bench",
+    "session_dataset",
+    "synthetic_dataset",
+]
 
 STAGES = ("cloud", "voxel", "normals", "icp", "information")
 
@@ -87,21 +122,6 @@ METHODS: dict[str, tuple[str, Callable[[], RegistrationConfig | GicpConfig]]] = 
     ),
 }
 GUESSES = ("identity", "constant-velocity")
-
-TUM_INTRINSICS = CameraIntrinsics(640, 480, 517.3, 516.5, 318.6, 255.3)
-TUM_DEPTH_UNIT_M = 1.0 / 5000.0
-
-
-@dataclass(frozen=True)
-class Dataset:
-    """Frames with their intrinsics and ground-truth ``world_T_camera``."""
-
-    name: str
-    intrinsics: CameraIntrinsics
-    frames: tuple[RgbdFrame, ...]
-    world_T_camera: np.ndarray
-    synthetic: bool = True
-    """Rendered from a model (no systematic sensor error), not recorded by a camera."""
 
 
 @dataclass(frozen=True)
@@ -149,18 +169,6 @@ class DatasetReport:
             out.append(f"  {self.reference}")
         out += [s.line() for s in self.summaries]
         return out
-
-
-def pose_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
-    """Translation (m) and rotation angle (rad) of ``truth⁻¹ · estimate``."""
-    err = np.linalg.solve(truth, estimate)
-    cos = np.clip((np.trace(err[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.linalg.norm(err[:3, 3])), float(np.arccos(cos))
-
-
-def relative_truth(world_T_camera: np.ndarray, k: int) -> np.ndarray:
-    """``camera_k_T_camera_k+1`` from the ground truth."""
-    return np.linalg.solve(world_T_camera[k], world_T_camera[k + 1])
 
 
 def initial_guess(data: Dataset, k: int, guess: str) -> np.ndarray:
@@ -235,153 +243,6 @@ class _Tally:
             rotation_err_deg=np.asarray(self.r_err),
             statuses=self.statuses,
         )
-
-
-# --------------------------------------------------------------------------- datasets
-def session_dataset(
-    path: str | Path, step: int = 1, start: int = 0, stop: int | None = None
-) -> Dataset:
-    """Frames ``start:stop`` of a session with ground truth (``graph-slam simulate``), every
-    ``step``-th pixel (intrinsics scaled: ``f/step``, ``c/step``, pixel centres at integers)."""
-    from graph_slam.session import open_session
-
-    session = open_session(path)
-    truth = session.ground_truth
-    if truth is None or session.intrinsics is None:
-        raise SessionError(f"{path}: the registration benchmark needs frames and ground truth")
-    k = session.intrinsics
-    intrinsics = CameraIntrinsics(
-        k.width_px // step, k.height_px // step, k.fx_px / step, k.fy_px / step,
-        k.cx_px / step, k.cy_px / step,
-    )  # fmt: skip
-    frames = []
-    for frame in session.iter_frames(start, stop):
-        color = None if frame.color_rgb is None else frame.color_rgb[::step, ::step]
-        depth = frame.depth_m[::step, ::step][: intrinsics.height_px, : intrinsics.width_px]
-        color = None if color is None else color[: intrinsics.height_px, : intrinsics.width_px]
-        frames.append(RgbdFrame(frame.t_s, depth, color, frame.index))
-    poses = truth.parent_T_child[start : start + len(frames)]
-    name = f"{session.name}, {intrinsics.width_px}×{intrinsics.height_px}, {len(frames) - 1} pairs"
-    synthetic = session.manifest.provenance.synthetic
-    return Dataset(name, intrinsics, tuple(frames), poses, synthetic)
-
-
-def synthetic_dataset(
-    pairs: int = 10, rate_hz: float = 40.0, width_px: int = 848, height_px: int = 480
-) -> Dataset:
-    """D455-like frames (87° field of view) of the box course, from the start of the session,
-    at ``rate_hz`` (the thesis's effective rate was 35–40 Hz)."""
-    from graph_slam.session.synthetic import (
-        Motion,
-        SyntheticConfig,
-        intrinsics_for,
-        iter_synthetic_frames,
-    )
-
-    cfg = SyntheticConfig(
-        width_px=width_px,
-        height_px=height_px,
-        fov_x_deg=87.0,
-        camera_rate_hz=rate_hz,
-        duration_s=pairs / rate_hz,
-        scene="box_course",
-    )
-    frames = tuple(iter_synthetic_frames(cfg))
-    t_s = np.array([f.t_s for f in frames])
-    return Dataset(
-        f"synthetic box course, {width_px}×{height_px}, {rate_hz:g} Hz, {pairs} pairs",
-        intrinsics_for(cfg),
-        frames,
-        Motion(cfg).world_T_camera(t_s),
-    )
-
-
-def read_tum_sample(folder: str | Path, ids: Sequence[int] | None = None) -> Dataset:
-    """Frames of a ``tum_fr1_xyz_10``-style folder (``rgb/N.png``, ``depth/N.png`` uint16 at
-    5000 per metre, ``ground_truth.json`` with 4×4 ``transformation`` = world_T_camera)."""
-    from PIL import Image
-
-    folder = Path(folder)
-    truth_path = folder / "ground_truth.json"
-    try:
-        truth = json.loads(truth_path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as err:
-        raise SessionError(f"{truth_path}: cannot read ground truth ({err})") from None
-    keys = sorted(truth, key=int) if ids is None else [str(i) for i in ids]
-    frames, poses = [], []
-    for index, key in enumerate(keys):
-        if key not in truth:
-            raise SessionError(f"{truth_path}: no entry {key!r}")
-        entry = truth[key]
-        paths = {name: (folder / entry[name]).resolve() for name in ("rgb", "depth")}
-        for name, path in paths.items():
-            if folder.resolve() not in path.parents:
-                raise SessionError(f"{truth_path}: entry {key!r} field {name!r} leaves the folder")
-        try:
-            color = np.asarray(Image.open(paths["rgb"]).convert("RGB"))
-            depth_raw = np.asarray(Image.open(paths["depth"]))
-        except OSError as err:
-            raise SessionError(f"{folder}: frame {key}: cannot read image ({err})") from None
-        if depth_raw.dtype != np.uint16:
-            raise SessionError(f"{paths['depth']}: depth must be uint16, got {depth_raw.dtype}")
-        depth = (depth_raw * TUM_DEPTH_UNIT_M).astype(np.float32)
-        frames.append(RgbdFrame(float(index), depth, color, index))
-        poses.append(np.asarray(entry["transformation"], dtype=float))
-    return Dataset(
-        f"TUM fr1/xyz frames {keys[0]}–{keys[-1]}",
-        TUM_INTRINSICS,
-        tuple(frames),
-        np.stack(poses),
-        synthetic=False,
-    )
-
-
-def open3d_rgbd_odometry(data: Dataset, depth_max_m: float = 3.0) -> list[np.ndarray | None]:
-    """Open3D's RGB-D odometry (hybrid term, default options) frame to frame:
-    ``camera_k_T_camera_k+1`` per pair, ``None`` where it reports failure."""
-    import open3d as o3d
-
-    k = data.intrinsics
-    intrinsic = o3d.camera.PinholeCameraIntrinsic(
-        k.width_px, k.height_px, k.fx_px, k.fy_px, k.cx_px, k.cy_px
-    )
-
-    def rgbd(frame: RgbdFrame):
-        return o3d.geometry.RGBDImage.create_from_color_and_depth(
-            o3d.geometry.Image(np.ascontiguousarray(frame.color_rgb)),
-            o3d.geometry.Image(np.ascontiguousarray(frame.depth_m)),
-            depth_scale=1.0,
-            depth_trunc=depth_max_m,
-            convert_rgb_to_intensity=True,
-        )
-
-    images = [rgbd(f) for f in data.frames]
-    out = []
-    for target, source in itertools.pairwise(images):
-        ok, source_to_target, _ = o3d.pipelines.odometry.compute_rgbd_odometry(
-            source,
-            target,
-            intrinsic,
-            np.eye(4),
-            o3d.pipelines.odometry.RGBDOdometryJacobianFromHybridTerm(),
-            o3d.pipelines.odometry.OdometryOption(),
-        )
-        out.append(np.asarray(source_to_target) if ok else None)
-    return out
-
-
-def odometry_errors(data: Dataset, estimates: Sequence[np.ndarray | None]) -> np.ndarray:
-    """Per pair (translation m, rotation rad); NaN for a failed pair."""
-    errors = np.full((len(estimates), 2), np.nan)
-    for k, estimate in enumerate(estimates):
-        if estimate is not None:
-            errors[k] = pose_error(estimate, relative_truth(data.world_T_camera, k))
-    return errors
-
-
-def default_tum_folder() -> Path:
-    """``../shared/data/tum_fr1_xyz_10`` next to the repository (absent in a user's clone)."""
-    return Path(__file__).resolve().parents[2].parent / "shared" / "data" / "tum_fr1_xyz_10"
 
 
 def run_registration_bench(

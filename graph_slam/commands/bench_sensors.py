@@ -143,7 +143,11 @@ def calibration_bench(
     sample, the accurate preset carries the real-camera covariance floor, and its line
     without the floor is printed beside it; docs/frontend.md, "Calibrated information")."""
     from graph_slam.bench.calibration import chi2_of_pairs
-    from graph_slam.bench.registration import default_tum_folder, read_tum_sample, session_dataset
+    from graph_slam.bench.registration_data import (
+        default_tum_folder,
+        read_tum_sample,
+        session_dataset,
+    )
     from graph_slam.determinism import apply_threads
     from graph_slam.frontend.config import realtime_registration
     from graph_slam.pipelines.config import PipelineConfig

@@ -33,163 +33,38 @@ derivatives at toe-off and strike, so the stance stays exactly sagittal): a thig
 foot placement that varies from stride to stride. Stride-to-stride variability of timing: the
 stride times are drawn with coefficient of variation ``stride_time_cv`` and the phase is a C2
 cubic spline through them. All randomness is seeded.
+
+The leg at a phase is :func:`graph_slam.sim.leg_state.leg_state`; the C2 shapes and axis
+rotations are in :mod:`graph_slam.sim.shapes`; what follows from the thigh pose (sensor frames,
+ideal IMU, velocity) is :class:`graph_slam.sim.thigh_motion.ThighMotion`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.spatial.transform import Rotation
 
 from graph_slam.errors import SimulationError
 from graph_slam.sim.config import MotionConfig
+from graph_slam.sim.leg_state import LegState, leg_state
+from graph_slam.sim.shapes import bump, flatten_pitch, rot_x, rot_y, rot_z, smoothstep
+from graph_slam.sim.thigh_motion import GRAVITY_M_S2, ThighMotion
 from kinematics import gait_curves
 from kinematics.leg_params import LegParams
 
-GRAVITY_M_S2 = 9.81
-
-
-def smoothstep(u: np.ndarray) -> np.ndarray:
-    """Quintic 0→1 on [0, 1] with zero first and second derivatives at both ends."""
-    u = np.clip(u, 0.0, 1.0)
-    return u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
-
-
-def bump(u: np.ndarray) -> np.ndarray:
-    """64 u³(1-u)³ on [0, 1] (peak 1 at 0.5), 0 outside; C2 at both ends."""
-    u = np.clip(u, 0.0, 1.0)
-    return 64.0 * u**3 * (1.0 - u) ** 3
-
-
-def flatten_pitch(gamma: np.ndarray, band_rad: float, blend_rad: float) -> np.ndarray:
-    """C2 map that is 0 for |γ| ≤ band and the identity for |γ| ≥ band + blend."""
-    if band_rad <= 0.0:
-        return np.asarray(gamma, dtype=float)
-    a = np.abs(gamma) - band_rad
-    out = np.where(a > 0.0, (a + band_rad) * smoothstep(a / blend_rad), 0.0)
-    return np.sign(gamma) * out
-
-
-@dataclass(frozen=True)
-class LegState:
-    """Sagittal state of one leg at given times (hip at the origin; x forward, z up)."""
-
-    thigh_rad: np.ndarray
-    knee_rad: np.ndarray
-    ankle_rad: np.ndarray  # after the flat band (what an encoder reads)
-    foot_pitch_rad: np.ndarray  # γ, toe up +
-    heel_xz: np.ndarray  # (n, 2)
-    toe_xz: np.ndarray  # (n, 2)
-
-
-def leg_state(phase: np.ndarray, speed_m_s: float, leg: LegParams, cfg: MotionConfig) -> LegState:
-    """Angles and sole points of a leg at gait ``phase`` (cycles) — the URDF's geometry."""
-    q = gait_curves.joint_angles(phase, speed_m_s)
-    phi = gait_curves.thigh_angle(phase, speed_m_s)
-    knee = q["knee"]
-    sf = gait_curves.stance_fraction(speed_m_s)
-    swing = (np.mod(phase, 1.0) - sf) / (1.0 - sf)
-    ankle_curve = q["ankle"] + math.radians(cfg.swing_dorsiflexion_deg) * bump(swing)
-    gamma_curve = phi - knee + ankle_curve
-    gamma = flatten_pitch(
-        gamma_curve, math.radians(cfg.flat_foot_deg), math.radians(cfg.flat_blend_deg)
-    )
-    ankle = ankle_curve + gamma - gamma_curve
-    psi = phi - knee
-    ankle_xz = leg.thigh_length_m * np.column_stack(
-        [np.sin(phi), -np.cos(phi)]
-    ) + leg.shank_length_m * np.column_stack([np.sin(psi), -np.cos(psi)])
-    cg, sg = np.cos(gamma), np.sin(gamma)
-
-    def on_foot(x: float, z: float) -> np.ndarray:  # foot-frame (x, z) point -> hip frame
-        return ankle_xz + np.column_stack([x * cg - z * sg, x * sg + z * cg])
-
-    heel = on_foot(-leg.heel_behind_ankle_m, -leg.ankle_height_m)
-    toe = on_foot(leg.foot_length_m - leg.heel_behind_ankle_m, -leg.ankle_height_m)
-    return LegState(phi, knee, ankle, gamma, heel, toe)
-
-
-def _rot_y(a: np.ndarray) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    r = np.zeros((a.size, 3, 3))
-    r[:, 0, 0], r[:, 0, 2], r[:, 1, 1], r[:, 2, 0], r[:, 2, 2] = c, s, 1.0, -s, c
-    return r
-
-
-def _rot_x(a: np.ndarray) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    r = np.zeros((a.size, 3, 3))
-    r[:, 0, 0], r[:, 1, 1], r[:, 1, 2], r[:, 2, 1], r[:, 2, 2] = 1.0, c, -s, s, c
-    return r
-
-
-def _rot_z(a: np.ndarray) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    r = np.zeros((a.size, 3, 3))
-    r[:, 0, 0], r[:, 0, 1], r[:, 1, 0], r[:, 1, 1], r[:, 2, 2] = c, -s, s, c, 1.0
-    return r
-
-
-class ThighMotion:
-    """What every walking motion derives from its thigh pose: sensor frames, IMU, velocity.
-
-    A subclass provides ``world_T_thigh(t_s)`` ((n, 4, 4), C2 in time), ``cfg`` (its
-    :class:`~graph_slam.sim.config.MotionConfig`) and ``foot_strikes_s`` (the heel contacts).
-    """
-
-    def world_T_thigh(self, t_s: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def world_T(self, t_s: np.ndarray, thigh_T_frame: np.ndarray) -> np.ndarray:
-        """(n, 4, 4) pose of a thigh-fixed frame (camera, IMU) given its ``thigh_T_frame``."""
-        return self.world_T_thigh(t_s) @ thigh_T_frame
-
-    def imu_ideal(
-        self, t_s: np.ndarray, thigh_T_imu: np.ndarray, h_s: float = 2e-4
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Noise-free gyro (rad/s) and specific force (m/s²) in the IMU frame at ``t_s``.
-
-        Central differences of the exact pose (step ``h_s``): the motion is C2, so the error
-        is O(h²) (about 1e-6 m/s² here). Plus, at each heel contact, the sensor mount's
-        vibration along the thigh (:mod:`graph_slam.sim.heel_shock`, ``heel_shock_m_s2``; it
-        integrates to zero velocity and displacement, so it is not in :meth:`world_T`).
-        """
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        stacked = self.world_T(np.concatenate([t - h_s, t, t + h_s]), thigh_T_imu)
-        before, mid, after = np.split(stacked, 3)
-        rel = np.einsum("nji,njk->nik", before[:, :3, :3], after[:, :3, :3])
-        gyro = Rotation.from_matrix(rel).as_rotvec() / (2.0 * h_s)
-        # rotvec of R(t-h)ᵀR(t+h) is in the frame at t-h; rotate it to the frame at t.
-        mid_R = mid[:, :3, :3]
-        gyro = np.einsum("nji,njk,nk->ni", mid_R, before[:, :3, :3], gyro)
-        acc_world = (after[:, :3, 3] - 2.0 * mid[:, :3, 3] + before[:, :3, 3]) / h_s**2
-        specific = acc_world + np.array([0.0, 0.0, GRAVITY_M_S2])
-        accel = np.einsum("nji,nj->ni", mid_R, specific)
-        from graph_slam.sim.heel_shock import heel_shock_in_frame
-
-        shock = heel_shock_in_frame(t, self.foot_strikes_s, self.cfg.heel_shock_m_s2, thigh_T_imu)
-        return gyro, accel + shock
-
-    def _model_time(self, t_s: np.ndarray) -> np.ndarray:
-        """Session time → model time (a subclass sets ``u0`` and ``duration_s``)."""
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        if t.size and (t.min() < -1.0 or t.max() > self.duration_s + 1.0):
-            raise SimulationError(
-                f"time {t.min():.3f}..{t.max():.3f} s is outside the simulated walk "
-                f"(0..{self.duration_s:.3f} s, ±1 s margin)"
-            )
-        return t + self.u0
-
-    def velocity_world(self, t_s: np.ndarray, thigh_T_frame: np.ndarray, h_s: float = 2e-4):
-        """(n, 3) world velocity of a thigh-fixed frame's origin."""
-        t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        a = self.world_T(t + h_s, thigh_T_frame)[:, :3, 3]
-        b = self.world_T(t - h_s, thigh_T_frame)[:, :3, 3]
-        return (a - b) / (2.0 * h_s)
+__all__ = [
+    "GRAVITY_M_S2",
+    "GaitMotion",
+    "LegState",
+    "ThighMotion",
+    "bump",
+    "flatten_pitch",
+    "leg_state",
+    "smoothstep",
+]
 
 
 class GaitMotion(ThighMotion):
@@ -382,7 +257,7 @@ class GaitMotion(ThighMotion):
         roll = -self._sway_roll_rad[k] * b
         yaw = -self._sway_yaw_rad[k] * b
         pose = np.tile(np.eye(4), (u.size, 1, 1))
-        pose[:, :3, :3] = _rot_z(yaw) @ _rot_x(roll) @ _rot_y(-p_leg.thigh_rad)
+        pose[:, :3, :3] = rot_z(yaw) @ rot_x(roll) @ rot_y(-p_leg.thigh_rad)
         pose[:, 0, 3] = hip_xz[:, 0]
         pose[:, 1, 3] = y
         pose[:, 2, 3] = hip_xz[:, 1]
@@ -395,11 +270,11 @@ class GaitMotion(ThighMotion):
         thigh = self.world_T_thigh(t_s)
         gamma = p_leg.foot_pitch_rad
         heel = np.tile(np.eye(4), (u.size, 1, 1))
-        heel[:, :3, :3] = thigh[:, :3, :3] @ _rot_y(p_leg.thigh_rad - gamma)
+        heel[:, :3, :3] = thigh[:, :3, :3] @ rot_y(p_leg.thigh_rad - gamma)
         rel = np.zeros((u.size, 3))
         rel[:, 0], rel[:, 2] = p_leg.heel_xz[:, 0], p_leg.heel_xz[:, 1]
         # heel_xz is in the (unrotated) sagittal hip frame: rotate by the thigh's yaw/roll only.
-        sag_R = thigh[:, :3, :3] @ _rot_y(p_leg.thigh_rad)
+        sag_R = thigh[:, :3, :3] @ rot_y(p_leg.thigh_rad)
         heel[:, :3, 3] = thigh[:, :3, 3] + np.einsum("nij,nj->ni", sag_R, rel)
         return heel
 

@@ -47,8 +47,9 @@ from graph_slam.sim.footholds import (
     stride_label,
 )
 from graph_slam.sim.gaits import GAIT
-from graph_slam.sim.motion import ThighMotion, _rot_x, _rot_y, _rot_z, bump, smoothstep
+from graph_slam.sim.shapes import bump, rot_x, rot_y, rot_z, smoothstep
 from graph_slam.sim.surface import Surfaces
+from graph_slam.sim.thigh_motion import ThighMotion
 from graph_slam.sim.walker_ankle import FootAndAnkle
 from graph_slam.sim.walker_ankle import leg_ik as _ik
 from graph_slam.sim.walker_ankle import rotate_sagittal as _rotate
@@ -321,8 +322,8 @@ class TerrainMotion(SwingPlanning, FootAndAnkle, ThighMotion):
         y = y + self._sway_lateral_m[k] * b
         pose = np.tile(np.eye(4), (u.size, 1, 1))
         pose[:, :3, :3] = (
-            _rot_z(-self._sway_yaw_rad[k] * b) @ _rot_x(-self._sway_roll_rad[k] * b)
-            @ _rot_y(-thigh)
+            rot_z(-self._sway_yaw_rad[k] * b) @ rot_x(-self._sway_roll_rad[k] * b)
+            @ rot_y(-thigh)
         )  # fmt: skip
         pose[:, 0, 3], pose[:, 1, 3], pose[:, 2, 3] = hip[:, 0], y, hip[:, 1]
         return pose
@@ -332,12 +333,12 @@ class TerrainMotion(SwingPlanning, FootAndAnkle, ThighMotion):
         u = self._model_time(t_s)
         hip, ankle, gamma, thigh, _, _, _ = self._sagittal(u)
         pose = self.world_T_thigh(t_s)
-        sag_R = pose[:, :3, :3] @ _rot_y(thigh)
+        sag_R = pose[:, :3, :3] @ rot_y(thigh)
         hx, hz = _rotate(gamma, -self.leg.heel_behind_ankle_m, -self.leg.ankle_height_m)
         rel = np.column_stack([ankle[:, 0] + hx - hip[:, 0], np.zeros(u.size),
                                ankle[:, 1] + hz - hip[:, 1]])  # fmt: skip
         heel = np.tile(np.eye(4), (u.size, 1, 1))
-        heel[:, :3, :3] = sag_R @ _rot_y(-gamma)
+        heel[:, :3, :3] = sag_R @ rot_y(-gamma)
         heel[:, :3, 3] = pose[:, :3, 3] + np.einsum("nij,nj->ni", sag_R, rel)
         return heel
 

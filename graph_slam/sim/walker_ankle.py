@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from graph_slam.sim.motion import smoothstep
+from graph_slam.sim.shapes import smoothstep
 from kinematics.leg_params import LegParams
 
 #: The stance ankle saturates at its cap over this width (rad); the swing's cap is this

@@ -11,7 +11,7 @@ import numpy as np
 
 from graph_slam.errors import SimulationError
 from graph_slam.sim.footholds import crossed_edges
-from graph_slam.sim.motion import bump, smoothstep
+from graph_slam.sim.shapes import bump, smoothstep
 from graph_slam.sim.walker_ankle import leg_ik as _ik
 from graph_slam.sim.walker_ankle import rotate_sagittal as _rotate
 
