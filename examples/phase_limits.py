@@ -7,7 +7,8 @@ derived from both thighs, :mod:`kinematics.gait_two_legs`), prints:
 
 * the online phase RMSE (as ``examples/real_gait_accuracy.py`` scores it) and the share of the
   reference's samples scored (the estimator reports no phase before its lock and while it
-  declares standing);
+  declares standing); on the femur walks also with the ambiguous reference strikes (a heel and
+  a forefoot burst) placed at their earlier burst or midpoint instead of the later burst;
 * the RMSE and mean signed error (+: the estimate ahead) per reference stride (with the
   stride's turn on the femur walks: the change of the thigh's heading from the orientation
   matrices), and per tenth of the reference phase;
@@ -23,7 +24,9 @@ derived from both thighs, :mod:`kinematics.gait_two_legs`), prints:
   ``×``); the best of these three chosen per stride *in hindsight* (not causal: a bound for any
   rule that chooses between them); and the thigh's phase-portrait phase
   (:func:`kinematics.gait_phase_portrait.portrait_phase`), alone and averaged with the ``+``
-  phase.
+  phase;
+* on the femur walks, the time from the other leg's reference strike to this leg's next one (a
+  cue a second thigh IMU, or the other leg's shock felt through the pelvis, would give).
 
     python examples/phase_limits.py [--data ../shared/data/real_thigh_imu] [--orientation]
 
@@ -177,6 +180,17 @@ def report(walk, data: Path, orientation: bool = False) -> None:
         f"{100 * np.isfinite(d).sum() / max(inside.sum(), 1):.1f} % of the reference's samples "
         "scored"
     )
+    if walk.derived is not None and np.any(walk.derived.ambiguous_s > 0):
+        gap = walk.derived.ambiguous_s
+        alt = []
+        for shift in (1.0, 0.5):  # the earlier burst, the midpoint
+            r = reference_phase(t, s - shift * gap, unreferenced_s=unreferenced(walk))
+            e = phase_error(est, r)
+            alt.append(f"{100 * rms(e[np.isfinite(e)]):.1f}")
+        print(
+            f"with the {int(np.sum(gap > 0))} ambiguous reference strikes at their earlier burst / "
+            f"the midpoint (not the later burst): {' / '.join(alt)} %"
+        )
     per = phase_error_by_stride(t, est, ref, s)
     side = next((k for k in FEMUR_FILES if k in walk.name), None)
     head = heading_rad(data / FEMUR_FILES[side], walk) if side else None
@@ -221,6 +235,23 @@ def report(walk, data: Path, orientation: bool = False) -> None:
     print(f"the same where the phase portrait has a phase ({n} strides), RMSE %: {bounds}")
 
 
+def other_leg(walks) -> None:
+    """The femur walks: from the other leg's reference strike to this leg's next one."""
+    femurs = [w for w in walks if w.derived is not None]
+    for own, other in zip(femurs, femurs[::-1], strict=True):
+        s, o = np.sort(own.strikes_s), np.sort(other.strikes_s)
+        rest = []
+        for a, b in itertools.pairwise(s):
+            inside = o[(o > a) & (o < b)]
+            if b - a <= 2.5 and inside.size == 1:
+                rest.append(b - inside[0])
+        if rest:
+            print(
+                f"\n{own.name}: from the other leg's strike to this leg's next, "
+                f"{min(rest):.2f}-{max(rest):.2f} s (SD {np.std(rest):.2f} s, {len(rest)} strides)"
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
@@ -231,9 +262,12 @@ def main() -> None:
     )
     args = parser.parse_args()
     logging.basicConfig(level=logging.ERROR)
-    for walk in real_walks(args.data):
+    walks = real_walks(args.data)
+    for walk in walks:
         if walk.strikes_s is not None and walk.strikes_s.size > 3:
             report(walk, args.data, args.orientation)
+    if len([w for w in walks if w.derived is not None]) == 2:
+        other_leg(walks)
 
 
 if __name__ == "__main__":
