@@ -15,7 +15,8 @@ arrangement of the sensor), prints per data set and detector (offline
   the first of each walk (emitted at its shock when the walk starts from standing and the shock
   identifies it, else once the sensor's axis is learned from a whole cycle);
 * phase RMSE against the phase linear between reference strikes (offline: linear between the
-  detected strikes);
+  detected strikes); not across standing (strikes more than 2.5 s apart) nor across a swing
+  whose strike has no derived reference (the span covers two strides);
 * the femur walks, which have no contact reference, are scored against the reference derived
   from the two thighs of the walk (:mod:`kinematics.gait_two_legs`: each leg's shock between
   its thigh's flexion peak and the other thigh's largest extension, stronger in its own
@@ -93,6 +94,12 @@ class Walk:
     """A reference derived from the two thighs of the walk (when there is no other)."""
     legs: tuple[Leg, Leg] | None = None
     """(this thigh, the other thigh) of a two-thigh walk."""
+
+
+def unreferenced(walk: Walk) -> np.ndarray | None:
+    """Swings without a reference strike (the derived reference's empty spans start at them):
+    the phase is not scored across them."""
+    return walk.derived.unreferenced_s[:, 0] if walk.derived is not None else None
 
 
 def walk_start_s(imu: ImuSeries) -> float:
@@ -203,7 +210,7 @@ def run_offline(walk: Walk, tally: Tally) -> np.ndarray:
         tally.extra += extra
         tally.errors += list(err)
         t = walk.imu.t_s
-        ref = reference_phase(t, walk.strikes_s)
+        ref = reference_phase(t, walk.strikes_s, unreferenced_s=unreferenced(walk))
         est = gait_phase(t, ev.foot_strikes_s)
         both = np.isfinite(ref) & np.isfinite(est)
         if both.any():
@@ -230,7 +237,8 @@ def run_online(walk: Walk, tally: Tally) -> np.ndarray:
         tally.errors += list(ref.errors_s)
         tally.latency += list(ref.latencies_s)
         tally.latency_rest += list(ref.latencies_s[1:])
-        tally.rmse.append(score_online(res, walk.strikes_s, np.zeros(0)).phase_rmse_cyc)
+        sc = score_online(res, walk.strikes_s, np.zeros(0), unreferenced(walk))
+        tally.rmse.append(sc.phase_rmse_cyc)
     elif walk.strikes_s is not None:
         sc = score_online(res, walk.strikes_s, np.zeros(0))
         tally.true += sc.foot_strike.true
@@ -312,7 +320,8 @@ def time_phase_bound(walk: Walk) -> float:
     strike): what the variability of the walk's stride times alone costs a causal estimate
     that does not read the thigh's motion within the stride."""
     t, s = walk.imu.t_s, np.sort(walk.strikes_s)
-    ref, est = reference_phase(t, s), np.full(t.size, np.nan)
+    ref = reference_phase(t, s, unreferenced_s=unreferenced(walk))
+    est = np.full(t.size, np.nan)
     for i in range(1, s.size):
         past = np.diff(s[: i + 1])
         past = past[past <= 2.5][-3:]

@@ -19,7 +19,8 @@ are only imported by the modules that use them):
   :mod:`kinematics.thigh_attitude` thigh angle, :mod:`kinematics.phase_model`
   measurement model, :mod:`kinematics.gait_phase_config` parameters and records,
   :mod:`kinematics.gait_online` batch helper and CSV,
-  :mod:`kinematics.gait_phase_metrics` scores, :mod:`kinematics.gait_scenarios` synthetic walks)
+  :mod:`kinematics.gait_phase_metrics` scores, :mod:`kinematics.gait_phase_portrait` the
+  thigh's phase-portrait phase as a yardstick, :mod:`kinematics.gait_scenarios` synthetic walks)
 - :mod:`kinematics.conversions` - pin.SE3 <-> gtsam.Pose3 <-> 4x4 arrays
 """
 
