@@ -4,16 +4,9 @@ uncertainty (docs/terrain.md, "Carry across the foot strike")."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from graph_slam.terrain.grid.online import (
-    CellSums,
-    OnlineTerrainConfig,
-    PointTerms,
-    z_variance,
-)
+from graph_slam.terrain.grid.online import CellSums, OnlineTerrainConfig, z_variance
 from graph_slam.terrain.grid.view import TerrainView
 
 MIN_COVERED_FRACTION = 0.5
@@ -31,50 +24,74 @@ def carry_map(
 
     A moved cell rarely lands on one new cell: it is shared among the (up to) four new cells
     its square overlaps, by the area of each overlap (bilinear weights of its moved centre), as
-    a fused cell holds the points over its area. Each share enters as one point whose weight
-    is the share's fraction of the cell's (its depth-noise variance grown to match: the pose
-    part is the whole cell's). Binned to the one cell holding its moved centre, a cell landed
-    up to half a cell (1 cm) away, and a box edge with it. A new cell less than half covered
-    by known old cells is left unknown."""
+    a fused cell holds the points over its area; a new cell's height is its shares' area mean
+    (:func:`_share_sums`). Binned to the one cell holding its moved centre, a cell landed up to
+    half a cell (1 cm) away, and a box edge with it. A new cell less than half covered by known
+    old cells is left unknown."""
     known = old.known.ravel()
+    nx, ny = cfg.shape
     if not known.any():
-        return CellSums.empty(int(np.prod(cfg.shape)))
+        return CellSums.empty(nx * ny)
     xc, yc = old.cell_centers_m()
     xx, yy = np.meshgrid(xc, yc, indexing="ij")
     s = old.sums
     p_old = np.column_stack([xx.ravel(), yy.ravel(), old.height_m.ravel()])[known]
     w = s.w[known]
-    var_ind = old.variance_m2.ravel()[known] - (s.b[known] / w) ** 2  # depth noise + spread
+    var_noise = s.a[known] / w**2  # the points' depth noise, averaged
     std_corr = s.b[known] / w
+    spread = np.maximum(old.variance_m2.ravel()[known] - var_noise - std_corr**2, 0.0)
     rotation, t = new_T_old[:3, :3], new_T_old[:3, 3]
     p_new = p_old @ rotation.T + t
     var_pose = std_corr**2 + z_variance(p_old, rotation, cov_new_T_old)
-    var_all = np.maximum(var_ind, 0.0) + var_pose
-    nx, ny = cfg.shape
     u = (p_new[:, 0] - cfg.x_range_m[0]) / cfg.cell_m - 0.5
     v = (p_new[:, 1] - cfg.y_range_m[0]) / cfg.cell_m - 0.5
     i0, j0 = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
     fu, fv = u - i0, v - j0
-    last_old = s.last_t_s[known]
-    flats, zs, vds, vps, lasts, areas = [], [], [], [], [], []
+    parts: list[list[np.ndarray]] = [[] for _ in range(7)]
     for di, dj, area in (
         (0, 0, (1 - fu) * (1 - fv)), (1, 0, fu * (1 - fv)), (0, 1, (1 - fu) * fv), (1, 1, fu * fv),
     ):  # fmt: skip
         i, j = i0 + di, j0 + dj
         keep = (i >= 0) & (i < nx) & (j >= 0) & (j < ny) & (area > 1e-3)
         keep &= cfg.x_range_m[0] + (i + 0.5) * cfg.cell_m >= cfg.carry_min_x_m
-        a = area[keep]
-        flats.append(i[keep] * ny + j[keep])
-        areas.append(a)
-        zs.append(p_new[keep, 2])
-        vds.append(var_all[keep] / a - var_pose[keep])
-        vps.append(var_pose[keep])
-        lasts.append(last_old[keep])
-    flat, area = np.concatenate(flats), np.concatenate(areas)
+        for out, val in zip(parts, (i * ny + j, area, p_new[:, 2], var_noise, spread, var_pose,
+                                    s.last_t_s[known]), strict=True):  # fmt: skip
+            out.append(val[keep])
+    flat, area, z, noise, spread, pose, last = (np.concatenate(x) for x in parts)
     # a new cell mostly over unknown old cells (the shadow behind a box, the old map's border)
     # takes nothing: a small share would stand for the whole cell
     covered = np.bincount(flat, area, nx * ny)[flat] >= MIN_COVERED_FRACTION
-    terms = PointTerms(*(np.concatenate(x)[covered] for x in (flats, zs, vds, vps)))
-    carried = CellSums.empty(nx * ny).plus(terms, np.concatenate(lasts)[covered])
+    flat, area, z, noise, spread, pose, last = (
+        x[covered] for x in (flat, area, z, noise, spread, pose, last)
+    )
+    return _share_sums(nx * ny, flat, area, z, noise, spread, pose, last)
+
+
+def _share_sums(n, flat, area, z, noise, spread, pose, last) -> CellSums:
+    """The sums of the carried shares (old cells' parts landing in new cells).
+
+    The shares of a new cell are parts of its area, not repeated measurements of one height:
+    its height is their **area** mean (weighted by their variances instead, a cell across a
+    step edge — its spread large — lost its share to the level cells beside it, and the edge
+    moved toward a cell boundary: 4-5 mm on the simulated stairs up, up to 8 mm by the
+    shift's fraction of a cell). Each share weighs
+    ``area / v`` with ``v`` the area mean of its new cell's shares' variances (the cell then
+    weighs against new points as one point of that variance); its depth noise is its old
+    cell's (averaged: ``Σw²σ²/W²`` the area-weighted combination), its pose σ its old cell's
+    with the relative pose's (correlated: averaged by area), and its spread stays spread
+    (in ``Σwz²``), the mixture of the shares' heights adding to it. A cell carried whole keeps
+    its height and each part of its variance."""
+    var = noise + spread + pose
+    covered = np.bincount(flat, area, n)
+    vbar = np.bincount(flat, area * var, n) / np.where(covered > 0, covered, 1.0)
+    w = area / vbar[flat]
+    sums = [
+        np.bincount(flat, x, n)
+        for x in (w, w * z, w * w * noise, w * np.sqrt(pose), w * (z * z + spread + noise),
+                  w * noise)
+    ]  # fmt: skip
+    last_t = np.full(n, np.nan)
+    np.fmax.at(last_t, flat, last)
     # carried cells count no point of the new stride
-    return dataclasses.replace(carried, count=carried.count * 0)
+    return CellSums(sums[0], sums[1], sums[2], sums[3], np.zeros(n, np.int64), last_t,
+                    sums[4], sums[5])  # fmt: skip
