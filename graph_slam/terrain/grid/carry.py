@@ -24,7 +24,7 @@ def carry_map(
 
     A moved cell rarely lands on one new cell: it is shared among the (up to) four new cells
     its square overlaps, by the area of each overlap (bilinear weights of its moved centre), as
-    a fused cell holds the points over its area; a new cell's height is its shares' area mean
+    a fused cell holds the points over its area; a new cell's height is its shares' mean by area
     (:func:`_share_sums`). Binned to the one cell holding its moved centre, a cell landed up to
     half a cell (1 cm) away, and a box edge with it. A new cell less than half covered by known
     old cells is left unknown."""
@@ -71,20 +71,26 @@ def _share_sums(n, flat, area, z, noise, spread, pose, last) -> CellSums:
     """The sums of the carried shares (old cells' parts landing in new cells).
 
     The shares of a new cell are parts of its area, not repeated measurements of one height:
-    its height is their **area** mean (weighted by their variances instead, a cell across a
-    step edge — its spread large — lost its share to the level cells beside it, and the edge
-    moved toward a cell boundary: 4-5 mm on the simulated stairs up, up to 8 mm by the
-    shift's fraction of a cell). Each share weighs
-    ``area / v`` with ``v`` the area mean of its new cell's shares' variances (the cell then
-    weighs against new points as one point of that variance); its depth noise is its old
-    cell's (averaged: ``Σw²σ²/W²`` the area-weighted combination), its pose σ its old cell's
-    with the relative pose's (correlated: averaged by area), and its spread stays spread
-    (in ``Σwz²``), the mixture of the shares' heights adding to it. A cell carried whole keeps
+    its height is their mean by area over the variance of each share's height as its part's
+    mean, its depth noise and pose part (``u = area / (noise + pose)``), **not** its spread. A
+    cell across a step edge has a large spread (the two treads'), and weighted by its whole
+    variance it lost its share to the level cells beside it: the edge moved toward a cell
+    boundary (4-5 mm on the simulated stairs up, up to 8 mm by the shift's fraction of a
+    cell). A cell held only by a depth edge's flying pixels (depth noise σ of centimetres)
+    still weighs next to nothing. The new cell weighs ``coverage / v`` against new points (one
+    point of ``v``, the ``u``-weighted mean of its shares' whole variances, spread included);
+    its depth noise and pose part are its shares' ``u``-weighted combinations (the noise
+    averaging as independent, the pose σ as correlated), and the spread stays spread (in
+    ``Σwz²``), the mixture of the shares' heights adding to it. A cell carried whole keeps
     its height and each part of its variance."""
     var = noise + spread + pose
-    covered = np.bincount(flat, area, n)
-    vbar = np.bincount(flat, area * var, n) / np.where(covered > 0, covered, 1.0)
-    w = area / vbar[flat]
+    u = area / np.maximum(noise + pose, 1e-30)
+    u_sum = np.bincount(flat, u, n)
+    safe = np.where(u_sum > 0, u_sum, 1.0)
+    v_cell = np.bincount(flat, u * var, n) / safe
+    coverage = np.bincount(flat, area, n)
+    scale = coverage / (np.where(v_cell > 0, v_cell, 1.0) * safe)
+    w = u * scale[flat]
     sums = [
         np.bincount(flat, x, n)
         for x in (w, w * z, w * w * noise, w * np.sqrt(pose), w * (z * z + spread + noise),
