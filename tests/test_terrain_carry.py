@@ -120,3 +120,34 @@ def test_carried_nosings_land_where_the_shift_puts_them(frac):
     inner[:, :2] = inner[:, -2:] = False
     err = view.height_m[inner] - truth[inner]
     assert np.sqrt(np.mean(err**2)) <= 0.003, np.sqrt(np.mean(err**2))
+
+
+@pytest.mark.parametrize("frac", [0.2, 0.6])
+def test_an_edge_held_by_two_cells_is_carried_as_one_step(frac):
+    """A riser on a cell boundary puts its points in the cells on both sides: two mixed cells
+    side by side (here 6 and 11 cm of a 17 cm step). Carried, they hold one step where their
+    fractions together put it (on the boundary), not two half-steps smeared over three cells."""
+    nx, ny = CFG.shape
+    heights = np.zeros((nx, ny))
+    for edge in NOSINGS:  # on cell boundaries: the cells before and after it hold the riser
+        k = round((edge - CFG.x_range_m[0]) / CFG.cell_m)
+        heights[k:] += RISE
+        heights[k - 1] += 0.35 * RISE
+        heights[k] -= 0.35 * RISE
+    old = view_of(heights, var=4e-6)
+    shift = -(28 + frac) * CFG.cell_m
+    new_T_old = np.eye(4)
+    new_T_old[0, 3] = shift
+    view = TerrainView(
+        2, 0.0, old.origin_xy_m, CFG.cell_m, carry_map(CFG, old, new_T_old, np.zeros((6, 6))),
+        CFG.shape, CFG.toe_x_m,
+    )  # fmt: skip
+    edges = np.round((np.array(NOSINGS) - CFG.x_range_m[0]) / CFG.cell_m) * CFG.cell_m
+    truth = cell_means(
+        lambda x, y: RISE * sum((x >= CFG.x_range_m[0] + e).astype(float) for e in edges) + 0 * y,
+        (shift, 0.0),
+    )
+    inner = view.known.copy()
+    inner[:, :2] = inner[:, -2:] = False
+    err = view.height_m[inner] - truth[inner]
+    assert np.sqrt(np.mean(err**2)) <= 0.004, np.sqrt(np.mean(err**2))
