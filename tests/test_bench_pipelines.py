@@ -56,7 +56,9 @@ def test_markdown_table_has_a_row_per_graph_variant_and_its_caption():
     sc = SessionScore("s", "normal")
     sc.variants["icp"] = VariantScore("icp", graph, 0, 0, timing, 1.0)
     sc.variants["icp+imu+kin"] = VariantScore("icp+imu+kin", graph, 0, 0, timing, 1.0)
-    caption, _, header, rule, *body = markdown_table([sc], "graph-slam bench pipelines s").splitlines()
+    caption, _, header, rule, *body = markdown_table(
+        [sc], "graph-slam bench pipelines s"
+    ).splitlines()
     assert caption.endswith("cores: `graph-slam bench pipelines s`)")
     assert header.count("|") == rule.count("|") == 7
     assert body == ["| s | icp+imu+kin | 2 | 4.0 / 6.0 | 4.0 / 6.0 | 17.0 / 30.0 |"]

@@ -105,7 +105,9 @@ def test_scenario_markdown_table_has_its_caption_and_one_row_per_score() -> None
         ScenarioScore("flat", 10, 9, 8, 1, 0, 0, arr, arr + 1, 7, arr * 10),
         ScenarioScore("pico", 5, 5, 0, 5, 0, 1, np.array([]), arr, 0, np.array([])),
     ]
-    caption, _, header, rule, *body = markdown_table(rows, "graph-slam bench scenarios").splitlines()
+    caption, _, header, rule, *body = markdown_table(
+        rows, "graph-slam bench scenarios"
+    ).splitlines()
     assert caption.endswith("cores: `graph-slam bench scenarios`)") and "commit" in caption
     assert header.count("|") == rule.count("|") == 11
     assert body == [

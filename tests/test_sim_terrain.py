@@ -187,7 +187,9 @@ def test_terrain_bench_markdown_table_has_its_caption_and_rows() -> None:
     caption, _, header, rule, body = text.splitlines()
     assert caption.endswith("cores: `graph-slam bench terrain s`)")
     assert header.count("|") == rule.count("|") == 14
-    assert body.startswith("| s: icp | 2 | 50% | 10.5 | 1.0 | 1 | 3.0 | 0.50 | 0.74 | 1.50 / 1.95 |")
+    assert body.startswith(
+        "| s: icp | 2 | 50% | 10.5 | 1.0 | 1 | 3.0 | 0.50 | 0.74 | 1.50 / 1.95 |"
+    )
 
 
 #: Published ranges (deg) of a stride that stays in one activity, slow to fast walking.
@@ -258,7 +260,18 @@ def test_terrain_walk_summary_and_markdown_agree_on_hand_made_runs() -> None:
     def run(scene, anchor, smoothed, tilts, label="level"):
         strides = [
             TerrainStrideScore(
-                scene, "normal", anchor, k + 1, label, sm, sm + 1.0, t, "imu", 0.0, "", 10,
+                scene,
+                "normal",
+                anchor,
+                k + 1,
+                label,
+                sm,
+                sm + 1.0,
+                t,
+                "imu",
+                0.0,
+                "",
+                10,
                 int(sm > 7.0),
             )
             for k, (sm, t) in enumerate(zip(smoothed, tilts, strict=True))

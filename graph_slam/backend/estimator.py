@@ -97,7 +97,9 @@ class StrideSLAM:
         next (``priors.loose_tilt_bias_*``).
         """
         self._strike_up = StrikeUp.checked(t_s, up_in_imu, up_sigma_rad, up_t_s, up_assumed)
-        self._contact_slope_rad = float(contact_slope_rad) if np.isfinite(contact_slope_rad) else 0.0
+        self._contact_slope_rad = (
+            float(contact_slope_rad) if np.isfinite(contact_slope_rad) else 0.0
+        )
         return self.strides.foot_strike()
 
     def finish(self) -> Results:

@@ -44,23 +44,30 @@ def register(app: typer.Typer) -> None:
         variant: Annotated[str, typer.Option(help="Pipeline variant.")] = "icp+imu+kin",
         rerun: Annotated[
             str | None,
-            typer.Option(help="spawn: open a rerun viewer; file: only OUT/live.rrd; or a "
-                         "viewer address to connect to."),
+            typer.Option(
+                help="spawn: open a rerun viewer; file: only OUT/live.rrd; or a "
+                "viewer address to connect to."
+            ),
         ] = None,
         rerun_pose_hz: Annotated[
             float,
-            typer.Option(help="Poses sent to rerun per second, on the frames' clock (0: every "
-                         "frame)."),
+            typer.Option(
+                help="Poses sent to rerun per second, on the frames' clock (0: every frame)."
+            ),
         ] = 30.0,
         rerun_grid_hz: Annotated[
             float,
-            typer.Option(help="Elevation grids sent to rerun per second (0: every frame; each "
-                         "is a box search in the viewer's process)."),
+            typer.Option(
+                help="Elevation grids sent to rerun per second (0: every frame; each "
+                "is a box search in the viewer's process)."
+            ),
         ] = 5.0,
         imu_wait: Annotated[
             float,
-            typer.Option(help="Skip a frame whose IMU sample after it has not come this long "
-                         "after the frame (ms)."),
+            typer.Option(
+                help="Skip a frame whose IMU sample after it has not come this long "
+                "after the frame (ms)."
+            ),
         ] = 20.0,
         max_seconds: Annotated[
             float | None, typer.Option(help="Stop after this long (default: until Ctrl-C).")
@@ -112,7 +119,9 @@ def register(app: typer.Typer) -> None:
                        f"{prosthesis.address[1]}")  # fmt: skip
         else:
             prosthesis = NoProsthesis()
-        check_output(out, overwrite=overwrite, command="live", inputs=[*inputs, *filter(None, [log_path])])
+        check_output(
+            out, overwrite=overwrite, command="live", inputs=[*inputs, *filter(None, [log_path])]
+        )
         if out.is_dir() and any(out.iterdir()):  # a live run's folder, --overwrite (checked)
             import shutil
 

@@ -119,7 +119,9 @@ def _extract(pts: np.ndarray, hint: np.ndarray, floor: FloorConfig, cfg: TreadsC
     """Planes near ``hint``, one after the other, each one's inliers (within the floor fit's
     ``distance_m``) removed before the next; each keeps its inliers within ``cfg.distance_m``
     less the ``edge_trim`` fraction at either edge along its short axis (module text)."""
-    single = floor.model_copy(update={"min_inliers": cfg.min_inliers, "min_extent_m": cfg.min_depth_m})
+    single = floor.model_copy(
+        update={"min_inliers": cfg.min_inliers, "min_extent_m": cfg.min_depth_m}
+    )
     planes: list[_Plane] = []
     left = pts
     for k in range(cfg.max_planes):

@@ -45,7 +45,7 @@ def send(fd: int, header: dict, arrays: dict[str, np.ndarray] | None = None) -> 
 
 def _write_all(fd: int, view: memoryview) -> None:
     while view.nbytes:
-        view = view[os.write(fd, view):]
+        view = view[os.write(fd, view) :]
 
 
 def read_message(stream: BinaryIO) -> tuple[dict, dict[str, np.ndarray]] | None:

@@ -158,7 +158,8 @@ class SessionProcess:
         f = self._stderr_file
         f.seek(0)
         return f.read().decode(errors="replace").strip()[-2000:] or (
-            f"exit status {self._proc.returncode}")
+            f"exit status {self._proc.returncode}"
+        )
 
 
 def _read_rest(stream: BinaryIO, timeout_s: float) -> bytes:

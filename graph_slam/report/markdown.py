@@ -91,7 +91,9 @@ def _mm(stats: dict | None, scale: float = 1e3) -> str:
 def _clearance_cell(c: dict) -> str:
     if not c.get("n"):
         return "–"
-    return f"{c['rmse'] * 1e3:.1f}, {c['bias'] * 1e3:+.1f}, {c['within_5mm_fraction']:.0%} of {c['n']}"
+    return (
+        f"{c['rmse'] * 1e3:.1f}, {c['bias'] * 1e3:+.1f}, {c['within_5mm_fraction']:.0%} of {c['n']}"
+    )
 
 
 def features_section(features: dict) -> list[str]:
