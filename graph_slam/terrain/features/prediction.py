@@ -1,15 +1,19 @@
 """The coming swing's clearance, predicted during stance (stride frame, metres).
 
 :func:`reference_swing` builds a reference toe path for the terrain type the features report
-ahead, from the toe's position now over one stride length (``ClearanceConfig.stride_length_m``);
+ahead, from the toe's position now over one stride length (``ClearanceConfig.stride_length_m``;
+stairs up: to the tread it lands on);
 :func:`predict_clearance` measures it against the current grid and features and raises the
 warning when its **edge** clearance (:func:`~graph_slam.terrain.features.clearance.edge_clearance`)
 is below ``warn_below_m`` (2 cm). The reference per terrain type
 (:func:`terrain_type`, the first that applies along the walking line):
 
-* ``stairs_up`` / ``curb`` — a lift of ``lift_m`` over a base line that rises to the next
-  level by mid-swing (up a curb nearer than that: by its edge); ``stairs_down`` — the base line drops to the next tread from mid-swing
-  (the toe clears the nosing of the tread it leaves first);
+* ``stairs_up`` — step over step (:func:`stairs_up_landing`): a lift of ``lift_m`` over a base
+  line that rises by mid-swing to the tread ``stairs_steps_per_swing`` nosings ahead, where the
+  swing lands, its toe short of that tread's riser; ``curb`` — the base line up to the curb's
+  top by mid-swing (a curb nearer than that: by its edge); ``stairs_down`` — the base line
+  drops to the next tread from mid-swing (the toe clears the nosing of the tread it leaves
+  first);
 * ``step_over`` — a box whose leading edge lies within the swing: the base line rises to the
   box's top over ``step_over_run_m`` before its leading edge and comes back down over as much
   past its trailing edge (or lands on the top when the box runs past the landing), as a leg
