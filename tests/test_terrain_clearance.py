@@ -327,3 +327,89 @@ def test_the_measured_toe_is_placed_by_the_poses_that_placed_the_grid():
     assert refused.grid_stride_T_camera is true
     baseline = StrideOutput(SimpleNamespace(smoothed_stride_T_camera=true), grid, grid)
     assert baseline.grid_stride_T_camera is true
+
+
+def _true_stairs(first, n=3, rise=0.17, tread=0.28):
+    """A flight up with its first nosing at ``first`` (exact features, the last tread unseen)."""
+    from graph_slam.terrain.features.model import EdgeLine, Stairs, Step, TerrainFeatures
+
+    steps = tuple(
+        Step(rise, 0.0, EdgeLine(first + k * tread, 0.0, 0.0, 0.0, 0.0, (-0.6, 0.6), 0, False),
+             tread if k < n - 1 else math.nan, 0.0, k * rise, (k + 1) * rise)
+        for k in range(n)
+    )  # fmt: skip
+    return TerrainFeatures(source="truth", stairs=(Stairs(steps),))
+
+
+def test_the_stairs_up_landing_is_a_tread_step_over_step():
+    """Nosings 7, 35 and 63 cm ahead of the toe: the swing climbs two (landing on the tread
+    34 cm up, its toe 3 cm short of the next riser: 60 cm long); step to step, one (32 cm);
+    a stride length ending before the second nosing's tread ends there; one nosing seen with
+    its tread unknown: the stride length."""
+    from graph_slam.terrain.features.prediction import stairs_up_landing
+
+    feats = _true_stairs(0.27)
+    got = stairs_up_landing(feats, 0.2, 0.0, ClearanceConfig())
+    assert got == pytest.approx((0.60, 0.34, 0.34), abs=1e-9)
+    got = stairs_up_landing(feats, 0.2, 0.0, ClearanceConfig(stairs_steps_per_swing=1))
+    assert got == pytest.approx((0.32, 0.17, 0.17), abs=1e-9)
+    got = stairs_up_landing(feats, 0.2, 0.0, ClearanceConfig(stride_length_m=0.5))
+    assert got == pytest.approx((0.5, 0.34, 0.34), abs=1e-9)
+    got = stairs_up_landing(feats, 0.2, 0.0, ClearanceConfig(stride_length_m=0.3))
+    assert got == pytest.approx((0.3, 0.17, 0.17), abs=1e-9)
+    one = _true_stairs(0.27, n=1)
+    assert stairs_up_landing(one, 0.2, 0.0, ClearanceConfig())[0] == pytest.approx(1.3)
+
+
+def _flight_case(first):
+    from tests.test_terrain_features import stairs_surface
+
+    surface = stairs_surface(first=first, n=3)
+    h, var = grid(surface, 0.0005, seed=5)
+    return view_of(h, var), extract_features(h, var, (X0, Y0), CELL), surface
+
+
+def test_the_stairs_up_reference_lands_on_a_tread_and_never_under_the_flight():
+    """From the floor, a flight 70 cm ahead (nosings at 0.90, 1.18, 1.46 m): the reference
+    lands on the second tread (34 cm up, its toe 3 cm short of the riser at 1.46 m) and every
+    mid-swing point lies over the flight's surface — run on over the stride length (1.3 m)
+    with one rise, it went through the riser at 1.18 m 4 cm under its nosing and warned
+    falsely; it clears the nosing at 1.18 m by the lift there (3.6 cm), no warning."""
+    cfg = ClearanceConfig()
+    view, feats, surface = _flight_case(0.90)
+    path, kind = reference_swing(view, feats, (0.2, 0.0), cfg)
+    assert kind == "stairs_up"
+    assert path[-1] == pytest.approx([1.43, 0.0, 0.34], abs=0.002)
+    mid = path[cfg.mid_swing_mask(len(path))]
+    assert np.all(mid[:, 2] > surface(mid[:, 0], mid[:, 1]) + 0.02)
+    c = predict_clearance(view, feats, (0.2, 0.0), cfg)
+    assert not c.warning and c.edge_m == pytest.approx(0.036, abs=0.002)
+
+
+@pytest.mark.parametrize(("lift", "warn"), [(0.025, True), (0.035, False)])
+def test_stairs_up_warns_below_the_margin_as_the_analytic_flight_gives(lift, warn):
+    """The stairs-up reference's edge clearance over a flight found on a grid equals the one
+    over the exact flight (within 1.5 mm); a lift of 2.5 cm passes the nosing of the tread it
+    lands on under 2 cm above (warning), one of 3.5 cm over 2 cm (none)."""
+    from graph_slam.terrain.features.clearance import edge_clearance
+
+    cfg = ClearanceConfig(lift_m=lift)
+    view, feats, _ = _flight_case(0.90)
+    got = predict_clearance(view, feats, (0.2, 0.0), cfg)
+    true = _true_stairs(0.90)
+    path, _ = reference_swing(view, true, (0.2, 0.0), cfg)
+    want = edge_clearance(true, path[cfg.mid_swing_mask(len(path))], cfg).min_m
+    assert abs(got.edge_m - want) <= 0.0015, (got, want)
+    assert (want < cfg.warn_below_m) is warn and got.warning is warn
+    assert abs(want - cfg.warn_below_m) >= 0.002  # each case clearly on its side
+
+
+def test_a_toe_close_behind_a_riser_warns():
+    """The toe 7 cm behind a 17 cm riser (the tread it stands on ends there): a toe moving
+    forward as it rises cannot clear that nosing by 2 cm — the warning, the reference through
+    the riser (edge clearance under 0); it still lands two treads up (0.80 m, 34 cm)."""
+    view, feats, _ = _flight_case(0.27)
+    path, kind = reference_swing(view, feats, (0.2, 0.0))
+    assert kind == "stairs_up" and path[-1] == pytest.approx([0.80, 0.0, 0.34], abs=0.002)
+    c = predict_clearance(view, feats, (0.2, 0.0))
+    assert c.warning and c.edge_m < 0.0

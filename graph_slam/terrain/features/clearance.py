@@ -69,6 +69,19 @@ class ClearanceConfig(ConfigModel):
         0.05, gt=0, description="the reference swing's peak toe lift over the ground"
     )
     stride_length_m: float = Field(1.3, gt=0, description="the reference swing's length")
+    stairs_steps_per_swing: int = Field(
+        2,
+        ge=1,
+        description="stairs up are climbed step over step: the reference swing lands on the "
+        "tread this many rises up (fewer when the stride length ends first), not beyond its "
+        "riser (1: step to step)",
+    )
+    stairs_toe_gap_m: float = Field(
+        0.03,
+        ge=0,
+        description="the stairs-up reference swing's toe lands this far short of the riser "
+        "of the tread it lands on",
+    )
     step_over_run_m: float = Field(
         0.1,
         gt=0,

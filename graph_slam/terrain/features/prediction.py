@@ -1,15 +1,19 @@
 """The coming swing's clearance, predicted during stance (stride frame, metres).
 
 :func:`reference_swing` builds a reference toe path for the terrain type the features report
-ahead, from the toe's position now over one stride length (``ClearanceConfig.stride_length_m``);
+ahead, from the toe's position now over one stride length (``ClearanceConfig.stride_length_m``;
+stairs up: to the tread it lands on);
 :func:`predict_clearance` measures it against the current grid and features and raises the
 warning when its **edge** clearance (:func:`~graph_slam.terrain.features.clearance.edge_clearance`)
 is below ``warn_below_m`` (2 cm). The reference per terrain type
 (:func:`terrain_type`, the first that applies along the walking line):
 
-* ``stairs_up`` / ``curb`` — a lift of ``lift_m`` over a base line that rises to the next
-  level by mid-swing (up a curb nearer than that: by its edge); ``stairs_down`` — the base line drops to the next tread from mid-swing
-  (the toe clears the nosing of the tread it leaves first);
+* ``stairs_up`` — step over step (:func:`stairs_up_landing`): a lift of ``lift_m`` over a base
+  line that rises by mid-swing to the tread ``stairs_steps_per_swing`` nosings ahead, where the
+  swing lands, its toe short of that tread's riser; ``curb`` — the base line up to the curb's
+  top by mid-swing (a curb nearer than that: by its edge); ``stairs_down`` — the base line
+  drops to the next tread from mid-swing (the toe clears the nosing of the tread it leaves
+  first);
 * ``step_over`` — a box whose leading edge lies within the swing: the base line rises to the
   box's top over ``step_over_run_m`` before its leading edge and comes back down over as much
   past its trailing edge (or lands on the top when the box runs past the landing), as a leg
@@ -105,8 +109,11 @@ def reference_swing(
     cfg = config or _DEFAULT
     x0, y0 = float(toe_xy_m[0]), float(toe_xy_m[1])
     s, lift = _fractions(cfg.samples, cfg.lift_m)
-    x = x0 + s * cfg.stride_length_m
     kind, rise = terrain_type(features, x0, x0 + cfg.stride_length_m, y0)
+    length, level = cfg.stride_length_m, math.nan
+    if kind == "stairs_up":
+        length, rise, level = stairs_up_landing(features, x0, y0, cfg)
+    x = x0 + s * length
     xy = np.column_stack([x, np.full_like(x, y0)])
     ground, _ = _grid_heights(view, xy[[0, -1]], cfg.toe_radius_m)
     z0 = finite_or(ground[0])
@@ -115,6 +122,7 @@ def reference_swing(
         over = box.floor_height_m + step_over_base(x, box, y0, cfg.step_over_run_m)
         return np.column_stack([xy, np.maximum(z0, over) + lift]), kind
     z1 = z0 + rise if kind != "ramp" else finite_or(ground[1], nan=z0)
+    z1 = level if math.isfinite(level) else z1
     # up to the landing level by mid-swing when stepping up; down from mid-swing when stepping
     # down (the toe clears the nosing of the tread it leaves first: lowered over the whole
     # swing it passed that nosing a centimetre up); over the whole swing otherwise
@@ -123,6 +131,37 @@ def reference_swing(
     u = np.minimum(s / reach, 1.0) if rise > 0 else np.clip(2 * s - 1, 0.0, 1.0) if rise < 0 else s
     z = z0 + (z1 - z0) * u * u * (3 - 2 * u) + lift
     return np.column_stack([xy, z]), kind
+
+
+def stairs_up_landing(
+    features: TerrainFeatures, x0_m: float, y_m: float = 0.0, config: ClearanceConfig | None = None
+) -> tuple[float, float, float]:
+    """The stairs-up reference swing's length from the toe at ``x0_m``, the rise it climbs
+    and the height of the tread it lands on (the last climbed step's upper surface; NaN when
+    not measured):
+    step over step, onto the tread ``stairs_steps_per_swing`` nosings ahead (those within the
+    stride length), its toe ``stairs_toe_gap_m`` short of that tread's riser (the next nosing,
+    or the last climbed one's tread depth on) and never past the stride length. A foot lands
+    on a tread: a swing run on through the riser beyond it reads as a collision."""
+    cfg = config or _DEFAULT
+    reach = x0_m + cfg.stride_length_m
+    ahead = sorted(
+        (
+            (step.nosing.x_at(y_m), step)
+            for st in features.stairs for step in st.steps
+            if step.rise_m > 0 and _on_path(step.nosing, y_m) and step.nosing.x_at(y_m) >= x0_m
+        ),
+        key=lambda a: a[0],
+    )  # fmt: skip
+    climbed = [a for a in ahead if a[0] <= reach][: cfg.stairs_steps_per_swing]
+    if not climbed:
+        return cfg.stride_length_m, 0.0, math.nan
+    last_x, last = climbed[-1]
+    beyond = [x for x, _ in ahead if x > last_x]
+    riser = beyond[0] if beyond else last_x + finite_or(last.tread_m, nan=math.inf)
+    end = min(reach, riser - cfg.stairs_toe_gap_m)
+    rise = float(sum(step.rise_m for _, step in climbed))
+    return max(end, last_x) - x0_m, rise, float(last.upper_height_m)
 
 
 @functools.lru_cache(maxsize=8)
