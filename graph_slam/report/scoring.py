@@ -198,8 +198,10 @@ def score_session(run: SessionRun) -> dict[RunKey, list[StrideEvaluation]]:
                     frames=_counts([cats[i] for i in ref.frame_indices]),
                     trajectory=_trajectory(ref, poses),
                     terrain=labels[k],
-                    anchor=anchor_of(res.frames[int(ref.frame_indices[0])].flags,
-                                     run.stride_of(v, ref)) or None,
+                    anchor=anchor_of(
+                        res.frames[int(ref.frame_indices[0])].flags, run.stride_of(v, ref)
+                    )
+                    or None,
                 )
                 for k, ref in enumerate(run.references)
             ]
