@@ -12,6 +12,8 @@ import pytest
 
 from graph_slam.terrain.features.config import FeatureConfig
 from graph_slam.terrain.features.extract import extract_features
+from graph_slam.terrain.features.kinds import _common_m2, _face_correlation, _tread
+from graph_slam.terrain.features.model import EdgeLine
 from tests.test_terrain_features import CELL, NX, X0, Y0, grid, seen_counts
 
 NOTHING_HIDDEN = lambda x, y: np.zeros(x.shape, bool)  # noqa: E731
@@ -109,3 +111,62 @@ def test_a_curb_down_whose_lower_floor_is_seen_in_two_pieces(seed):
     assert abs(curb.height_m + 0.12) <= 0.003
     _, h2, var2 = _curb_down_in_two_pieces(0.68, 1.00, seed)
     assert not extract_features(h2, var2, (X0, Y0), CELL).curbs
+
+
+def _line(x_m: float, sigma_m: float) -> EdgeLine:
+    return EdgeLine(x_m, 0.0, 0.0, sigma_m, 1e-3, (-0.3, 0.3), 30)
+
+
+@pytest.mark.parametrize(("delta", "seed"), [(0.0, 51), (0.3, 52), (0.5, 53), (0.85, 54)])
+def test_two_face_on_nosings_correlate_by_the_treads_fraction_of_a_cell(delta, seed):
+    """Two edges seen face-on a tread apart: each is off by r (1/2 - f) of a cell, f where it
+    lies in its cell (uniform), the second at f + δ (mod 1). Monte Carlo over f (200 000
+    draws): their correlation is 1 - 6 δ (1 - δ) (within 0.01), the tread known exactly; a
+    tread known to 1 cell or more leaves them independent (within 0.01)."""
+    f = np.random.default_rng(seed).uniform(0.0, 1.0, 200_000)
+    a, b = 0.5 - f, 0.5 - np.mod(f + delta, 1.0)
+    rho = float(np.corrcoef(a, b)[0, 1])
+    assert _face_correlation(14 + delta, 0.0) == pytest.approx(rho, abs=0.01)
+    assert _face_correlation(14 + delta, 0.0) == pytest.approx(
+        1 - 6 * delta * (1 - delta), abs=0.01
+    )
+    assert abs(_face_correlation(14 + delta, 1.0)) < 0.01
+
+
+def test_a_tread_between_nosings_carried_together_loses_the_carrys_shift():
+    """Two nosings carried from the previous stride by one relative stride pose move by the
+    same shift: their carried terms (3 mm) cancel in the tread, which keeps only the rest of
+    their σ (1 and 2 mm: √5 mm, to 1e-12); one carried and one seen: all of both."""
+    carried = FeatureConfig().carried_edge_sigma_m
+    a = {"line": _line(0.27, math.hypot(0.001, carried)), "carried_m": carried}
+    b = {"line": _line(0.55, math.hypot(0.002, carried)), "carried_m": carried}
+    _, sigma = _tread(a["line"], b["line"], 0.0, _common_m2(a, b, CELL))
+    assert sigma == pytest.approx(math.sqrt(5e-6), abs=1e-12)
+    seen = {"line": _line(0.55, 0.002)}
+    _, sigma = _tread(a["line"], seen["line"], 0.0, _common_m2(a, seen, CELL))
+    assert sigma == pytest.approx(math.sqrt(0.001**2 + carried**2 + 0.002**2), abs=1e-12)
+
+
+@pytest.mark.parametrize(("tread_cells", "cancels"), [(14.0, True), (14.5, False)])
+def test_a_tread_between_face_on_nosings_at_the_same_place_in_their_cells(tread_cells, cancels):
+    """Two nosings seen face-on, their σ the face terms alone (5 mm): a tread of a whole
+    number of cells puts both at the same place in their cells and the face terms cancel
+    (σ 0, to 1e-9); half a cell on they anticorrelate -1/2 (σ² = 3 · 25 mm², to 1e-9). Known
+    to 1 mm each besides, where the second lies is blurred: σ between the two."""
+    face = 0.005
+    a = {"line": _line(0.5, face), "face_m": face}
+    b = {"line": _line(0.5 + tread_cells * CELL, face), "face_m": face}
+    _, sigma = _tread(a["line"], b["line"], 0.0, _common_m2(a, b, CELL))
+    assert sigma == pytest.approx(0.0 if cancels else math.sqrt(3) * face, abs=1e-9)
+    a["line"], b["line"] = (_line(L.x_m, math.hypot(0.001, face)) for L in (a["line"], b["line"]))
+    _, blurred = _tread(a["line"], b["line"], 0.0, _common_m2(a, b, CELL))
+    independent = math.sqrt(2) * math.hypot(0.001, face)
+    lo, hi = sorted((math.hypot(math.sqrt(2e-6), sigma), independent))
+    assert lo < blurred < hi if cancels else blurred > independent
+
+
+def test_the_carried_edge_sigma_is_the_relative_stride_poses_error():
+    """The default carried-edge σ is the RMS horizontal error of the estimated relative
+    stride pose over the simulated terrain walker's strikes (3.0 mm), not the 9 mm the carry
+    left before its cells were shared by area."""
+    assert FeatureConfig().carried_edge_sigma_m == pytest.approx(0.003)

@@ -83,12 +83,14 @@ class FeatureConfig(ConfigModel):
         "its spread half the span)",
     )
     carried_edge_sigma_m: float = Field(
-        0.006,
+        0.003,
         ge=0,
         description="σ of an edge seen only in cells carried from the previous stride (no "
         "point of this stride on either side of it), common to its rows: the carry moves "
         "it by the estimated relative stride pose's horizontal error, which the cells' "
-        "height σ does not hold",
+        "height σ does not hold. That error along x over 46 foot strikes of the simulated "
+        "terrain walker (23 walks): RMS 3.0 mm (mean +2.3). Two edges carried by the same "
+        "pose share it: it cancels in the tread between them",
     )
     stride_tilt_sigma_rad: float = Field(
         0.0017,

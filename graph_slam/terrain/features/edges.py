@@ -107,7 +107,8 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
     the rows too: the density's trend); an edge carried with the previous stride's cells
     moved with them; an edge seen face-on, where in its cell it lies (the face's points
     pull that cell to half the rise: ``edge_kernels.face_share``), common to the rows too.
-    ``counted``: occluded, the shadow part from the counts."""
+    ``counted``: occluded, the shadow part from the counts; ``carried_m``, ``face_m``: the
+    carried and face-on terms of its σ (0: none)."""
     a, b, y, x, s, flags = transitions(g, labels, height, cfg)
     if a.size == 0:
         return []
@@ -117,13 +118,14 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
     for (la, lb, occluded, counted, carried), fit in zip(pairs, fits, strict=True):
         part_sigma = cfg.shadow_count_sigma if counted else cfg.shadow_cell_sigma
         common = g.cell * part_sigma if occluded else 0.0
+        face_m = 0.0
         if not occluded and cfg.face_cell_sigma > 0 and g.count is not None:
             share = edge_kernels.face_share(
                 g.count, a, b, la, lb, y, x, g.x0, g.y0, g.cell, float(cfg.shadow_count_min)
             )
-            common = g.cell * cfg.face_cell_sigma * share
-        if carried:
-            common = math.hypot(common, cfg.carried_edge_sigma_m)
+            common = face_m = g.cell * cfg.face_cell_sigma * share
+        carried_m = cfg.carried_edge_sigma_m if carried else 0.0
+        common = math.hypot(common, carried_m)
         span = spans.get((int(la), int(lb)), 0.0)
         common = math.hypot(common, cfg.sparse_span_sigma * span)
         line = _line_of(fit, bool(occluded), 0.0, common)
@@ -131,7 +133,8 @@ def edges_of(g: _Grid, labels, height: np.ndarray, terraces: dict, cfg: FeatureC
         tilt = cfg.stride_tilt_sigma_rad * abs(tb["x"] - ta["x"])
         out.append({
             "a": int(la), "b": int(lb), "line": line, "rise": tb["h"] - ta["h"],
-            "counted": bool(occluded and counted),
+            "counted": bool(occluded and counted), "carried_m": carried_m,
+            "face_m": face_m,
             "rise_sigma": math.sqrt(ta["ind"] ** 2 + tb["ind"] ** 2
                                     + (ta["corr"] - tb["corr"]) ** 2 + tilt**2),
         })  # fmt: skip

@@ -171,7 +171,9 @@ def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureC
             if k + 1 < len(chain):
                 both = c.get("counted", False) and chain[k + 1].get("counted", False)
                 rho = cfg.shadow_count_common if both else 0.0
-                tread, tread_sigma = _tread(c["line"], chain[k + 1]["line"], rho)
+                tread, tread_sigma = _tread(
+                    c["line"], chain[k + 1]["line"], rho, _common_m2(c, chain[k + 1], g.cell)
+                )
             steps.append(
                 Step(
                     rise_m=c["rise"],
@@ -187,19 +189,55 @@ def chains_of(edges: list[dict], g: _Grid, labels, terraces: dict, cfg: FeatureC
     return stairs, curbs, parts
 
 
-def _tread(here: EdgeLine, nxt: EdgeLine, rho: float = 0.0) -> tuple[float, float]:
+def _common_m2(here: dict, nxt: dict, cell_m: float) -> float:
+    """The covariance (m²) of two nosings' errors through what they share: the carry's shift
+    (two edges carried by one relative stride pose move alike: the product of their carried
+    terms) and, both seen face-on, where each lies in its cell (:func:`_face_correlation`)."""
+    cov = here.get("carried_m", 0.0) * nxt.get("carried_m", 0.0)
+    fa, fb = here.get("face_m", 0.0), nxt.get("face_m", 0.0)
+    if fa > 0 and fb > 0:
+        la, lb = here["line"], nxt["line"]
+        gap = abs(lb.x_at(la.y_m) - la.x_m) / cell_m
+        rest = max(la.sigma_m**2 - fa**2, 0.0) + max(lb.sigma_m**2 - fb**2, 0.0)
+        cov += fa * fb * _face_correlation(gap, math.sqrt(rest) / cell_m)
+    return cov
+
+
+def _face_correlation(gap_cells: float, sigma_cells: float) -> float:
+    """The correlation of two face-on edges' face terms, ``gap_cells`` apart (measured, with σ
+    ``sigma_cells``). Each is off by r (1/2 - f) of a cell, f where it lies in its cell
+    (uniform); the second lies at f + δ (mod 1), δ the gap's fractional part, so the two
+    correlate 1 - 6 h(δ), h(δ) = δ (1 - δ) (the variance of their difference over r² is
+    h(δ)): fully at a whole number of cells (the same place in every cell: it cancels in the
+    tread), -1/2 at half a cell. δ is known to the gap's σ: h averaged over a normal δ, from
+    its Fourier series h = 1/6 - Σ cos(2πkδ) / (πk)², each term damped by exp(-2(πkσ)²)."""
+    delta = gap_cells - math.floor(gap_cells)
+    if sigma_cells < 0.02:  # the series' 64 terms would be cut short; blurring under 0.02
+        return 1.0 - 6.0 * delta * (1.0 - delta)
+    h = 1.0 / 6.0
+    for k in range(1, 65):  # the terms past 64 are damped by under exp(-32)
+        damp = math.exp(-2.0 * (math.pi * k * sigma_cells) ** 2)
+        h -= math.cos(2.0 * math.pi * k * delta) * damp / (math.pi * k) ** 2
+    return 1.0 - 6.0 * h
+
+
+def _tread(
+    here: EdgeLine, nxt: EdgeLine, rho: float = 0.0, common_m2: float = 0.0
+) -> tuple[float, float]:
     """The tread from one nosing to the next along the first's normal and its σ, taken where
     both were seen, nearest the first's point (its y clipped into the overlap of their y
     ranges; its own y when they do not overlap): each line's σ there is its σ at its point
     and its yaw σ over the distance from it. Taken at the first's point, a next nosing seen
     in 4 rows at the grid's side was extrapolated half a metre by its poorly known yaw: 157 mm
     off with σ 12 mm on the simulated stairs down. ``rho``: the correlation of the two
-    nosings' errors (their common part cancels in the difference)."""
+    nosings' errors (their common part cancels in the difference); ``common_m2``: a further
+    covariance of the two (m², the variance of an error both share: the carry's shift of two
+    carried nosings)."""
     lo, hi = max(here.y_range_m[0], nxt.y_range_m[0]), min(here.y_range_m[1], nxt.y_range_m[1])
     y = min(max(here.y_m, lo), hi) if lo <= hi else here.y_m
     tread = (nxt.x_at(y) - here.x_at(y)) * math.cos(here.yaw_rad)
     sa, sb = _sigma_at(here, y), _sigma_at(nxt, y)
-    var = sa * sa + sb * sb - 2.0 * rho * sa * sb
+    var = sa * sa + sb * sb - 2.0 * (rho * sa * sb + common_m2)
     return tread, math.sqrt(max(var, 0.0))
 
 

@@ -52,7 +52,9 @@ cell (where the edge lies in its cell; common to the rows). Beyond a drop whose 
 against the near cells: seen only from late viewpoints) the edge also carries
 ``sparse_span_sigma`` of the span between the readings that take those cells as seen and
 as not seen (``sparse_span_fraction``). A tread between two nosings whose shadow parts
-both come from the counts takes their errors as correlated (``shadow_count_common``). The horizontal error of the stride frame itself (the heel position, the pose's
+both come from the counts takes their errors as correlated (``shadow_count_common``), and
+drops what both share: the carry's shift of two carried nosings, and, both seen face-on,
+where in their cells they lie (correlated by the tread's fraction of a cell). The horizontal error of the stride frame itself (the heel position, the pose's
 yaw) is not in the grid and not in these σ (docs/terrain.md, *Limits*).
 """
 
