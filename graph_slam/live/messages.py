@@ -13,6 +13,7 @@ import json
 import os
 import struct
 import threading
+from collections.abc import Callable
 from typing import BinaryIO
 
 import numpy as np
@@ -73,8 +74,14 @@ def unpack(head: bytes, body: bytes) -> tuple[dict, dict[str, np.ndarray]]:
 
 def read_line(stream: BinaryIO, timeout_s: float) -> bytes:
     """One line of ``stream`` within ``timeout_s`` (b"" when none came)."""
+    return read_within(stream.readline, timeout_s)
+
+
+def read_within(read: Callable[[], bytes], timeout_s: float) -> bytes:
+    """What ``read()`` returns within ``timeout_s`` (b"" when it has not returned by then; the
+    reading thread is left to end with the stream)."""
     got: list[bytes] = []
-    reader = threading.Thread(target=lambda: got.append(stream.readline()), daemon=True)
+    reader = threading.Thread(target=lambda: got.append(read()), daemon=True)
     reader.start()
     reader.join(timeout_s)
     return got[0] if got else b""

@@ -40,7 +40,7 @@ from typing import BinaryIO
 import numpy as np
 
 from graph_slam.errors import SessionError
-from graph_slam.live.messages import read_line, read_message, send
+from graph_slam.live.messages import read_line, read_message, read_within, send
 from graph_slam.session.records import CameraIntrinsics, GaitEvents, ImuSeries, JointSeries
 
 START_TIMEOUT_S = 60.0
@@ -144,7 +144,7 @@ class SessionProcess:
         self._thread.join()
         with contextlib.suppress(OSError):
             self._proc.stdin.close()
-        lines = _read_rest(self._proc.stdout, timeout_s).decode(errors="replace").splitlines()
+        lines = read_within(self._proc.stdout.read, timeout_s).decode(errors="replace").splitlines()
         line = lines[-1].strip() if lines else ""  # (after "ready", when that was not read)
         try:
             self._proc.wait(timeout=10.0 if line else 1.0)
@@ -160,15 +160,6 @@ class SessionProcess:
         return f.read().decode(errors="replace").strip()[-2000:] or (
             f"exit status {self._proc.returncode}"
         )
-
-
-def _read_rest(stream: BinaryIO, timeout_s: float) -> bytes:
-    """What ``stream`` gives until its end, within ``timeout_s``."""
-    got: list[bytes] = []
-    reader = threading.Thread(target=lambda: got.append(stream.read()), daemon=True)
-    reader.start()
-    reader.join(timeout_s)
-    return got[0] if got else b""
 
 
 def _widen_pipe(fd: int) -> None:

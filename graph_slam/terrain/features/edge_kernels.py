@@ -230,16 +230,23 @@ def far_end(labels, label, y_lo, y_hi, x0, y0, cell):  # pragma: no cover - comp
 
 
 @numba.njit(cache=True, nogil=True)
+def last_in_row(labels, label, j):  # pragma: no cover
+    """The last cell along x of row ``j`` in component ``label`` (-1: none)."""
+    last = -1
+    for i in range(labels.shape[0]):
+        if labels[i, j] == label:
+            last = i
+    return last
+
+
+@numba.njit(cache=True, nogil=True)
 def rows_rising_on(labels, label, h, j0, j1, look, sign, h_top, min_rise):  # pragma: no cover
     """In how many rows j0…j1 a known cell within ``look`` cells past component ``label``'s
     last cell lies at least ``min_rise`` further on (``sign``: +1 up, -1 down) from ``h_top``."""
     nx = labels.shape[0]
     rows = 0
     for j in range(j0, j1 + 1):
-        last = -1
-        for i in range(nx):
-            if labels[i, j] == label:
-                last = i
+        last = last_in_row(labels, label, j)
         if last < 0:
             continue
         best = -np.inf
@@ -264,10 +271,7 @@ def far_end_bridged(labels, label, height, known, j0, j1, look, tol, x0, cell): 
     h0 = height[label]
     best = -np.inf
     for j in range(j0, j1 + 1):
-        cur = -1
-        for i in range(nx):
-            if labels[i, j] == label:
-                cur = i
+        cur = last_in_row(labels, label, j)
         if cur < 0:
             continue
         while True:
