@@ -26,7 +26,9 @@ stride's length.
 The landmarks' times to the strike are medians over the last ``calibration_strides`` strides
 (a stride whose angle range is below ``min_range_rad``, a turn's pivot or a shuffle, gives
 none). The phase is kept monotone within a stride (its running maximum) and below 1 until the
-next strike. This is a phase variable in the sense of the prosthesis-control literature (the
+next strike. ``AnglePhaseConfig(hedged=True)`` replaces ``d / (d + r)`` by its expectation over
+the strike's uncertain time given that no strike was detected yet (:func:`hedged_phase`; not
+the default: docs/kinematics.md, "A hedged phase"). This is a phase variable in the sense of the prosthesis-control literature (the
 thigh's motion, normalised per stride by its own running extrema, tells the progress through
 the stride: Villarreal & Gregg; Quintero et al.), used here to re-time the stride rather than
 as a polar angle of the phase portrait, which winds back and forth about the flexion peak right
