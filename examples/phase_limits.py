@@ -22,9 +22,13 @@ derived from both thighs, :mod:`kinematics.gait_two_legs`), prints:
 * the phase RMSE of causal phases told every past reference strike: linear in time over the
   median of the last three strides; re-timed at the largest extension and mid-swing (``+`` or
   ``×``); the best of these three chosen per stride *in hindsight* (not causal: a bound for any
-  rule that chooses between them); and the thigh's phase-portrait phase
-  (:func:`kinematics.gait_phase_portrait.portrait_phase`), alone and averaged with the ``+``
-  phase;
+  rule that chooses between them); the hedged (minimum-mean-square-error) phase
+  ``E[d / T | T > d]`` with the stride ``T`` normal or log-normal about the predictor in use (or
+  the predictors averaged by their precision) and their recent errors as its spread; and the
+  thigh's phase-portrait phase (:func:`kinematics.gait_phase_portrait.portrait_phase`), alone
+  and averaged with the ``+`` phase;
+* the online phase RMSE with the hedged phase in the estimator
+  (``AnglePhaseConfig(hedged=True)``; not the default: it helps one femur and costs elsewhere);
 * on the femur walks, the time from the other leg's reference strike to this leg's next one (a
   cue a second thigh IMU, or the other leg's shock felt through the pelvis, would give).
 
@@ -51,6 +55,8 @@ from real_gait_accuracy import DEFAULT_DATA, real_walks, unreferenced
 
 from kinematics.gait_events import sagittal_axis
 from kinematics.gait_online import estimate_online
+from kinematics.gait_phase_angle import AnglePhaseConfig, hedged_phase
+from kinematics.gait_phase_config import GaitPhaseConfig
 from kinematics.gait_phase_metrics import (
     phase_error,
     phase_error_by_stride,
@@ -122,6 +128,43 @@ def retimed(d: np.ndarray, lm: dict, pred: dict, kind: str) -> np.ndarray:
     return np.minimum(np.maximum.accumulate(phase), 0.999)
 
 
+HEDGE = {"floor_s": 0.015, "prior": 0.1, "recent": 3}
+"""The hedged phases' spread: each predictor's RMS error over its ``recent`` last strides with
+``floor_s`` in quadrature; before two are scored, ``prior`` times the predicted stride."""
+
+ACTIVE = {"": "time", "ext": "ext+", "mid": "mid+"}
+
+
+def spreads(history: list[dict], pred: dict) -> dict[str, float]:
+    """Each predictor's spread (s) from its errors on the last strides (``HEDGE``)."""
+    out = {}
+    for k in pred:
+        e = [h[k] for h in history[-HEDGE["recent"] :] if k in h]
+        var = float(np.mean(np.square(e))) if len(e) >= 2 else (HEDGE["prior"] * pred["time"]) ** 2
+        out[k] = math.sqrt(var + HEDGE["floor_s"] ** 2)
+    return out
+
+
+def hedged(d: np.ndarray, lm: dict, pred: dict, sig: dict, mode: str) -> np.ndarray:
+    """The minimum-mean-square-error phase over one stride, ``E[d / T | T > d]``
+    (:func:`kinematics.gait_phase_angle.hedged_phase`): ``T`` about the predictor in use (the
+    stride time, then the largest extension ``+`` and mid-swing ``+``, each known 50 ms after it)
+    with that predictor's spread (``mode`` "normal" or "log-normal"), or (``mode`` "fused") the
+    predictors at hand averaged with weights inverse to their squared spreads, the smallest
+    spread; clipped below 1."""
+    out = np.empty(d.size)
+    for i, di in enumerate(d):
+        at_hand = [""] + [k for k in ("ext", "mid") if di >= lm[k] + 0.05]
+        if mode == "fused":
+            w = {ACTIVE[k]: 1.0 / sig[ACTIVE[k]] ** 2 for k in at_hand}
+            mu = sum(pred[k] * v for k, v in w.items()) / sum(w.values())
+            s = min(sig[k] for k in w)
+        else:
+            mu, s = pred[ACTIVE[at_hand[-1]]], sig[ACTIVE[at_hand[-1]]]
+        out[i] = hedged_phase(float(di), mu, s, lognormal=mode == "log-normal")
+    return np.minimum(out, 0.999)
+
+
 def limits(t, angle, strikes, ref) -> tuple[dict, dict, dict, dict]:
     """(predictor errors s, landmark-to-strike times s, phase errors per causal phase); the
     phase-portrait phase, and its mean with the ``+`` phase, over the strides where the portrait
@@ -131,6 +174,8 @@ def limits(t, angle, strikes, ref) -> tuple[dict, dict, dict, dict]:
     errors: dict[str, list] = {}
     to_strike: dict[str, list] = {k: [] for k in LANDMARKS}
     phase: dict[str, list] = {"time": [], "+": [], "×": [], "best in hindsight": []}
+    phase |= {f"hedged {m}": [] for m in ("normal", "log-normal", "fused")}
+    history: list[dict] = []
     with_portrait: dict[str, list] = {"+": [], "portrait": [], "mean of + and portrait": []}
     for i, (a, dur, lm) in enumerate(rows):
         if lm is None:
@@ -141,6 +186,8 @@ def limits(t, angle, strikes, ref) -> tuple[dict, dict, dict, dict]:
         if not past:
             continue
         pred = predictions(past, lm)
+        sig = spreads(history, pred)
+        history.append({k: v - dur for k, v in pred.items()})
         for k, v in pred.items():
             errors.setdefault(k, []).append(v - dur)
         m = (t >= a) & (t < a + dur)
@@ -153,6 +200,8 @@ def limits(t, angle, strikes, ref) -> tuple[dict, dict, dict, dict]:
         for k, e in each.items():
             phase[k].append(e)
         phase["best in hindsight"].append(min(each.values(), key=lambda e: float(np.mean(e**2))))
+        for mode in ("normal", "log-normal", "fused"):
+            phase[f"hedged {mode}"].append(phase_error(hedged(d, lm, pred, sig, mode), r))
         p = portrait[m]
         if np.all(np.isfinite(p)):
             plus = retimed(d, lm, pred, "+")
@@ -179,6 +228,11 @@ def report(walk, data: Path, orientation: bool = False) -> None:
         f"online phase RMSE {100 * rms(d[np.isfinite(d)]):.1f} %, "
         f"{100 * np.isfinite(d).sum() / max(inside.sum(), 1):.1f} % of the reference's samples "
         "scored"
+    )
+    hedged_cfg = GaitPhaseConfig(stride_phase=AnglePhaseConfig(hedged=True))
+    e = phase_error(np.asarray(estimate_online(walk.imu, hedged_cfg).phase_cyc), ref)
+    print(
+        f"online phase RMSE with the hedged phase (not the default): {100 * rms(e[np.isfinite(e)]):.1f} %"
     )
     if walk.derived is not None and np.any(walk.derived.ambiguous_s > 0):
         gap = walk.derived.ambiguous_s

@@ -36,11 +36,12 @@ arrangement of the sensor), prints per data set and detector (offline
   exceeds a quarter stride, *changed* when any strike moved by more than 20 ms.
 
     python examples/real_gait_accuracy.py [--data ../shared/data/real_thigh_imu] [--quick]
-        [--time-phase]
+        [--time-phase | --hedged-phase]
 
 ``--quick``: 6 arrangements instead of 24 and a smaller synthetic set. ``--time-phase``: the
 online phase linear in time within a stride (``GaitPhaseConfig.stride_phase=None``), not
-re-timed by the thigh's landmarks (:mod:`kinematics.gait_phase_angle`). Per synthetic set the
+re-timed by the thigh's landmarks (:mod:`kinematics.gait_phase_angle`). ``--hedged-phase``: the
+expected phase given the strike not yet detected (``AnglePhaseConfig(hedged=True)``). Per synthetic set the
 online phase RMSE of every walk is printed besides the worst.
 """
 
@@ -59,6 +60,7 @@ from kinematics.gait_events import detect_from_thigh_imu, gait_phase, match_even
 from kinematics.gait_impact import envelope
 from kinematics.gait_online import estimate_online
 from kinematics.gait_patterns import PROSTHETIC_SIDE, SOUND_SIDE
+from kinematics.gait_phase_angle import AnglePhaseConfig
 from kinematics.gait_phase_config import GaitPhaseConfig
 from kinematics.gait_phase_metrics import reference_phase, score_online
 from kinematics.gait_real import (
@@ -356,9 +358,12 @@ def main() -> None:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--time-phase", action="store_true")
+    parser.add_argument("--hedged-phase", action="store_true")
     args = parser.parse_args()
     if args.time_phase:
         SETTINGS["online"] = GaitPhaseConfig(stride_phase=None)
+    elif args.hedged_phase:
+        SETTINGS["online"] = GaitPhaseConfig(stride_phase=AnglePhaseConfig(hedged=True))
     logging.basicConfig(level=logging.ERROR)
     print(HEADER)
     print("|" + "---|" * 12)
