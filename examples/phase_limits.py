@@ -51,7 +51,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from real_gait_accuracy import DEFAULT_DATA, real_walks, unreferenced
+from gait_walks import DEFAULT_DATA, real_walks, unreferenced
 
 from kinematics.gait_events import sagittal_axis
 from kinematics.gait_online import estimate_online
