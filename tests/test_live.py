@@ -197,6 +197,13 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     for name in ("online.tum", "smoothed.tum", "frames.csv"):
         ours = (tmp_path / "out" / "run" / "live" / "icp_imu_kin" / name).read_text()
         assert (again.out / "live" / "icp_imu_kin" / name).read_text() == ours, name
+    # and run.json counts the same things: the strikes the live estimator took in among them
+    counts = summary["sessions"]["live"]["variants"]["icp+imu+kin"]["counts"]
+    summary_again = yaml.safe_load((again.out / "run.json").read_text())
+    counts_again = summary_again["sessions"]["live"]["variants"]["icp+imu+kin"]["counts"]
+    assert sorted(counts) == sorted(counts_again)
+    assert counts["foot_strikes"] == counts_again["foot_strikes"] >= 1
+    assert counts == counts_again
 
 
 def test_missing_extra_is_named_before_any_work(monkeypatch, tmp_path: Path, capsys) -> None:

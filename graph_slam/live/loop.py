@@ -115,6 +115,7 @@ class LiveRunner:
         self.frames: FrameQueue | None = None
         self._loaded = False
         self._events_pending: list[tuple[float, str]] = []  # known, stamped after the frame
+        self.n_strikes = 0  # the foot strikes given to the pipeline
         self._t0 = self.warm_up_s = 0.0
 
     def run(self, max_s: float | None = None) -> LiveResult:
@@ -170,6 +171,7 @@ class LiveRunner:
                 self.timing.ahead_cpu_s.extend(prep.ahead_cpu_s)
                 self.prosthesis.close()
         results = self.pipe.finish()
+        results.counts["foot_strikes"] = self.n_strikes  # as graph-slam run counts them
         results.config["mount_pitch"] = {"source": "config", "pitch_deg": self.mount_pitch_deg}
         counts = {"camera": dict(self.source.counts), "imu": dict(self.source.merger.counts),
                   "prosthesis": dict(self.prosthesis.counts),
@@ -284,6 +286,7 @@ class LiveRunner:
             t_event, kind = self._events_pending.pop(0)  # stamped at or before the frame
             if kind == "foot_strike":
                 self.pipe.foot_strike(t_event)
+                self.n_strikes += 1
             self._loaded = kind == "foot_strike"
         index = len(self._latency)
         frame = frame.renumbered(index)  # (checked once, when it was decoded)
