@@ -144,6 +144,14 @@ def realtime_recording(tmp_path_factory) -> Path:
     return out
 
 
+def _run_counts(run_dir: Path) -> dict:
+    """The counts in ``run_dir/run.json`` of the live session's icp+imu+kin run."""
+    import yaml
+
+    summary = yaml.safe_load((run_dir / "run.json").read_text())
+    return summary["sessions"]["live"]["variants"]["icp+imu+kin"]["counts"]
+
+
 def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     realtime_recording: Path, tmp_path: Path
 ) -> None:
@@ -198,9 +206,7 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
         ours = (tmp_path / "out" / "run" / "live" / "icp_imu_kin" / name).read_text()
         assert (again.out / "live" / "icp_imu_kin" / name).read_text() == ours, name
     # and run.json counts the same things: the strikes the live estimator took in among them
-    counts = summary["sessions"]["live"]["variants"]["icp+imu+kin"]["counts"]
-    summary_again = yaml.safe_load((again.out / "run.json").read_text())
-    counts_again = summary_again["sessions"]["live"]["variants"]["icp+imu+kin"]["counts"]
+    counts, counts_again = _run_counts(tmp_path / "out" / "run"), _run_counts(again.out)
     assert sorted(counts) == sorted(counts_again)
     assert counts["foot_strikes"] == counts_again["foot_strikes"] >= 1
     assert counts == counts_again
