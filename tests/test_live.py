@@ -144,6 +144,14 @@ def realtime_recording(tmp_path_factory) -> Path:
     return out
 
 
+def _run_counts(run_dir: Path) -> dict:
+    """The counts in ``run_dir/run.json`` of the live session's icp+imu+kin run."""
+    import yaml
+
+    summary = yaml.safe_load((run_dir / "run.json").read_text())
+    return summary["sessions"]["live"]["variants"]["icp+imu+kin"]["counts"]
+
+
 def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     realtime_recording: Path, tmp_path: Path
 ) -> None:
@@ -197,6 +205,11 @@ def test_live_playback_writes_runs_outputs_up_to_the_last_frame(
     for name in ("online.tum", "smoothed.tum", "frames.csv"):
         ours = (tmp_path / "out" / "run" / "live" / "icp_imu_kin" / name).read_text()
         assert (again.out / "live" / "icp_imu_kin" / name).read_text() == ours, name
+    # and run.json counts the same things: the strikes the live estimator took in among them
+    counts, counts_again = _run_counts(tmp_path / "out" / "run"), _run_counts(again.out)
+    assert sorted(counts) == sorted(counts_again)
+    assert counts["foot_strikes"] == counts_again["foot_strikes"] >= 1
+    assert counts == counts_again
 
 
 def test_missing_extra_is_named_before_any_work(monkeypatch, tmp_path: Path, capsys) -> None:

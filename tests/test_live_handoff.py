@@ -182,9 +182,10 @@ class _FakeCamera:
 
 class _Results:
     config: dict
+    counts: dict
 
     def __init__(self) -> None:
-        self.config = {}
+        self.config, self.counts = {}, {}
 
 
 class _FakeEstimator:

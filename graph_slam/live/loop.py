@@ -27,39 +27,31 @@ the frames processed (with the IMU, joints and events) are written as a session,
 outputs of ``graph-slam run`` for it from the live results (:func:`graph_slam.report.run`
 with ``precomputed``), complete up to the last frame processed, each folder written whole,
 and ``live.json`` (the counts, skips by reason, latency and where the time went).
+
+The streams recorded and the outputs written on stop: :mod:`graph_slam.live.outputs` (its names
+importable from here too).
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import queue
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from graph_slam.live.camera import EndItem, ImuItem, RealsenseSource
 from graph_slam.live.handoff import FrameQueue
+from graph_slam.live.outputs import _Recorded, write_outputs  # noqa: F401 (re-exported)
 from graph_slam.live.prep import PreparedFrame, Preparer, UnreadableFrame
 from graph_slam.live.result import LiveResult, Timing
 from graph_slam.live.warmup import leg_model, warm_up
 from graph_slam.pipelines.config import PipelineConfig
-from graph_slam.session.records import GaitEvents, ImuSeries, JointSeries, RgbdFrame
-
-
-@dataclass
-class _Recorded:
-    """The streams as given to the pipeline (written as the live session on stop)."""
-
-    frames: list[RgbdFrame] = field(default_factory=list)
-    imu: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
-    joints: list[tuple[float, float, float]] = field(default_factory=list)
-    events: list[tuple[float, str]] = field(default_factory=list)
+from graph_slam.session.records import GaitEvents, ImuSeries, JointSeries
 
 
 @contextlib.contextmanager
@@ -115,6 +107,7 @@ class LiveRunner:
         self.frames: FrameQueue | None = None
         self._loaded = False
         self._events_pending: list[tuple[float, str]] = []  # known, stamped after the frame
+        self.n_strikes = 0  # the foot strikes given to the pipeline
         self._t0 = self.warm_up_s = 0.0
 
     def run(self, max_s: float | None = None) -> LiveResult:
@@ -170,6 +163,7 @@ class LiveRunner:
                 self.timing.ahead_cpu_s.extend(prep.ahead_cpu_s)
                 self.prosthesis.close()
         results = self.pipe.finish()
+        results.counts["foot_strikes"] = self.n_strikes  # as graph-slam run counts them
         results.config["mount_pitch"] = {"source": "config", "pitch_deg": self.mount_pitch_deg}
         counts = {"camera": dict(self.source.counts), "imu": dict(self.source.merger.counts),
                   "prosthesis": dict(self.prosthesis.counts),
@@ -284,6 +278,7 @@ class LiveRunner:
             t_event, kind = self._events_pending.pop(0)  # stamped at or before the frame
             if kind == "foot_strike":
                 self.pipe.foot_strike(t_event)
+                self.n_strikes += 1
             self._loaded = kind == "foot_strike"
         index = len(self._latency)
         frame = frame.renumbered(index)  # (checked once, when it was decoded)
@@ -378,25 +373,3 @@ class LiveRunner:
             if events is not None:
                 writer.write_events(events)
         return writer.path
-
-
-def write_outputs(runner: LiveRunner, result: LiveResult, out: Path, *, overwrite: bool = False):
-    """``out/session`` (the frames processed) and ``out/run`` (``graph-slam run``'s outputs
-    from the live results)."""
-    from graph_slam.report import RunConfig, run
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    session = runner.write_session(out / "session")  # (written during the run if asked)
-    variant = runner.config.variant
-    cfg = RunConfig(variants=[variant], pipeline=runner.config.model_copy(
-        update={"mount_pitch_deg": runner.mount_pitch_deg, "event_source": None}), rrd=False)  # fmt: skip
-    from graph_slam.variants import Variant
-
-    report = run([session], out / "run", cfg, overwrite=overwrite,
-                 precomputed={"live": {Variant(variant): result.results}})  # fmt: skip
-    result.session, result.outputs = session, report.out
-    tmp = out / ".live.json.tmp"  # written whole or not at all
-    tmp.write_text(json.dumps(result.summary(), indent=2) + "\n")
-    tmp.replace(out / "live.json")
-    return report

@@ -2,7 +2,10 @@
 registrations (each frame against the stride's keyframe, :mod:`graph_slam.pipelines.keyframe`)
 become :class:`IcpMeasurement` s for :class:`StrideSLAM`, fed
 together with the IMU, the encoders (through a :class:`kinematics.leg_model.LegModel`) and the
-load cell's foot-loaded state."""
+load cell's foot-loaded state.
+
+The front end's registrations as the back end's measurements:
+:mod:`graph_slam.pipelines.graph_frontend` (its names importable from here too)."""
 
 from __future__ import annotations
 
@@ -13,88 +16,24 @@ import gtsam
 import numpy as np
 
 from graph_slam.backend import StrideSLAM
-from graph_slam.backend.measurements import IcpMeasurement
-from graph_slam.errors import RegistrationError
-from graph_slam.frontend import Registration, make_registration
 from graph_slam.frontend.methods import OrganisedAhead
-from graph_slam.frontend.result import RegistrationResult
 from graph_slam.pipelines.bridge import UnregisteredStride
 from graph_slam.pipelines.config import PipelineConfig
+from graph_slam.pipelines.graph_frontend import (  # noqa: F401 (re-exported)
+    _graph_registration,
+    _measured,
+    failed_icp_measurement,
+    icp_measurement,
+    imu_guess_on,
+)
 from graph_slam.pipelines.keyframe import Keyframes
-from graph_slam.pipelines.protocol import PipelineBase, sensor_registration, with_camera_floor
+from graph_slam.pipelines.protocol import PipelineBase
 from graph_slam.pipelines.results import FrameOutput, PipelineResults, StrideOutput
 from graph_slam.pipelines.stages import StageTimer
 from graph_slam.session.records import CameraIntrinsics, RgbdFrame
 from graph_slam.strides.anchor import make_anchor
 
 log = logging.getLogger(__name__)
-
-
-def icp_measurement(result: RegistrationResult, source_index: int, target_index: int):
-    """The back end's record of a front-end registration.
-
-    The front end (``RegistrationResult``) reports its information in GTSAM's tangent space
-    of ``BetweenFactor<Pose3>`` (right perturbation, source frame), as ``IcpMeasurement``
-    wants, already zero along the directions the front end's degeneracy test found free;
-    ``dof`` carries that test's count of constrained directions to the gate.
-    """
-    return IcpMeasurement(
-        source_index=source_index,
-        target_index=target_index,
-        target_T_source=result.target_T_source,
-        information=result.information,
-        fitness=result.fitness,
-        inlier_rmse_m=result.inlier_rmse_m,
-        correspondences=result.correspondences,
-        dof=result.degeneracy.dof,
-    )
-
-
-def failed_icp_measurement(err: RegistrationError, source_index: int, target_index: int):
-    """A failed registration: recorded with its reason, never a zero-motion factor."""
-    return IcpMeasurement(
-        source_index=source_index,
-        target_index=target_index,
-        target_T_source=np.eye(4),
-        information=np.zeros((6, 6)),
-        fitness=float("nan") if err.fitness is None else float(err.fitness),
-        inlier_rmse_m=float("nan"),
-        correspondences=err.correspondences or 0,
-        ok=False,
-        reason=f"{err.reason.value}: {err.detail}",
-    )
-
-
-def _measured(register_now, source_index: int, target_index: int):
-    """Run a registration and make it the back end's record (a failure keeps its reason and is
-    never a zero-motion factor); returns ``(IcpMeasurement, fitness)``."""
-    try:
-        r = register_now()
-    except RegistrationError as err:
-        icp = failed_icp_measurement(err, source_index, target_index)
-        return icp, icp.fitness
-    return icp_measurement(r, source_index, target_index), r.fitness
-
-
-def imu_guess_on(config: PipelineConfig, registration: Registration) -> bool:
-    """``graph.imu_guess``; unset (None): on when the method needs a good guess (the
-    projective, realtime, preset: one scale and a tight correspondence distance)."""
-    if config.graph.imu_guess is not None:
-        return config.graph.imu_guess
-    return registration.needs_guess
-
-
-def _graph_registration(config: PipelineConfig, intrinsics, has_color: bool) -> Registration:
-    """The graph's registration method for frames with (or without) a colour image."""
-    registration = sensor_registration(
-        config.graph.registration, has_color, config.graph.depth_only
-    )
-    return make_registration(
-        with_camera_floor(registration, config.graph.real_camera_floor),
-        intrinsics,
-        config.cloud,
-        has_color,
-    )
 
 
 class GraphPipeline(PipelineBase):
