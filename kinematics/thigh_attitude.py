@@ -68,6 +68,11 @@ class ThighAttitudeConfig:
     asymmetry; the fraction skips the small loading-response bump after a foot strike)."""
     max_learn_s: float = 8.0
     """Longest buffer kept while learning (older samples are dropped)."""
+    min_wait_moving_s: float = 3.2
+    """Once the buffer spans ``max_learn_s`` without a whole cycle, the axis is fixed from what
+    it holds, but only after the motion in it spans this long (two strides at the slowest
+    adult cadence, 1.6 s): a long standing start fills the buffer, and is no reason to give
+    up at the first swing."""
 
 
 @dataclass(frozen=True)
@@ -183,7 +188,12 @@ class SagittalAxisLearner:
         peak = max(pos, neg)
         if peak < self.cfg.min_swing_peak_rad_s:
             return None
-        full = self.t[-1] - self.t[0] >= self.cfg.max_learn_s * 0.99
+        # a buffer full of standing is no reason to give up on a whole cycle at the first swing
+        first_moving = self.t[int(np.argmax(~quiet))]
+        full = (
+            self.t[-1] - self.t[0] >= self.cfg.max_learn_s * 0.99
+            and self.t[-1] - first_moving >= self.cfg.min_wait_moving_s
+        )
         if not full and (
             _segments(np.asarray(self.t), w, self.cfg.segment_fraction * peak, 0.12) < 3
             or min(pos, neg) < self.cfg.min_counter_peak_rad_s

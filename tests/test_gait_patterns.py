@@ -178,3 +178,24 @@ def test_knee_encoder_flips_a_wrong_sign_without_impacts():
         strikes[strikes > 6.0], sc.foot_strikes_s[sc.foot_strikes_s > 6.0]
     )
     assert missed == 0 and np.max(np.abs(err)) <= 0.060
+
+
+@pytest.mark.parametrize("rate_hz", [100.0, 250.0])
+def test_a_long_standing_start_changes_nothing(rate_hz):
+    """The axis learner's buffer (8 s) filled with a standing start is not a reason to fix the
+    axis from the first partial swing: a walk after 11 s of standing (a treadmill trial's quiet
+    start) gives the same strikes, relative to its start, as after 3 s, and its phase within 3 %
+    (before, the axis was fixed at the first swing: the first strike was missed and the phase
+    RMSE was 5-6 %)."""
+    out = []
+    for stand_s in (3.0, 11.0):
+        sc = simulate_walks(
+            [[0.9] * 8], rate_hz=rate_hz, thigh_R_sensor=right_handed_arrangements()[5],
+            seed=200, pattern=PROSTHETIC_SIDE, stand_s=stand_s,
+        )  # fmt: skip
+        res = estimate_online(sc.imu)
+        _check(res.times("foot_strike"), sc.foot_strikes_s, sc.walking_intervals_s)
+        score = score_online(res, sc.foot_strikes_s, sc.toe_offs_s)
+        assert score.phase_rmse_cyc <= 0.03, stand_s
+        out.append(res.times("foot_strike") - stand_s)
+    np.testing.assert_allclose(out[1], out[0], atol=0.002)
