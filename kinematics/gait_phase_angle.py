@@ -17,8 +17,8 @@ stride's length.
   that lasts longer than predicted holds the phase back);
 * **after the largest extension** (confirmed once the angle, having extended past the middle
   of the last stride's range, rose ``rise_fraction`` of that range above its running minimum:
-  the wobble of the thigh at contact is not the swing) — ``r`` is the last strides' time from the largest
-  extension to the strike, less the time since it;
+  the wobble of the thigh at contact is not the swing) — ``r`` is the last strides' time from
+  the largest extension to the strike, less the time since it;
 * **after mid-swing** (the angle rising through the middle of the last stride's range, where
   it moves fastest and its timing is sharpest) — ``r`` the last strides' time from mid-swing to
   the strike, less the time since it.
@@ -28,11 +28,12 @@ The landmarks' times to the strike are medians over the last ``calibration_strid
 none). The phase is kept monotone within a stride (its running maximum) and below 1 until the
 next strike. ``AnglePhaseConfig(hedged=True)`` replaces ``d / (d + r)`` by its expectation over
 the strike's uncertain time given that no strike was detected yet (:func:`hedged_phase`; not
-the default: docs/kinematics.md, "A hedged phase"). This is a phase variable in the sense of the prosthesis-control literature (the
-thigh's motion, normalised per stride by its own running extrema, tells the progress through
-the stride: Villarreal & Gregg; Quintero et al.), used here to re-time the stride rather than
-as a polar angle of the phase portrait, which winds back and forth about the flexion peak right
-at the strike (docs/kinematics.md, "The phase within a stride from the thigh's motion").
+the default: docs/kinematics.md, "A hedged phase"). This is a phase variable in the sense of
+the prosthesis-control literature (the thigh's motion, normalised per stride by its own
+running extrema, tells the progress through the stride: Villarreal & Gregg; Quintero et al.),
+used here to re-time the stride rather than as a polar angle of the phase portrait, which
+winds back and forth about the flexion peak right at the strike (docs/kinematics.md, "The
+phase within a stride from the thigh's motion").
 """
 
 from __future__ import annotations
