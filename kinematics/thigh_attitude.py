@@ -53,8 +53,10 @@ class ThighAttitudeConfig:
     quiet_gyro_rad_s: float = 0.25
     """A sample with a smaller angular-rate norm is quiet (standing) for the zero-angle and the
     initial bias."""
-    min_swing_peak_rad_s: float = 1.2
-    """The axis is fixed once the projected angular velocity has reached this peak."""
+    min_swing_peak_rad_s: float = 0.8
+    """The axis is fixed once the projected angular velocity has reached this peak (a prosthesis
+    side's thigh swings at 1.2 rad/s at most at 0.6 m/s, reduced swing flexion; standing sway
+    stays below 0.2 rad/s)."""
     min_moving_s: float = 0.4
     """... and at least this much time of motion has been seen."""
     max_peak_ratio: float = 0.88

@@ -199,3 +199,21 @@ def test_a_long_standing_start_changes_nothing(rate_hz):
         assert score.phase_rmse_cyc <= 0.03, stand_s
         out.append(res.times("foot_strike") - stand_s)
     np.testing.assert_allclose(out[1], out[0], atol=0.002)
+
+
+@pytest.mark.parametrize("rate_hz", [100.0, 250.0])
+def test_a_slow_prosthetic_walk_gets_a_phase(rate_hz):
+    """At 0.6 m/s the prosthesis side's thigh swings at 1.2 rad/s at most (reduced swing
+    flexion): the axis learner still fixes its axis, so the walk has a phase and toe-offs, not
+    only the strikes from the shock (before, the axis needed a 1.2 rad/s peak: no phase at
+    all)."""
+    sc = simulate_walks(
+        [[0.6] * 10], rate_hz=rate_hz, thigh_R_sensor=right_handed_arrangements()[7],
+        seed=300, pattern=TREADMILL, stand_s=3.0,
+    )  # fmt: skip
+    res = estimate_online(sc.imu)
+    _check(res.times("foot_strike"), sc.foot_strikes_s, sc.walking_intervals_s)
+    score = score_online(res, sc.foot_strikes_s, sc.toe_offs_s)
+    assert score.phase_scored_fraction >= 0.85
+    assert score.phase_rmse_cyc <= 0.03
+    assert score.toe_off.missed == 0 and score.toe_off.extra == 0
