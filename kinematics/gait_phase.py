@@ -4,7 +4,8 @@ happen (causal: each sample is processed once, in order, and nothing reads ahead
 Per sample (:meth:`OnlineGaitEstimator.update`):
 
 1. input checks: a non-finite sample is dropped, a saturated one is only predicted through, a
-   gap longer than ``max_gap_s`` drops the phase lock (re-acquired after it); each is counted in
+   gap longer than ``max_gap_s`` is flagged and predicted through up to ``max_bridge_s``, a
+   longer one drops the phase lock (re-acquired after it); each is counted in
    :attr:`OnlineGaitEstimator.counts`; time going backwards is a :class:`GaitInputError`;
 2. the thigh's sagittal angle and rate (:mod:`kinematics.thigh_attitude`; the samples buffered
    while the sagittal axis is learned are replayed once it is fixed, and the events found in
@@ -163,9 +164,10 @@ class OnlineGaitEstimator(MountingCheck, EventEmission, PhaseFilter):
         if self._t_last is not None and t_s - self._t_last > self.cfg.max_gap_s:
             self.counts["gaps"] += 1
             flags |= 4
-            self._lose_lock()
-            if self.thigh is not None:
-                self.thigh._first = True
+            if t_s - self._t_last > self.cfg.max_bridge_s:
+                self._lose_lock()
+                if self.thigh is not None:
+                    self.thigh._first = True
         self._t_last = t_s
         saturated = bool(
             np.any(np.abs(gyro) >= self.cfg.gyro_range_rad_s)

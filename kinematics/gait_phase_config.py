@@ -54,7 +54,10 @@ class GaitPhaseConfig:
     standing_posture_s: float = 0.5
     """Still this long: the angle is the standing posture (the offset prior of the next walk)."""
     max_gap_s: float = 0.05
-    """A longer gap between samples drops the phase lock (counted)."""
+    """A longer gap between samples is counted (``gaps``) and its next sample flagged."""
+    max_bridge_s: float = 0.15
+    """A gap up to this long is predicted through (a tenth of a stride: lost packets of a
+    wireless sensor); a longer one drops the phase lock, re-acquired after it."""
     gyro_range_rad_s: float = 34.9
     """Sensor range: a sample at or past it is saturated (counted, predicted through)."""
     accel_range_m_s2: float = 156.0

@@ -191,3 +191,22 @@ def test_angle_offset_is_the_mean_over_the_last_complete_stride():
     mean, scale = est._norm
     assert mean == pytest.approx(0.100, abs=0.004)
     assert scale == pytest.approx(0.3 / math.sqrt(2), abs=0.005)
+
+
+def test_a_short_gap_is_bridged_and_a_long_one_drops_the_lock(walk):
+    """A gap up to ``max_bridge_s`` (lost packets of a wireless sensor) is counted, flagged and
+    predicted through: no re-acquisition, the same strikes; a longer one drops the lock."""
+    clean = estimate_online(walk.imu)
+    t, g, a = walk.imu.t_s, walk.imu.gyro_rad_s, walk.imu.accel_m_s2
+    k = int(np.searchsorted(t, 6.0))
+    out = {}
+    for n in (8, 20):  # 90 ms and 210 ms at 100 Hz
+        keep = np.ones(t.size, dtype=bool)
+        keep[k : k + n] = False
+        out[n] = estimate_online(ImuSeries(t[keep], g[keep], a[keep]))
+        assert out[n].counts["gaps"] == 1
+    assert out[8].counts["reacquired"] == clean.counts["reacquired"]
+    np.testing.assert_allclose(out[8].times("foot_strike"), clean.times("foot_strike"), atol=0.011)
+    sc, sc_clean = (score_online(r, walk.foot_strikes_s, walk.toe_offs_s) for r in (out[8], clean))
+    assert abs(sc.phase_rmse_cyc - sc_clean.phase_rmse_cyc) < 0.005
+    assert out[20].counts["reacquired"] > clean.counts["reacquired"]
