@@ -12,7 +12,7 @@ phase RMSE, worst walk; online toe-offs found of the true ones on the synthetic 
 * the synthetic prosthesis side (:data:`kinematics.gait_patterns.PROSTHETIC_SIDE`): 12 strides
   after 3 or 11 s of standing at 100 and 250 Hz; 0.6 m/s on a treadmill and overground (reduced
   swing flexion); 30 strides on a treadmill at 1.0 m/s, 250 Hz, after 11 s of standing. Three
-  mountings each (24 arrangements, half with a random rotation on top).
+  mountings each (of the 24 axis arrangements, the second with a random rotation on top).
 
     python examples/gait_variations.py [--data ../shared/data/real_thigh_imu] [--quick]
 
