@@ -31,9 +31,7 @@ from gait_walks import DEFAULT_DATA, Walk, real_walks
 from real_gait_accuracy import Tally, run_offline, run_online
 
 from kinematics.errors import GaitInputError
-from kinematics.gait_online import estimate_online
 from kinematics.gait_patterns import PROSTHETIC_SIDE
-from kinematics.gait_phase_metrics import score_online
 from kinematics.gait_real import right_handed_arrangements
 from kinematics.gait_scenarios import simulate_walks
 from kinematics.gait_synth import random_mounting
@@ -125,14 +123,11 @@ def main() -> None:
                 print(row(f"Xsens walk, {name}", detector, tally), flush=True)
     for name, walks in synthetic_variations(args.quick):
         for detector, run in (("offline", run_offline), ("online", run_online)):
-            tally, toe = Tally(), [0, 0]
+            tally = Tally()
             for sc in walks:
-                run(Walk(name, sc.imu, sc.foot_strikes_s), tally)
-                if detector == "online":
-                    score = score_online(estimate_online(sc.imu), sc.foot_strikes_s, sc.toe_offs_s)
-                    toe[0] += score.toe_off.true - score.toe_off.missed
-                    toe[1] += score.toe_off.true
-            toes = f"{toe[0]} of {toe[1]}" if detector == "online" else "–"
+                run(Walk(name, sc.imu, sc.foot_strikes_s, toe_offs_s=sc.toe_offs_s), tally)
+            found, true = tally.toe_offs
+            toes = f"{found} of {true}" if detector == "online" else "–"
             print(row(f"prosthesis side, {name}", detector, tally, toes), flush=True)
 
 

@@ -44,6 +44,8 @@ class Walk:
     """A reference derived from the two thighs of the walk (when there is no other)."""
     legs: tuple[Leg, Leg] | None = None
     """(this thigh, the other thigh) of a two-thigh walk."""
+    toe_offs_s: np.ndarray | None = None
+    """True toe-offs (synthetic walks): the online toe-offs are then scored too."""
 
 
 def unreferenced(walk: Walk) -> np.ndarray | None:

@@ -78,6 +78,8 @@ class Tally:
     latency: list = dataclasses.field(default_factory=list)
     latency_rest: list = dataclasses.field(default_factory=list)
     rmse: list = dataclasses.field(default_factory=list)
+    toe_offs: list = dataclasses.field(default_factory=lambda: [0, 0])
+    """Online toe-offs found and true, of walks that know them (``Walk.toe_offs_s``)."""
 
     def cells(self, online: bool) -> list[str]:
         e = np.abs(np.asarray(self.errors)) * 1e3
@@ -145,7 +147,10 @@ def run_online(walk: Walk, tally: Tally) -> np.ndarray:
         sc = score_online(res, walk.strikes_s, np.zeros(0), unreferenced(walk))
         tally.rmse.append(sc.phase_rmse_cyc)
     elif walk.strikes_s is not None:
-        sc = score_online(res, walk.strikes_s, np.zeros(0))
+        toe_offs = walk.toe_offs_s if walk.toe_offs_s is not None else np.zeros(0)
+        sc = score_online(res, walk.strikes_s, toe_offs)
+        tally.toe_offs[0] += sc.toe_off.true - sc.toe_off.missed
+        tally.toe_offs[1] += sc.toe_off.true
         tally.true += sc.foot_strike.true
         tally.missed += sc.foot_strike.missed
         tally.extra += sc.foot_strike.extra
